@@ -1,0 +1,1 @@
+"""Shipped robots (robot.toml + tet meshes); regenerate with make_robots.py."""

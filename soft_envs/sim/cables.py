@@ -1,0 +1,217 @@
+r"""Cables: polylines through points bound to the mesh by barycentric coordinates (paper II-B).
+
+A cable point ``p_s = sum_a w_{s,a} x_{n(s,a)}`` follows the tet it was bound to at rest. The
+cable length is ``L(x) = sum_s |p_{s+1} - p_s|`` and its deformation (eq. 2, 3)
+
+.. math::
+    \Gamma(u, x) = L(x) - \alpha(u), \qquad \alpha(u) = \alpha^0 - u ,
+
+with ``u`` the contracted length pulled in by the motor. The cable is a unilateral spring with
+energy ``Q(Gamma)``, :func:`one_sided_quadratic`. In tension-control mode (paper appendix A)
+the energy is ``tau * L(x)`` with ``tau >= 0`` the prescribed tension.
+
+Tendons are stored flat for the numba kernels: ``pt_nodes (P, 4)`` and ``pt_w (P, 4)`` for all
+points of all tendons, ``ptr (T+1)`` the first point of each tendon. A tendon with ``P_t``
+points couples ``4 P_t`` nodes, i.e. a dense ``12 P_t`` square block of the Hessian.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["one_sided_quadratic", "Q", "dQ", "d2Q", "cable_lengths", "cable_length_gradients",
+           "cable_energy", "cable_assemble", "LENGTH_CONTROL", "TENSION_CONTROL"]
+
+LENGTH_CONTROL = 0
+TENSION_CONTROL = 1
+
+
+@njit(cache=True)
+def Q(s, k, eps):
+    """Smooth one-sided quadratic: 0 for s <= 0, ``k s^3 / (6 eps)`` on (0, eps) (C2 cubic
+    blend, Q'' rising linearly from 0 to k), ``k eps^2/6 + k s (s - eps)/2`` beyond."""
+    if s <= 0.0:
+        return 0.0
+    if s < eps:
+        return k * s * s * s / (6.0 * eps)
+    return k * eps * eps / 6.0 + 0.5 * k * s * (s - eps)
+
+
+@njit(cache=True)
+def dQ(s, k, eps):
+    """Q'(s): the spring force (cable tension, contact normal force)."""
+    if s <= 0.0:
+        return 0.0
+    if s < eps:
+        return 0.5 * k * s * s / eps
+    return k * (s - 0.5 * eps)
+
+
+@njit(cache=True)
+def d2Q(s, k, eps):
+    """Q''(s)."""
+    if s <= 0.0:
+        return 0.0
+    if s < eps:
+        return k * s / eps
+    return k
+
+
+def one_sided_quadratic(s, k: float, eps: float):
+    """Vectorised ``(Q, Q', Q'')`` of :func:`Q` for numpy arrays (used by objectives and tests)."""
+    s = np.asarray(s, dtype=np.float64)
+    blend = (s > 0) & (s < eps)
+    full = s >= eps
+    q = np.where(blend, k * s**3 / (6 * eps), np.where(full, k * eps**2 / 6 + 0.5 * k * s * (s - eps), 0.0))
+    dq = np.where(blend, 0.5 * k * s**2 / eps, np.where(full, k * (s - 0.5 * eps), 0.0))
+    d2q = np.where(blend, k * s / eps, np.where(full, k, 0.0))
+    return q, dq, d2q
+
+
+@njit(cache=True)
+def _point(x, nodes, w, out):
+    for i in range(3):
+        out[i] = (w[0] * x[nodes[0], i] + w[1] * x[nodes[1], i]
+                  + w[2] * x[nodes[2], i] + w[3] * x[nodes[3], i])
+
+
+@njit(cache=True)
+def _tendon_length_grad(x, pt_nodes, pt_w, p0, p1, dLp, want_grad):
+    """Length of one tendon (points p0..p1-1); its gradient w.r.t. the points into dLp (P, 3)."""
+    P = p1 - p0
+    a = np.empty(3)
+    b = np.empty(3)
+    L = 0.0
+    if want_grad:
+        dLp[:P] = 0.0
+    for s in range(P - 1):
+        _point(x, pt_nodes[p0 + s], pt_w[p0 + s], a)
+        _point(x, pt_nodes[p0 + s + 1], pt_w[p0 + s + 1], b)
+        l = math.sqrt((b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 + (b[2] - a[2]) ** 2)
+        L += l
+        if want_grad and l > 1e-14:
+            for i in range(3):
+                e = (b[i] - a[i]) / l
+                dLp[s + 1, i] += e
+                dLp[s, i] -= e
+    return L
+
+
+@njit(cache=True)
+def cable_lengths(x, pt_nodes, pt_w, ptr):
+    """Current length L(x) of every tendon."""
+    T = ptr.shape[0] - 1
+    out = np.empty(T)
+    dummy = np.empty((1, 3))
+    for t in range(T):
+        out[t] = _tendon_length_grad(x, pt_nodes, pt_w, ptr[t], ptr[t + 1], dummy, False)
+    return out
+
+
+@njit(cache=True)
+def cable_length_gradients(x, pt_nodes, pt_w, ptr, n_dof):
+    """Dense ``(T, 3n)`` matrix of dL_t/dx (tendons touch few nodes; T is small)."""
+    T = ptr.shape[0] - 1
+    out = np.zeros((T, n_dof))
+    Pmax = 0
+    for t in range(T):
+        Pmax = max(Pmax, ptr[t + 1] - ptr[t])
+    dLp = np.zeros((Pmax, 3))
+    for t in range(T):
+        _tendon_length_grad(x, pt_nodes, pt_w, ptr[t], ptr[t + 1], dLp, True)
+        for s in range(ptr[t + 1] - ptr[t]):
+            for a in range(4):
+                n = pt_nodes[ptr[t] + s, a]
+                w = pt_w[ptr[t] + s, a]
+                for i in range(3):
+                    out[t, 3 * n + i] += w * dLp[s, i]
+    return out
+
+
+@njit(cache=True)
+def cable_energy(x, pt_nodes, pt_w, ptr, rest, k, eps, mode, tension):
+    """Total cable energy: ``sum_t Q(L_t - rest_t)`` (length control) or ``sum_t tau_t L_t``."""
+    L = cable_lengths(x, pt_nodes, pt_w, ptr)
+    total = 0.0
+    for t in range(L.shape[0]):
+        if mode == LENGTH_CONTROL:
+            total += Q(L[t] - rest[t], k[t], eps)
+        else:
+            total += tension[t] * L[t]
+    return total
+
+
+@njit(cache=True)
+def cable_assemble(x, pt_nodes, pt_w, ptr, rest, k, eps, mode, tension, grad, hdata, hmap, hptr,
+                   want_hess=True):
+    """Add cable gradients into ``grad`` and Hessian blocks into ``hdata`` (via ``hmap``; tendon
+    t's (12 P_t)^2 entries start at ``hptr[t]``, row-major). Returns the energy.
+
+    Length control: grad = Q'(Gamma) dL, H = Q''(Gamma) dL dL^T + Q'(Gamma) d2L.
+    Tension control: grad = tau dL, H = tau d2L."""
+    T = ptr.shape[0] - 1
+    total = 0.0
+    for t in range(T):
+        p0 = ptr[t]
+        P = ptr[t + 1] - p0
+        dLp = np.zeros((P, 3))
+        L = _tendon_length_grad(x, pt_nodes, pt_w, p0, p0 + P, dLp, True)
+        if mode == LENGTH_CONTROL:
+            gam = L - rest[t]
+            total += Q(gam, k[t], eps)
+            c1 = dQ(gam, k[t], eps)
+            c2 = d2Q(gam, k[t], eps)
+        else:
+            total += tension[t] * L
+            c1 = tension[t]
+            c2 = 0.0
+        if c1 == 0.0 and c2 == 0.0:
+            continue  # slack cable: no force, no stiffness
+        n_loc = 12 * P
+        dLx = np.empty(n_loc)
+        for s in range(P):
+            for a in range(4):
+                w = pt_w[p0 + s, a]
+                for i in range(3):
+                    dLx[12 * s + 3 * a + i] = w * dLp[s, i]
+                    grad[3 * pt_nodes[p0 + s, a] + i] += c1 * w * dLp[s, i]
+        if not want_hess:
+            continue
+        # d2L with respect to the points: segment blocks (I - e e^T) / l
+        Hp = np.zeros((3 * P, 3 * P))
+        if c1 != 0.0:
+            a_ = np.empty(3)
+            b_ = np.empty(3)
+            for s in range(P - 1):
+                _point(x, pt_nodes[p0 + s], pt_w[p0 + s], a_)
+                _point(x, pt_nodes[p0 + s + 1], pt_w[p0 + s + 1], b_)
+                d = b_ - a_
+                l = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+                if l <= 1e-14:
+                    continue
+                for i in range(3):
+                    for j in range(3):
+                        h = ((1.0 if i == j else 0.0) - d[i] * d[j] / (l * l)) / l
+                        Hp[3 * s + i, 3 * s + j] += h
+                        Hp[3 * s + 3 + i, 3 * s + 3 + j] += h
+                        Hp[3 * s + i, 3 * s + 3 + j] -= h
+                        Hp[3 * s + 3 + i, 3 * s + j] -= h
+        base = hptr[t]
+        for s in range(P):
+            for a in range(4):
+                wa = pt_w[p0 + s, a]
+                for i in range(3):
+                    r = 12 * s + 3 * a + i
+                    for s2 in range(P):
+                        near = s2 >= s - 1 and s2 <= s + 1
+                        for b in range(4):
+                            wb = pt_w[p0 + s2, b]
+                            for j in range(3):
+                                c = 12 * s2 + 3 * b + j
+                                h = c2 * dLx[r] * dLx[c]
+                                if near:
+                                    h += c1 * wa * wb * Hp[3 * s + i, 3 * s2 + j]
+                                hdata[hmap[base + r * n_loc + c]] += h
+    return total

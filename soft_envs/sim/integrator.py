@@ -1,0 +1,232 @@
+r"""One implicit-Euler step as Newton minimisation of the incremental potential (paper II-D, eq. 4).
+
+.. math::
+    x_k = \arg\min_x \Phi_k(x) = \frac{1}{2h^2}(x - \tilde x)^T M (x - \tilde x) + E(x; u_k, x_{k-1}),
+    \qquad \tilde x = 2 x_{k-1} - x_{k-2},
+
+whose stationarity condition ``M (x_k - 2x_{k-1} + x_{k-2}) / h^2 + dE/dx = 0`` is eq. 4.
+
+Newton's method with
+  * the exact Hessian, factorised by Cholesky; when it is not positive definite, the
+    per-element eigenvalue-projected Hessian, and then a growing diagonal shift;
+  * a backtracking (Armijo) line search on Phi that never accepts a state with an inverted
+    element (Phi = +inf there);
+  * warm start from ``x~`` (or ``x_{k-1}`` if ``x~`` inverts an element);
+  * stopping criterion: the Newton step's largest component ``|dx|_inf <= tol`` [m] (then the
+    step is taken in full). The factorisation of the last iteration is the exact Hessian at a
+    point at most ``tol`` away from ``x_k`` and is reused for the sensitivities.
+Failure (no descent, too many iterations, non-finite values) raises :class:`SimulationError`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .linsolve import make_solver
+from .system import EnergySystem
+
+__all__ = ["SimulationError", "NewtonOptions", "StepInfo", "NewtonSolver"]
+
+
+class SimulationError(RuntimeError):
+    """A simulation step failed. ``step`` is the step index (or None), ``reason`` a short text."""
+
+    def __init__(self, reason: str, step: int | None = None):
+        self.reason = reason
+        self.step = step
+        super().__init__(f"simulation step {step} failed: {reason}" if step is not None else reason)
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Newton settings.
+
+    ``tol``: stop when the Newton step's max-norm is below it [m] (the step is then taken).
+    ``max_iter``: iterations per step. ``armijo``: sufficient-decrease constant;
+    ``max_backtracks``: halvings of the line search. ``reuse_factor``: keep the last
+    factorisation (from this or an earlier step) while it still contracts the step by at least
+    ``refactor_ratio`` per iteration (chord iterations cost a gradient and a solve instead of a
+    Hessian assembly and a factorisation); ``False`` gives plain Newton. ``solver``: "auto",
+    "cholmod" or "lu"."""
+
+    tol: float = 1e-8
+    max_iter: int = 50
+    armijo: float = 1e-6
+    max_backtracks: int = 40
+    reuse_factor: bool = True
+    refactor_ratio: float = 0.5
+    solver: str = "auto"
+
+
+@dataclass
+class StepInfo:
+    iterations: int
+    factorizations: int
+    exact_factor: bool        # the solver holds the exact Hessian's factorisation at ~x_k
+    fallbacks: int            # factorisations that needed the PSD projection / shift
+    solver: object = None     # with need_exact: holds the exact Hessian's factorisation at x_k
+
+
+class NewtonSolver:
+    """Solves steps of one :class:`EnergySystem` with time step ``dt``."""
+
+    def __init__(self, system: EnergySystem, dt: float, options: NewtonOptions = NewtonOptions()):
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be positive, got {dt!r}")
+        self.system = system
+        self.dt = float(dt)
+        self.options = options
+        self.inertia = system.mass / self.dt**2           # (3n,) diagonal M / h^2
+        p = system.pattern
+        self._diag_inertia = self.inertia[system.free]
+        self.solver = make_solver(p, options.solver)
+        self._fallback = None
+        self._have_factor = False
+
+    # ------------------------------------------------------------------ Phi and its derivatives
+    def phi(self, x, xt, x_prev, u) -> float:
+        d = (x - xt).ravel()
+        e = self.system.energy(x, x_prev, u)
+        return e + 0.5 * float(d @ (self.inertia * d))
+
+    def phi_assemble(self, x, xt, x_prev, u, project=False, want_hess=True):
+        """``(Phi, dPhi/dx (3n,), Hessian values or None)`` at x."""
+        e, grad, hdata = self.system.assemble(x, x_prev, u, project, want_hess)
+        d = (x - xt).ravel()
+        grad += self.inertia * d
+        if want_hess:
+            hdata[self.system.pattern.diag] += self._diag_inertia
+        return e + 0.5 * float(d @ (self.inertia * d)), grad, hdata
+
+    def factorize(self, hdata, x, xt, x_prev, u) -> tuple[bool, int]:
+        """Factorise; fall back to the projected Hessian, then to diagonal shifts.
+        Returns (exact, number of fallbacks used)."""
+        if self.solver.factorize(hdata):
+            return True, 0
+        _, _, hproj = self.phi_assemble(x, xt, x_prev, u, project=True)
+        diag = self.system.pattern.diag
+        shift = 0.0
+        base = np.abs(hproj[diag]).mean()
+        for attempt in range(1, 30):
+            h = hproj.copy()
+            h[diag] += shift
+            if self.solver.factorize(h):
+                return False, attempt
+            shift = base * 1e-8 if shift == 0.0 else shift * 10.0
+        raise SimulationError("Hessian could not be made positive definite")
+
+    # ------------------------------------------------------------------ one step
+    def step(self, x_prev: np.ndarray, x_prev2: np.ndarray, u: np.ndarray, k: int | None = None,
+             x_fixed: np.ndarray | None = None, need_exact: bool = False) -> tuple[np.ndarray, StepInfo]:
+        """Solve for ``x_k`` given ``x_{k-1}``, ``x_{k-2}`` and controls ``u``. Inputs are not
+        modified. Fixed nodes keep their positions in ``x_prev`` (or ``x_fixed``). With
+        ``need_exact`` the solver ends holding the exact Hessian's factorisation at ``x_k``
+        (for sensitivities)."""
+        opt = self.options
+        sys = self.system
+        free = sys.free
+        xt = 2.0 * x_prev - x_prev2
+        x = xt.copy()
+        fixed_src = x_prev if x_fixed is None else x_fixed
+        if len(free) < sys.n_dof:
+            x.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
+        phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
+        if not np.isfinite(phi_x):
+            x = x_prev.copy()
+            phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
+            if not np.isfinite(phi_x):
+                raise SimulationError("the previous state is inverted or non-finite", k)
+        n_fact = fallbacks = 0
+        fresh = False            # the factorisation was computed at the current x
+        exact = False
+        prev_norm = np.inf
+        it = 0
+        while it < opt.max_iter:
+            it += 1
+            if not (opt.reuse_factor and self._have_factor):
+                exact, nf = self._refactor(x, xt, x_prev, u)
+                n_fact += 1
+                fallbacks += nf
+                fresh = True
+            g = grad[free]
+            dx = -self.solver.solve(g)
+            if not np.isfinite(dx).all():
+                raise SimulationError("non-finite Newton step", k)
+            norm = np.abs(dx).max()
+            if not fresh and norm > opt.refactor_ratio * prev_norm:
+                # the reused factorisation no longer contracts fast enough: refresh it here
+                exact, nf = self._refactor(x, xt, x_prev, u)
+                n_fact += 1
+                fallbacks += nf
+                fresh = True
+                dx = -self.solver.solve(g)
+                norm = np.abs(dx).max()
+            if norm <= opt.tol:
+                x.reshape(-1)[free] += dx
+                solver = None
+                if need_exact:
+                    if fresh and exact:
+                        solver = self.solver
+                    else:
+                        solver = self.factorize_exact_at(x, x_prev, x_prev2, u)
+                        n_fact += 1
+                return x, StepInfo(it, n_fact, fresh and exact, fallbacks, solver)
+            slope = float(g @ dx)
+            if slope >= 0:
+                if not fresh:
+                    self._have_factor = False
+                    continue
+                raise SimulationError(f"Newton direction is not a descent direction (slope {slope:.3e})", k)
+            if -slope <= 1e-12 * (abs(phi_x) + 1e-30):
+                # The predicted decrease is at round-off level of Phi: the line search cannot
+                # tell descent from noise, and Newton is in its quadratic regime. Full step.
+                x.reshape(-1)[free] += dx
+                phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
+                fresh, prev_norm = False, norm
+                continue
+            alpha = 1.0
+            for _ in range(opt.max_backtracks):
+                xn = x.copy()
+                xn.reshape(-1)[free] += alpha * dx
+                phi_n, grad_n, _ = self.phi_assemble(xn, xt, x_prev, u, want_hess=False)
+                if phi_n <= phi_x + opt.armijo * alpha * slope:
+                    break
+                alpha *= 0.5
+            else:
+                if not fresh:           # a stale factorisation gave a poor direction: refresh
+                    self._have_factor = False
+                    continue
+                if norm <= 1e3 * opt.tol:
+                    x.reshape(-1)[free] += dx
+                    solver = self.factorize_exact_at(x, x_prev, x_prev2, u) if need_exact else None
+                    return x, StepInfo(it, n_fact, exact, fallbacks, solver)
+                raise SimulationError(f"line search failed (|dx| = {norm:.3e} m)", k)
+            if alpha < 1.0 and not fresh:
+                self._have_factor = False      # damped chord step: refresh next iteration
+            x, phi_x, grad = xn, phi_n, grad_n
+            fresh, prev_norm = False, alpha * norm
+        raise SimulationError(f"Newton did not converge in {opt.max_iter} iterations "
+                              f"(last |dx| = {norm:.3e} m)", k)
+
+    def _refactor(self, x, xt, x_prev, u) -> tuple[bool, int]:
+        _, _, hdata = self.phi_assemble(x, xt, x_prev, u)
+        exact, nf = self.factorize(hdata, x, xt, x_prev, u)
+        self._have_factor = True
+        return exact, nf
+
+    def factorize_exact_at(self, x, x_prev, x_prev2, u):
+        """Factorise the exact Hessian of Phi at ``x`` (Cholesky, or LU if indefinite) and return
+        the solver object that holds it."""
+        xt = 2.0 * x_prev - x_prev2
+        _, _, hdata = self.phi_assemble(x, xt, x_prev, u)
+        self._have_factor = True
+        if not self.solver.factorize(hdata):
+            self._have_factor = False
+            from .linsolve import LUSolver
+            if self._fallback is None:
+                self._fallback = LUSolver(self.system.pattern)
+            if not self._fallback.factorize(hdata):
+                raise SimulationError("the Hessian at the converged state is singular")
+            return self._fallback
+        return self.solver

@@ -1,0 +1,88 @@
+"""Sparse symmetric solvers for the Newton Hessian on a fixed pattern.
+
+:class:`CholmodSolver` (CHOLMOD through cvxopt's bundled SuiteSparse) does the symbolic
+analysis once per pattern and only a numeric factorisation per Newton iteration. It needs a
+positive definite matrix: :meth:`factorize` returns False otherwise, and the caller falls back.
+:class:`LUSolver` (SuperLU through scipy, with the symmetric-mode options that were fastest on
+these matrices) works for any non-singular matrix; it is the fallback and the default when
+cvxopt is not installed.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse.linalg as sla
+
+from .system import Pattern
+
+try:  # pragma: no cover - exercised implicitly
+    from cvxopt import cholmod as _cholmod
+    from cvxopt import matrix as _cvx_matrix
+    from cvxopt import spmatrix as _cvx_spmatrix
+    HAVE_CHOLMOD = True
+except ImportError:  # pragma: no cover
+    HAVE_CHOLMOD = False
+
+__all__ = ["CholmodSolver", "LUSolver", "make_solver", "HAVE_CHOLMOD"]
+
+
+class LUSolver:
+    """SuperLU on the full symmetric matrix (any non-singular matrix)."""
+
+    exact_only = False
+
+    def __init__(self, pattern: Pattern):
+        self.pattern = pattern
+        self._lu = None
+
+    def factorize(self, data: np.ndarray) -> bool:
+        try:
+            self._lu = sla.splu(self.pattern.full(data), permc_spec="MMD_AT_PLUS_A",
+                                diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        except RuntimeError:   # exactly singular
+            self._lu = None
+            return False
+        return True
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self._lu.solve(np.asarray(b, dtype=np.float64))
+
+
+class CholmodSolver:
+    """CHOLMOD Cholesky with the symbolic analysis of the pattern done once."""
+
+    def __init__(self, pattern: Pattern):
+        self.pattern = pattern
+        n = pattern.n
+        # cvxopt keeps CSC entries sorted by column then row: the same order as the pattern.
+        self._A = _cvx_spmatrix(np.arange(1, pattern.nnz + 1, dtype=np.float64).tolist(),
+                                pattern.indices.tolist(), pattern.cols.tolist(), (n, n))
+        if not np.array_equal(np.array(self._A.V).ravel(), np.arange(1, pattern.nnz + 1)):
+            raise RuntimeError("cvxopt reordered the sparse pattern")
+        _cholmod.options["postorder"] = True
+        self._F = _cholmod.symbolic(self._A, uplo="L")
+
+    def factorize(self, data: np.ndarray) -> bool:
+        self._A.V = _cvx_matrix(data[: self.pattern.nnz])
+        try:
+            _cholmod.numeric(self._A, self._F)
+        except ArithmeticError:   # not positive definite
+            return False
+        return True
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        B = _cvx_matrix(np.asarray(b, dtype=np.float64))
+        _cholmod.solve(self._F, B)
+        return np.array(B).reshape(np.shape(b))
+
+
+def make_solver(pattern: Pattern, kind: str = "auto"):
+    """``"cholmod"``, ``"lu"`` or ``"auto"`` (CHOLMOD when cvxopt is importable)."""
+    if kind == "auto":
+        kind = "cholmod" if HAVE_CHOLMOD else "lu"
+    if kind == "cholmod":
+        if not HAVE_CHOLMOD:
+            raise ImportError("solver='cholmod' needs cvxopt (pip install cvxopt)")
+        return CholmodSolver(pattern)
+    if kind == "lu":
+        return LUSolver(pattern)
+    raise ValueError(f"solver must be 'auto', 'cholmod' or 'lu', got {kind!r}")

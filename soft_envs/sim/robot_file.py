@@ -1,0 +1,233 @@
+"""Robot description files (``robot.toml``), read with :mod:`tomllib`.
+
+Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
+
+    [robot]
+    name = "puppy"
+    mesh = "puppy.vtu"           # any tetrahedral format meshio reads; relative to this file
+    body_length = 0.13           # [m], optional (default: extent along the forward axis)
+    forward_axis = "+x"          # mesh axis pointing forward: +x -x +y -y +z -z
+    up_axis = "+y"               # mesh axis pointing up
+    scale = 1.0                  # mesh units -> metres (0.001 for millimetres)
+
+    [material]                   # compressible neo-Hookean, paper eq. 1
+    youngs_modulus = 1.2e5       # [Pa]
+    poisson_ratio = 0.3
+    density = 220.0              # [kg/m^3]
+
+    [payload]                    # motor assembly, spread over the top nodes (paper II-A)
+    mass = 0.140                 # [kg]
+    nodes = "top"                # "top" or a list of node indices
+    top_tolerance = 1e-4         # [m] nodes this close to the highest point are "top"
+
+    [contact]                    # optional, defaults of ContactParams
+    stiffness = 2000.0           # [N/m]
+    friction = 500.0             # [1/m]
+    blend = 5e-4                 # [m]
+
+    [fixed]                      # optional: clamped nodes
+    nodes = [0, 1, 2]            # and/or box = [[x0, x1], [y0, y1], [z0, z1]] in the mesh frame
+
+    [cables]
+    blend = 2e-4                 # [m] width of the one-sided quadratic's C2 blend
+
+    [[tendons]]
+    name = "fore_left_front_a"
+    points = [[0.128, 0.005, 0.005], [0.128, 0.05, 0.005]]   # mesh frame, inside the body
+    stiffness = 1e5              # [N/m]
+    # rest_length = 0.045        # assembly length alpha0 [m]; default: rest polyline length
+
+    [[motors]]
+    name = "fore_left_front"
+    tendons = ["fore_left_front_a", "fore_left_front_b"]
+    mirror = "fore_right_front"  # optional, must be an involution
+    u_min = 0.0                  # [m]
+    u_max = 0.008                # [m]
+    spool_radius = 0.005         # [m]
+
+Every error is a ``ValueError`` that names the file and the field.
+"""
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .mesh import TetMesh, load_mesh
+from .robot import ContactParams, Motor, Robot, Tendon
+
+__all__ = ["load_robot", "asset_path", "SHIPPED_ROBOTS"]
+
+SHIPPED_ROBOTS = ("tripod", "puppy")
+
+_SCHEMA: dict[str, dict[str, tuple[type | tuple[type, ...], bool]]] = {
+    "robot": {"name": (str, True), "mesh": (str, True), "body_length": ((int, float), False),
+              "forward_axis": (str, False), "up_axis": (str, False), "scale": ((int, float), False),
+              "description": (str, False)},
+    "material": {"youngs_modulus": ((int, float), True), "poisson_ratio": ((int, float), True),
+                 "density": ((int, float), True)},
+    "payload": {"mass": ((int, float), True), "nodes": ((str, list), False),
+                "top_tolerance": ((int, float), False)},
+    "contact": {"stiffness": ((int, float), False), "friction": ((int, float), False),
+                "blend": ((int, float), False)},
+    "fixed": {"nodes": (list, False), "box": (list, False)},
+    "cables": {"blend": ((int, float), False)},
+}
+_TENDON = {"name": (str, True), "points": (list, True), "stiffness": ((int, float), False),
+           "rest_length": ((int, float), False)}
+_MOTOR = {"name": (str, True), "tendons": (list, True), "mirror": (str, False),
+          "u_min": ((int, float), False), "u_max": ((int, float), True),
+          "spool_radius": ((int, float), False)}
+_AXES = {"+x": (0, 1.0), "-x": (0, -1.0), "+y": (1, 1.0), "-y": (1, -1.0), "+z": (2, 1.0), "-z": (2, -1.0)}
+
+
+def asset_path(name: str) -> Path:
+    """Path of a shipped robot's ``robot.toml``."""
+    here = Path(__file__).resolve()
+    candidates = [here.parents[2] / "assets" / name / "robot.toml"]
+    try:
+        from importlib.resources import files
+        candidates.append(Path(str(files("soft_envs.assets") / name / "robot.toml")))
+    except (ModuleNotFoundError, TypeError):
+        pass
+    for c in candidates:
+        if c.is_file():
+            return c
+    raise ValueError(f"unknown robot {name!r}: not a shipped robot {SHIPPED_ROBOTS} nor a robot.toml path")
+
+
+def _check_table(table: Any, schema: dict, where: str, src: str) -> dict:
+    if not isinstance(table, dict):
+        raise ValueError(f"{src}: {where} must be a table")
+    for key in table:
+        if key not in schema:
+            raise ValueError(f"{src}: unknown key {where}.{key} (allowed: {', '.join(schema)})")
+    for key, (typ, required) in schema.items():
+        if key not in table:
+            if required:
+                raise ValueError(f"{src}: {where}.{key} is missing")
+            continue
+        v = table[key]
+        if isinstance(v, bool) or not isinstance(v, typ):
+            raise ValueError(f"{src}: {where}.{key} has the wrong type ({type(v).__name__})")
+    return table
+
+
+def _frame(robot_tbl: dict, src: str) -> np.ndarray:
+    fwd = robot_tbl.get("forward_axis", "+x")
+    up = robot_tbl.get("up_axis", "+y")
+    for key, v in (("forward_axis", fwd), ("up_axis", up)):
+        if v not in _AXES:
+            raise ValueError(f"{src}: [robot].{key} must be one of {list(_AXES)}, got {v!r}")
+    f = np.zeros(3)
+    f[_AXES[fwd][0]] = _AXES[fwd][1]
+    u = np.zeros(3)
+    u[_AXES[up][0]] = _AXES[up][1]
+    if abs(f @ u) > 0:
+        raise ValueError(f"{src}: [robot].forward_axis and up_axis must be different axes")
+    return np.stack([f, u, np.cross(f, u)])     # rows: sim x, y, z in mesh coordinates
+
+
+def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
+    """Load ``"tripod"``/``"puppy"`` or a ``robot.toml`` path. ``overrides`` replace Robot
+    fields afterwards (e.g. ``youngs_modulus=2e5``)."""
+    p = Path(name_or_path)
+    path = p if (p.suffix == ".toml" or p.is_file()) else asset_path(str(name_or_path))
+    src = str(path)
+    if not path.is_file():
+        raise ValueError(f"{src}: robot file not found")
+    try:
+        doc = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{src}: not valid TOML: {exc}") from exc
+    allowed = set(_SCHEMA) | {"tendons", "motors"}
+    for key in doc:
+        if key not in allowed:
+            raise ValueError(f"{src}: unknown table [{key}] (allowed: {', '.join(sorted(allowed))})")
+    for key in ("robot", "material"):
+        if key not in doc:
+            raise ValueError(f"{src}: table [{key}] is missing")
+    tables = {k: _check_table(doc.get(k, {}), s, f"[{k}]", src) for k, s in _SCHEMA.items()}
+    rt = tables["robot"]
+    scale = float(rt.get("scale", 1.0))
+    if not scale > 0:
+        raise ValueError(f"{src}: [robot].scale must be positive")
+    R = _frame(rt, src)
+    mesh_file = path.parent / rt["mesh"]
+    if not mesh_file.is_file():
+        raise ValueError(f"{src}: [robot].mesh file {str(mesh_file)!r} not found")
+    raw = load_mesh(mesh_file)
+    to_sim = lambda q: scale * np.asarray(q, dtype=np.float64) @ R.T   # noqa: E731
+    pts = to_sim(raw.points)
+    tets = np.array(raw.tets)
+    if np.linalg.det(R) < 0:   # cannot happen for a right-handed frame built by cross; keep safe
+        tets = tets[:, [0, 2, 1, 3]]
+    mesh = TetMesh(pts, tets, source=str(mesh_file))
+    pay = tables["payload"]
+    nodes_spec = pay.get("nodes", "top")
+    if isinstance(nodes_spec, str):
+        if nodes_spec != "top":
+            raise ValueError(f"{src}: [payload].nodes must be \"top\" or a list of node indices")
+        tol = float(pay.get("top_tolerance", 1e-4))
+        payload_nodes = np.flatnonzero(pts[:, 1] >= pts[:, 1].max() - tol)
+    else:
+        payload_nodes = _index_list(nodes_spec, "[payload].nodes", mesh.n_nodes, src)
+    fixed = tables["fixed"]
+    fixed_nodes = _index_list(fixed.get("nodes", []), "[fixed].nodes", mesh.n_nodes, src)
+    if "box" in fixed:
+        box = np.asarray(fixed["box"], dtype=np.float64)
+        if box.shape != (3, 2):
+            raise ValueError(f"{src}: [fixed].box must be [[x0, x1], [y0, y1], [z0, z1]]")
+        q = raw.points * scale
+        inside = np.all((q >= box[:, 0] - 1e-12) & (q <= box[:, 1] + 1e-12), axis=1)
+        fixed_nodes = np.union1d(fixed_nodes, np.flatnonzero(inside))
+    tendons = []
+    raw_t = doc.get("tendons", [])
+    if not isinstance(raw_t, list):
+        raise ValueError(f"{src}: tendons must be an array of tables [[tendons]]")
+    for i, t in enumerate(raw_t):
+        _check_table(t, _TENDON, f"tendons[{i}]", src)
+        try:
+            points = to_sim(np.asarray(t["points"], dtype=np.float64))
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"{src}: tendons[{i}].points must be a list of [x, y, z]") from exc
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise ValueError(f"{src}: tendons[{i}].points must be a list of [x, y, z]")
+        tendons.append(Tendon(t["name"], points, float(t.get("stiffness", 1e5)),
+                              None if "rest_length" not in t else float(t["rest_length"])))
+    motors = []
+    raw_m = doc.get("motors", [])
+    if not isinstance(raw_m, list):
+        raise ValueError(f"{src}: motors must be an array of tables [[motors]]")
+    for i, m in enumerate(raw_m):
+        _check_table(m, _MOTOR, f"motors[{i}]", src)
+        if not all(isinstance(s, str) for s in m["tendons"]):
+            raise ValueError(f"{src}: motors[{i}].tendons must be a list of tendon names")
+        motors.append(Motor(m["name"], tuple(m["tendons"]), m.get("mirror"), float(m.get("u_min", 0.0)),
+                            float(m["u_max"]), float(m.get("spool_radius", 0.005))))
+    mat = tables["material"]
+    contact = ContactParams(**{k: float(v) for k, v in tables["contact"].items()})
+    kwargs = dict(name=rt["name"], mesh=mesh, youngs_modulus=float(mat["youngs_modulus"]),
+                  poisson_ratio=float(mat["poisson_ratio"]), density=float(mat["density"]),
+                  tendons=tuple(tendons), motors=tuple(motors), payload_mass=float(pay.get("mass", 0.0)),
+                  payload_nodes=payload_nodes if float(pay.get("mass", 0.0)) > 0 else np.zeros(0, np.int64),
+                  fixed_nodes=fixed_nodes, contact=contact,
+                  body_length=float(rt["body_length"]) if "body_length" in rt else None,
+                  cable_blend=float(tables["cables"].get("blend", 2e-4)), source=src)
+    kwargs.update(overrides)
+    try:
+        return Robot(**kwargs)
+    except ValueError as exc:
+        msg = str(exc)
+        raise ValueError(msg if msg.startswith(src) else f"{src}: {msg}") from exc
+
+
+def _index_list(values: Any, where: str, n: int, src: str) -> np.ndarray:
+    if not isinstance(values, list) or not all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+        raise ValueError(f"{src}: {where} must be a list of integer node indices")
+    arr = np.asarray(values, dtype=np.int64)
+    if arr.size and (arr.min() < 0 or arr.max() >= n):
+        raise ValueError(f"{src}: {where} has indices outside 0..{n - 1}")
+    return arr

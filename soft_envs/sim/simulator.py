@@ -1,0 +1,250 @@
+"""Simulator: implicit-Euler rollouts of a :class:`Robot`, with exact sensitivities.
+
+>>> robot = load_robot("puppy")
+>>> sim = Simulator(robot, dt=0.033)
+>>> x0 = sim.rest_state()
+>>> traj = sim.rollout(np.zeros((168, robot.n_motors)), x0=x0)
+
+Physics lives in :mod:`.system` (energies), :mod:`.integrator` (Newton per step) and
+:mod:`.sensitivity` (derivatives of whole rollouts); this module only strings them together.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .integrator import NewtonOptions, NewtonSolver, SimulationError
+from .robot import Robot
+from .sensitivity import adjoint_pass, sensitivity_step
+from .system import EnergySystem
+
+__all__ = ["Simulator", "Trajectory"]
+
+
+@dataclass
+class Trajectory:
+    """Result of :meth:`Simulator.rollout` (K steps, K+1 states; index 0 is the initial state).
+
+    ``x`` (K+1, n, 3) positions; ``com`` (K+1, 3); ``cable_deformation`` (K+1, T) Gamma per
+    tendon; ``u`` (K, n_motors) the controls; ``newton_iterations`` (K,). With ``dudz``:
+    ``dcomdz`` (K+1, 3, nz), ``dgammadz`` (K+1, T, nz) and, when requested, ``dxdz``
+    (K+1, 3n, nz)."""
+
+    x: np.ndarray
+    com: np.ndarray
+    cable_deformation: np.ndarray
+    u: np.ndarray
+    newton_iterations: np.ndarray
+    dcomdz: np.ndarray | None = None
+    dgammadz: np.ndarray | None = None
+    dxdz: np.ndarray | None = None
+    info: dict = field(default_factory=dict)
+
+
+class Simulator:
+    """Implicit-Euler simulation of one robot.
+
+    Parameters
+    ----------
+    robot : Robot
+    dt : time step h [s] (paper: 0.033).
+    gravity : gravity vector [m/s^2]; rotate it for an incline (:func:`incline_gravity`).
+    control : ``"length"`` (u = contracted cable length [m]) or ``"tension"`` (u = tension [N]).
+    newton : :class:`NewtonOptions` (tolerance, iterations, linear solver).
+    """
+
+    def __init__(self, robot: Robot, dt: float = 0.033, gravity=(0.0, -9.81, 0.0),
+                 control: str = "length", newton: NewtonOptions | None = None):
+        self.robot = robot
+        self.system = EnergySystem(robot, gravity=gravity, control=control)
+        self.newton = NewtonSolver(self.system, dt, newton or NewtonOptions())
+        self.dt = float(dt)
+        self.gravity = self.system.gravity
+        self.control = control
+        self._rest_cache: dict = {}
+
+    @property
+    def n_motors(self) -> int:
+        return self.robot.n_motors
+
+    @property
+    def n_nodes(self) -> int:
+        return self.robot.mesh.n_nodes
+
+    # ------------------------------------------------------------------ validation
+    def _check_u(self, u, K: int | None = None) -> np.ndarray:
+        arr = np.asarray(u, dtype=np.float64)
+        shape = (self.n_motors,) if K is None else None
+        if K is None and arr.shape != shape:
+            raise ValueError(f"controls u must have shape ({self.n_motors},), got {arr.shape}")
+        if K is not None and (arr.ndim != 2 or arr.shape[1] != self.n_motors):
+            raise ValueError(f"controls u must have shape (K, {self.n_motors}), got {arr.shape}")
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            raise ValueError(f"controls u contain NaN or inf at {np.argwhere(bad)[:5].tolist()}")
+        if self.control == "tension" and (arr < 0).any():
+            raise ValueError("tension controls must be >= 0 (cables can only pull)")
+        return arr
+
+    def _check_x(self, x, name: str) -> np.ndarray:
+        arr = np.asarray(x, dtype=np.float64)
+        if arr.shape != (self.n_nodes, 3):
+            raise ValueError(f"{name} must have shape ({self.n_nodes}, 3), got {arr.shape}")
+        if not np.isfinite(arr).all():
+            raise ValueError(f"{name} contains NaN or inf")
+        return arr
+
+    # ------------------------------------------------------------------ states
+    def initial_placement(self) -> np.ndarray:
+        """Rest mesh, lowered/raised to touch the ground (unless it has fixed nodes)."""
+        x = np.array(self.robot.mesh.points)
+        if self.robot.fixed_nodes.size == 0:
+            x[:, 1] -= x[:, 1].min()
+        return x
+
+    def rest_state(self, u=None, tol: float = 1e-9, max_iter: int = 200) -> np.ndarray:
+        """Static equilibrium under gravity with controls ``u`` (default 0): the robot standing
+        on the ground, or the static solution of a clamped body.
+
+        Computed as proximal-point iterations ``x_{j+1} = argmin E(x; x_prev = x_j) +
+        |x - x_j|^2_M / 2`` (implicit steps of 1 s from rest), which converge to a state where
+        the friction term exerts no force, so a rollout started there stays still. With
+        lagged (viscous-like) friction a robot on a slope creeps, so the rest state of an
+        inclined simulator uses only the normal component of gravity.
+        """
+        u = np.zeros(self.n_motors) if u is None else self._check_u(u)
+        key = (tuple(u.tolist()), tol)
+        if key in self._rest_cache:
+            return self._rest_cache[key].copy()
+        g = self.gravity
+        normal_g = np.array([0.0, g[1], 0.0]) if self.robot.fixed_nodes.size == 0 else g
+        system = EnergySystem(self.robot, gravity=normal_g, control=self.control)
+        relax = NewtonSolver(system, 1.0, NewtonOptions(tol=min(tol, 1e-10), max_iter=100,
+                                                        solver=self.newton.options.solver))
+        x = self.initial_placement()
+        for _ in range(max_iter):
+            xn, _ = relax.step(x, x, u)
+            moved = np.abs(xn - x).max()
+            x = xn
+            if moved <= tol:
+                break
+        else:
+            raise SimulationError(f"rest_state did not settle in {max_iter} relaxation steps "
+                                  f"(last motion {moved:.2e} m)")
+        self._rest_cache[key] = x.copy()
+        return x
+
+    def step(self, x_prev, x_prev2, u, k: int | None = None) -> np.ndarray:
+        """One implicit-Euler step: ``x_k`` from ``x_{k-1}``, ``x_{k-2}`` and ``u_k``.
+        Raises :class:`SimulationError` on failure; the inputs are never modified."""
+        u = self._check_u(u)
+        x, _ = self.newton.step(self._check_x(x_prev, "x_prev"), self._check_x(x_prev2, "x_prev2"), u, k)
+        return x
+
+    # ------------------------------------------------------------------ rollouts
+    def rollout(self, u, x0=None, dudz=None, *, x_prev0=None, store_dxdz: bool = False) -> Trajectory:
+        """Simulate controls ``u`` (K, n_motors) from ``x0`` (default :meth:`rest_state`) with
+        zero initial velocity (or ``x_{-1} = x_prev0``).
+
+        With ``dudz`` (K, n_motors, nz) the forward sensitivities of paper eq. 10 are computed
+        alongside: ``dcomdz`` and ``dgammadz`` always, ``dxdz`` if ``store_dxdz``.
+        """
+        u = self._check_u(u, K=len(np.asarray(u)))
+        K = len(u)
+        x0 = self.rest_state() if x0 is None else self._check_x(x0, "x0")
+        xm1 = x0 if x_prev0 is None else self._check_x(x_prev0, "x_prev0")
+        sysm = self.system
+        masses = self.robot.node_masses
+        mtot = masses.sum()
+        xs = np.empty((K + 1, self.n_nodes, 3))
+        xs[0] = x0
+        gam = np.empty((K + 1, len(sysm.alpha0)))
+        gam[0] = sysm.cable_deformation(x0, np.zeros(self.n_motors))
+        iters = np.zeros(K, dtype=np.int64)
+        sens = dudz is not None
+        if sens:
+            dudz = np.asarray(dudz, dtype=np.float64)
+            if dudz.ndim != 3 or dudz.shape[:2] != (K, self.n_motors):
+                raise ValueError(f"dudz must have shape ({K}, {self.n_motors}, nz), got {dudz.shape}")
+            nz = dudz.shape[2]
+            S1 = np.zeros((sysm.n_dof, nz))
+            S2 = np.zeros((sysm.n_dof, nz))
+            dcom = np.zeros((K + 1, 3, nz))
+            dgam = np.zeros((K + 1, len(sysm.alpha0), nz))
+            dxdz = np.zeros((K + 1, sysm.n_dof, nz)) if store_dxdz else None
+            tm = sysm.tendon_motor
+        prev, prev2 = x0, xm1
+        for k in range(K):
+            x, info = self.newton.step(prev, prev2, u[k], k, need_exact=sens)
+            xs[k + 1] = x
+            iters[k] = info.iterations
+            gam[k + 1] = sysm.cable_deformation(x, u[k])
+            if sens:
+                S, dL = sensitivity_step(info.solver, self.newton, x, prev, u[k], S1, S2, dudz[k])
+                dcom[k + 1] = (masses @ S.reshape(self.n_nodes, 3 * nz)).reshape(3, nz) / mtot
+                dgam[k + 1] = dL @ S
+                if sysm.mode == 0:
+                    has = tm >= 0
+                    dgam[k + 1][has] += dudz[k][tm[has]]
+                if store_dxdz:
+                    dxdz[k + 1] = S
+                S2, S1 = S1, S
+            prev2, prev = prev, x
+        com = np.einsum("kni,n->ki", xs, masses) / mtot
+        traj = Trajectory(x=xs, com=com, cable_deformation=gam, u=u, newton_iterations=iters)
+        if sens:
+            traj.dcomdz, traj.dgammadz, traj.dxdz = dcom, dgam, dxdz
+        return traj
+
+    def rollout_gradient(self, u, dobj_dx, x0=None, dudz=None, traj: Trajectory | None = None):
+        """Adjoint gradient of a scalar objective ``O = sum_k o_k(x_k)`` of a rollout.
+
+        ``dobj_dx`` (K+1, n, 3) holds ``do/dx_k`` (entry 0 ignored). Returns ``dO/du`` (K,
+        n_motors), or ``dO/dz`` (nz,) when ``dudz`` is given. Pass the ``traj`` of the same
+        rollout to skip re-simulating it."""
+        u = self._check_u(u, K=len(np.asarray(u)))
+        if traj is None:
+            traj = self.rollout(u, x0=x0)
+        dobj_dx = np.asarray(dobj_dx, dtype=np.float64)
+        if dobj_dx.shape != traj.x.shape:
+            raise ValueError(f"dobj_dx must have shape {traj.x.shape}, got {dobj_dx.shape}")
+        dOdu = adjoint_pass(self.newton, traj.x, u, dobj_dx)
+        if dudz is None:
+            return dOdu
+        return np.einsum("km,kmz->z", dOdu, np.asarray(dudz, dtype=np.float64))
+
+    # ------------------------------------------------------------------ energies (tests, FD)
+    def energy(self, x, x_prev, u) -> float:
+        """Potential energy E(x; u, x_prev): FEM + cables + contact/friction + gravity."""
+        return self.system.energy(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), self._check_u(u))
+
+    def gradient(self, x, x_prev, u) -> np.ndarray:
+        """dE/dx as (n, 3) (rows of fixed nodes included)."""
+        _, g, _ = self.system.assemble(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), self._check_u(u))
+        return g.reshape(-1, 3)
+
+    def hessian(self, x, x_prev, u) -> sp.csc_matrix:
+        """d^2E/dx^2 as a symmetric (3n, 3n) sparse matrix; rows/columns of fixed dofs are zero."""
+        _, _, h = self.system.assemble(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), self._check_u(u))
+        Hf = self.system.pattern.full(h)
+        P = sp.csr_matrix((np.ones(len(self.system.free)), (self.system.free, np.arange(len(self.system.free)))),
+                          shape=(self.system.n_dof, len(self.system.free)))
+        return (P @ Hf @ P.T).tocsc()
+
+    def com(self, x) -> np.ndarray:
+        return self.robot.com(np.asarray(x))
+
+    def cable_deformation(self, x, u) -> np.ndarray:
+        return self.system.cable_deformation(self._check_x(x, "x"), self._check_u(u))
+
+    def cable_tension(self, x, u) -> np.ndarray:
+        """Tension per tendon [N]: Q'(Gamma) in length control, u of its motor in tension control."""
+        from .cables import one_sided_quadratic
+        x = self._check_x(x, "x")
+        u = self._check_u(u)
+        if self.control == "tension":
+            return self.system.tendon_controls(u)[1]
+        gam = self.system.cable_deformation(x, u)
+        return one_sided_quadratic(gam, self.system.k_cable, self.system.eps_cable)[1]

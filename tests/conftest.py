@@ -1,0 +1,50 @@
+"""Shared fixtures: small meshes and robots built in Python (fast), shipped robots (cached)."""
+from __future__ import annotations
+
+import functools
+
+import meshio
+import numpy as np
+import pytest
+
+from soft_envs.sim import Robot, Simulator, load_robot
+from soft_envs.sim.meshgen import voxel_tet_mesh
+
+
+def block_mesh(nx=3, ny=2, nz=1, size=(0.06, 0.02, 0.02)) -> meshio.Mesh:
+    xs, ys, zs = (np.linspace(0, s, n + 1) for s, n in zip(size, (nx, ny, nz)))
+    p, t = voxel_tet_mesh(xs, ys, zs, np.ones((nx, ny, nz), bool))
+    return meshio.Mesh(p, [("tetra", t)])
+
+
+def small_robot(**kw) -> Robot:
+    """A 6 cm foam bar with one motor driving a 3-point tendon along its top."""
+    mesh = block_mesh()
+    args = dict(youngs_modulus=1e5, poisson_ratio=0.3, density=100.0,
+                tendons=[dict(name="t0", points=[[0.055, 0.015, 0.01], [0.03, 0.012, 0.012],
+                                                 [0.005, 0.015, 0.01]])],
+                motors=[dict(name="m0", tendons=["t0"], u_max=0.01)])
+    args.update(kw)
+    return Robot.from_mesh(mesh, **args)
+
+
+@pytest.fixture(scope="session")
+def bar_robot() -> Robot:
+    return small_robot()
+
+
+@functools.lru_cache(maxsize=None)
+def shipped(name: str):
+    robot = load_robot(name)
+    sim = Simulator(robot)
+    return robot, sim, sim.rest_state()
+
+
+@pytest.fixture(scope="session")
+def tripod():
+    return shipped("tripod")
+
+
+@pytest.fixture(scope="session")
+def puppy():
+    return shipped("puppy")

@@ -1,0 +1,113 @@
+"""Implicit Euler dynamics: free fall, energy decay without contact, rest on the ground,
+failure handling."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from soft_envs.sim import NewtonOptions, SimulationError, Simulator
+
+from .conftest import small_robot
+
+
+def test_free_fall_matches_discrete_solution():
+    """With no contact, a body falls rigidly: x_k = x_0 + h^2 g k (k + 1) / 2 exactly."""
+    robot = small_robot(tendons=[], motors=[])
+    sim = Simulator(robot, dt=0.02, newton=NewtonOptions(tol=1e-12))
+    x0 = np.array(robot.mesh.points)
+    x0[:, 1] += 1.0                       # high above the ground
+    traj = sim.rollout(np.zeros((20, 0)), x0=x0)
+    k = np.arange(21)
+    expected = x0[None, :, 1] - 9.81 * 0.02**2 * (k * (k + 1) / 2)[:, None]
+    assert np.abs(traj.x[:, :, 1] - expected).max() < 1e-10
+    assert np.abs(traj.x[:, :, [0, 2]] - x0[None, :, [0, 2]]).max() < 1e-12
+
+
+def total_energy(sim, traj):
+    m = sim.system.mass
+    out = []
+    for k in range(1, len(traj.x)):
+        v = (traj.x[k] - traj.x[k - 1]).ravel() / sim.dt
+        out.append(0.5 * v @ (m * v) + sim.energy(traj.x[k], traj.x[k - 1], np.zeros(sim.n_motors)))
+    return np.array(out)
+
+
+def test_energy_never_increases_without_contact():
+    """Implicit Euler dissipates: kinetic + elastic + gravitational energy is non-increasing for
+    a released, pre-stretched body in free flight."""
+    robot = small_robot(tendons=[], motors=[])
+    sim = Simulator(robot, dt=0.01, newton=NewtonOptions(tol=1e-12))
+    X = np.array(robot.mesh.points)
+    x0 = X * np.array([1.15, 0.9, 1.0]) + np.array([0, 1.0, 0])     # stretched, in the air
+    traj = sim.rollout(np.zeros((60, 0)), x0=x0)
+    e = total_energy(sim, traj)
+    assert (np.diff(e) <= 1e-12 * np.abs(e).max()).all()
+    assert e[-1] < e[0]
+
+
+def test_block_resting_on_ground_stays_at_rest():
+    robot = small_robot(tendons=[], motors=[])
+    sim = Simulator(robot)
+    x0 = sim.rest_state()
+    assert x0[:, 1].min() < 0 < x0[:, 1].max()       # it sinks slightly into the penalty layer
+    traj = sim.rollout(np.zeros((100, 0)), x0=x0)
+    assert np.abs(traj.x - x0).max() < 1e-7
+    # the ground carries the weight
+    from soft_envs.sim.contact import normal_forces
+    N = normal_forces(x0, sim.system.contact_nodes, sim.system.k_n, sim.system.eps_n)
+    assert np.isclose(N.sum(), robot.total_mass * 9.81, rtol=1e-6)
+
+
+def test_failed_step_raises_and_leaves_inputs_untouched():
+    robot = small_robot()
+    sim = Simulator(robot, newton=NewtonOptions(max_iter=1, tol=1e-14))
+    x0 = sim.rest_state()
+    before = x0.copy()
+    with pytest.raises(SimulationError) as err:
+        sim.rollout(np.full((3, 1), 0.008), x0=x0)
+    assert err.value.step == 0 and "converge" in err.value.reason
+    assert np.array_equal(x0, before)
+
+
+def test_inverted_input_state_raises():
+    robot = small_robot()
+    sim = Simulator(robot)
+    x = np.array(robot.mesh.points)
+    x[robot.mesh.tets[0, 3]] = x[robot.mesh.tets[0, 0]] - 0.05       # turns elements inside out
+    with pytest.raises(SimulationError, match="inverted"):
+        sim.step(x, x, np.zeros(1), k=4)
+
+
+def test_bad_controls_and_states_are_rejected():
+    sim = Simulator(small_robot())
+    x0 = sim.rest_state()
+    with pytest.raises(ValueError, match="NaN"):
+        sim.rollout(np.array([[np.nan]]), x0=x0)
+    with pytest.raises(ValueError, match=r"shape \(K, 1\)"):
+        sim.rollout(np.zeros((3, 2)), x0=x0)
+    with pytest.raises(ValueError, match="x0 must have shape"):
+        sim.rollout(np.zeros((3, 1)), x0=x0[:5])
+    tsim = Simulator(small_robot(), control="tension")
+    with pytest.raises(ValueError, match=">= 0"):
+        tsim.rollout(-np.ones((2, 1)), x0=x0)
+
+
+def test_cable_contraction_bends_and_tension_control():
+    """Contracting the top tendon arches the bar (ends lift relative to the middle); in
+    tension mode a prescribed tension produces the same kind of motion; tension read-out is
+    Q'(Gamma)."""
+    robot = small_robot()
+    for control, u in (("length", 0.004), ("tension", 20.0)):
+        sim = Simulator(robot, control=control)
+        x0 = sim.rest_state()
+        traj = sim.rollout(np.full((30, 1), u), x0=x0)
+        gam = traj.cable_deformation[-1]
+        tens = sim.cable_tension(traj.x[-1], np.array([u]))
+        if control == "length":
+            assert gam[0] > 0 and tens[0] > 1.0
+        else:
+            assert np.isclose(tens[0], u)
+        # the tendon runs along the top: contraction shortens the top fibre
+        top = robot.mesh.points[:, 1] > 0.019
+        span0 = np.ptp(x0[top, 0])
+        assert np.ptp(traj.x[-1][top, 0]) < span0 - 1e-4

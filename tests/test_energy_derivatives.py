@@ -1,0 +1,174 @@
+"""Central finite differences of every energy term's gradient and Hessian (rel. error <= 1e-5).
+
+Each check perturbs x along random unit directions with h = 1e-7 m and compares
+(E(x + h d) - E(x - h d)) / 2h with grad . d, and the same for the gradient and the Hessian.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from soft_envs.sim import Simulator
+from soft_envs.sim.cables import Q, d2Q, dQ, one_sided_quadratic
+from soft_envs.sim.materials import element_energy, element_gradient_hessian, lame_parameters
+
+from .conftest import small_robot
+
+RTOL = 1e-5
+H = 1e-7
+
+
+def fd_check(f, grad, x, rng, n_dirs=4, h=H):
+    """Max relative error of grad.d against central differences of f over random directions."""
+    worst = 0.0
+    for _ in range(n_dirs):
+        d = rng.normal(size=x.shape)
+        d /= np.linalg.norm(d)
+        fd = (f(x + h * d) - f(x - h * d)) / (2 * h)
+        an = np.tensordot(grad, d, axes=d.ndim) if np.ndim(grad) > d.ndim else np.sum(grad * d)
+        worst = max(worst, np.linalg.norm(np.atleast_1d(fd - an)) / max(np.linalg.norm(np.atleast_1d(fd)), 1e-300))
+    return worst
+
+
+def test_one_sided_quadratic_is_c2():
+    k, eps = 3.0, 0.1
+    for s in [-0.05, 0.0, 0.03, 0.1, 0.25]:
+        h = 1e-7
+        assert abs((Q(s + h, k, eps) - Q(s - h, k, eps)) / (2 * h) - dQ(s, k, eps)) < 1e-6
+        assert abs((dQ(s + h, k, eps) - dQ(s - h, k, eps)) / (2 * h) - d2Q(s, k, eps)) < 1e-5
+    # continuity of Q'' at both ends of the blend
+    assert d2Q(1e-12, k, eps) < 1e-9 and abs(d2Q(eps - 1e-12, k, eps) - k) < 1e-9
+    q, dq, d2q = one_sided_quadratic(np.array([-1.0, 0.05, 0.2]), k, eps)
+    assert q[0] == dq[0] == d2q[0] == 0.0
+    assert np.allclose([q[1], dq[1], d2q[1]], [Q(0.05, k, eps), dQ(0.05, k, eps), d2Q(0.05, k, eps)])
+
+
+def test_neo_hookean_element_derivatives():
+    rng = np.random.default_rng(1)
+    mu, lam = lame_parameters(1e5, 0.3)
+    X = np.array([[0, 0, 0], [0.01, 0, 0], [0, 0.01, 0], [0, 0, 0.01]], float)
+    dm = (X[1:] - X[0]).T
+    dNe = np.zeros((4, 3))
+    dNe[1:] = np.linalg.inv(dm)
+    dNe[0] = -dNe[1:].sum(0)
+    vol = np.linalg.det(dm) / 6
+    tet = np.arange(4)
+    x = X + rng.normal(scale=1e-3, size=X.shape)   # ~10 % strain
+    g = np.empty(12)
+    Hm = np.empty((12, 12))
+    e = element_gradient_hessian(x, tet, dNe, vol, mu, lam, g, Hm)
+    assert np.isclose(e, element_energy(x, tet, dNe, vol, mu, lam))
+    assert np.allclose(Hm, Hm.T, rtol=1e-12, atol=1e-12 * np.abs(Hm).max())
+    f = lambda y: element_energy(y, tet, dNe, vol, mu, lam)  # noqa: E731
+    assert fd_check(f, g.reshape(4, 3), x, rng) < RTOL
+
+    def grad(y):
+        gg = np.empty(12)
+        element_gradient_hessian(y, tet, dNe, vol, mu, lam, gg, np.empty((12, 12)))
+        return gg
+    for _ in range(4):
+        d = rng.normal(size=x.shape)
+        d /= np.linalg.norm(d)
+        fd = (grad(x + H * d) - grad(x - H * d)) / (2 * H)
+        assert np.linalg.norm(fd - Hm @ d.ravel()) / np.linalg.norm(fd) < RTOL
+
+
+def test_neo_hookean_small_strain_is_linear_elasticity():
+    """Small strains reproduce Hooke's law with E and nu: uniaxial stress test on one tet's
+    stress: sigma_xx / eps_xx = E when the lateral stresses vanish."""
+    E, nu = 2e5, 0.3
+    mu, lam = lame_parameters(E, nu)
+    eps = 1e-7
+    F = np.diag([1 + eps, 1 - nu * eps, 1 - nu * eps])
+    J = np.linalg.det(F)
+    P = mu * F + (lam * np.log(J) - mu) * np.linalg.inv(F).T
+    assert abs(P[0, 0] / eps - E) / E < 1e-5
+    assert abs(P[1, 1]) / (E * eps) < 1e-5
+
+
+def test_inverted_element_has_infinite_energy():
+    mu, lam = lame_parameters(1e5, 0.3)
+    X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    dNe = np.zeros((4, 3))
+    dNe[1:] = np.linalg.inv((X[1:] - X[0]).T)
+    dNe[0] = -dNe[1:].sum(0)
+    x = X.copy()
+    x[3, 2] = -0.5                      # pushed through the opposite face
+    assert element_energy(x, np.arange(4), dNe, 1 / 6, mu, lam) == np.inf
+
+
+@pytest.mark.parametrize("case", ["taut_cable_contact_friction", "cable_in_blend", "slack_cable",
+                                  "contact_in_blend", "tension_control", "fixed_nodes", "incline"])
+def test_total_energy_gradient_and_hessian(case):
+    """Gradient and Hessian of the whole potential E(x; u, x_prev) for each term and regime."""
+    rng = np.random.default_rng(abs(hash(case)) % 2**32)
+    kw, control, gravity = {}, "length", (0.0, -9.81, 0.0)
+    if case == "fixed_nodes":
+        kw["fixed_nodes"] = np.arange(3)
+    robot = small_robot(**kw)
+    if case == "tension_control":
+        control = "tension"
+    if case == "incline":
+        gravity = (-3.0, -9.3, 0.5)
+    sim = Simulator(robot, control=control, gravity=gravity)
+    X = robot.mesh.points
+    x = X + rng.normal(scale=5e-4, size=X.shape)
+    x_prev = X + rng.normal(scale=5e-4, size=X.shape)
+    L0 = sim.system.alpha0[0]
+    L = sim.system.cable_lengths(x)[0]
+    u = {"taut_cable_contact_friction": np.array([L0 - L + 2e-3]),   # Gamma = 2 mm
+         "cable_in_blend": np.array([L0 - L + 1e-4]),                 # inside the C2 blend
+         "slack_cable": np.array([L0 - L - 1e-3]),
+         "tension_control": np.array([3.0])}.get(case, np.array([L0 - L + 1e-3]))
+    # put nodes into the ground: in the contact blend (s < 5e-4) or the quadratic part
+    depth = 2e-4 if case == "contact_in_blend" else 8e-4
+    x[:, 1] -= depth
+    x_prev[:, 1] -= depth * rng.uniform(0.2, 2.0, size=len(x))
+    E = lambda y: sim.energy(y, x_prev, u)            # noqa: E731
+    G = lambda y: sim.gradient(y, x_prev, u)          # noqa: E731
+    g = G(x)
+    Hm = sim.hessian(x, x_prev, u)
+    if case == "fixed_nodes":
+        mask = np.ones_like(x, bool)
+        mask[robot.fixed_nodes] = False
+        g = g * mask
+        E0 = E
+        E = lambda y: E0(np.where(mask, y, x))        # noqa: E731
+        G0 = G
+        G = lambda y: G0(np.where(mask, y, x)) * mask  # noqa: E731
+    assert fd_check(E, g, x, rng) < RTOL
+    for _ in range(4):
+        d = rng.normal(size=x.shape)
+        d /= np.linalg.norm(d)
+        fd = (G(x + H * d) - G(x - H * d)).ravel() / (2 * H)
+        err = np.linalg.norm(fd - Hm @ d.ravel()) / np.linalg.norm(fd)
+        assert err < RTOL, f"{case}: Hessian relative error {err:.2e}"
+    assert abs(Hm - Hm.T).max() <= 1e-9 * abs(Hm).max()
+
+
+def test_friction_cross_derivative_matches_fd():
+    """d(grad E)/d x_prev (the friction term's dependence on the previous state, through the
+    displacement and through the normal force N_{k-1}) against central differences."""
+    from soft_envs.sim.contact import friction_cross, friction_cross_T
+    rng = np.random.default_rng(7)
+    robot = small_robot()
+    sim = Simulator(robot)
+    s = sim.system
+    X = robot.mesh.points
+    x = X + rng.normal(scale=5e-4, size=X.shape)
+    x[:, 1] -= 6e-4
+    x_prev = X + rng.normal(scale=5e-4, size=X.shape)
+    x_prev[:, 1] -= rng.uniform(0, 1e-3, size=len(X))      # some in the blend, some beyond
+    u = np.zeros(1)
+    S = rng.normal(size=(s.n_dof, 3))
+    out = np.zeros_like(S)
+    friction_cross(x, x_prev, s.contact_nodes, s.k_n, s.eps_n, s.mu_f, S, out)
+    for j in range(3):
+        d = S[:, j].reshape(-1, 3)
+        fd = (sim.gradient(x, x_prev + H * d, u) - sim.gradient(x, x_prev - H * d, u)).ravel() / (2 * H)
+        assert np.linalg.norm(fd - out[:, j]) / np.linalg.norm(fd) < RTOL
+    # the transpose product is the adjoint of the forward product
+    lam = rng.normal(size=s.n_dof)
+    outT = np.zeros(s.n_dof)
+    friction_cross_T(x, x_prev, s.contact_nodes, s.k_n, s.eps_n, s.mu_f, lam, outT)
+    assert np.allclose(lam @ out, outT @ S, rtol=1e-12)

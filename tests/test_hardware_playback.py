@@ -1,0 +1,297 @@
+"""Trajectory playback end to end on emulated controllers (real ptys, pyserial), faults and the CLI hook."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import sys
+import types
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+import pytest
+
+pytest.importorskip("serial")
+
+from trajopt.hardware import protocol as P  # noqa: E402
+from trajopt.hardware.cli import add_play_parser, run_play  # noqa: E402
+from trajopt.hardware.config import EXAMPLE_TRIPOD, HardwareConfig, load_hardware_config  # noqa: E402
+from trajopt.hardware.emulator import RoboClawEmulator  # noqa: E402
+from trajopt.hardware.errors import PlaybackError, RoboClawConnectionError, RoboClawTimeout  # noqa: E402
+from trajopt.hardware.playback import play_trajectory  # noqa: E402
+from trajopt.hardware.trajectory import TrajectoryLimitError, iter_command_stream, plan_trajectory  # noqa: E402
+
+DT = 0.033
+MOTION = {P.Cmd.SPEED_ACCEL_DECEL_POSITION_M1, P.Cmd.SPEED_ACCEL_DECEL_POSITION_M2, P.Cmd.DUTY_M1, P.Cmd.DUTY_M2,
+          P.Cmd.SPEED_M1, P.Cmd.SPEED_M2}
+MOVES = {P.Cmd.SPEED_ACCEL_DECEL_POSITION_M1, P.Cmd.SPEED_ACCEL_DECEL_POSITION_M2}
+
+
+def smooth_u(k: int = 60, amplitude: float = 0.01) -> np.ndarray:
+    """(k, 2) smooth contraction from rest back to rest [m]."""
+    s = np.linspace(0.0, 1.0, k)
+    return amplitude * np.stack([np.sin(np.pi * s) ** 2, 0.5 * (1 - np.cos(2 * np.pi * s))], axis=1)
+
+
+def tripod_config(timeout: float = 0.05, retries: int = 1) -> HardwareConfig:
+    cfg = load_hardware_config(EXAMPLE_TRIPOD)
+    return HardwareConfig(cfg.motors, cfg.min_battery_voltage, cfg.baudrate, timeout, retries, cfg.robot, cfg.path)
+
+
+def read_log(path: Path) -> tuple[list[str], np.ndarray]:
+    rows = list(csv.reader(path.open()))
+    return rows[0], np.array(rows[1:], dtype=float).reshape(-1, len(rows[0]))
+
+
+@pytest.fixture
+def emu() -> Iterator[RoboClawEmulator]:
+    with RoboClawEmulator() as e:
+        yield e
+
+
+class FakeTime:
+    """Deterministic clock: every reading costs 1 ms, every sleep overshoots by 40 % of a step."""
+
+    def __init__(self, dt: float) -> None:
+        self.t, self.dt, self.sleeps = 1000.0, dt, []
+
+    def clock(self) -> float:
+        self.t += 0.001
+        return self.t
+
+    def sleep(self, seconds: float) -> None:
+        self.sleeps.append(seconds)
+        self.t += seconds + 0.4 * self.dt
+
+
+# --------------------------------------------------------------------------- end to end
+def test_play_tripod_end_to_end(emu: RoboClawEmulator, tmp_path: Path) -> None:
+    cfg = tripod_config()
+    u = smooth_u()
+    log = tmp_path / "play.csv"
+    summary = play_trajectory(u, DT, ["front", "back"], cfg, port_override=emu.port, log_path=log)
+
+    assert summary.steps_sent == summary.steps_planned == 60
+    assert abs(summary.timing_drift_steps) < 1.0  # generous: typically ~0.01 steps
+    assert summary.firmware == {f"{emu.port}@0x80": "USB Roboclaw 2x7a v4.1.34"}
+    header, rows = read_log(log)
+    assert header == ["time", "step", "front_commanded", "front_measured", "back_commanded", "back_measured"]
+    assert rows.shape == (60, 6)
+    np.testing.assert_array_equal(rows[:, 1], np.arange(60))
+    commanded, measured = rows[:, 2::2], rows[:, 3::2]
+    expected = np.stack([cfg.motors[n].to_counts(u[:, j]) for j, n in enumerate(["front", "back"])], axis=1)
+    np.testing.assert_array_equal(commanded, expected)
+    # Following a ramp of speed v with decel a, the trapezoid lags ~v^2/(2a) behind the latest target,
+    # which itself is one grid step ahead; allow twice that plus a few counts.
+    m = cfg.motors["front"]
+    step = np.abs(np.diff(commanded, axis=0)).max()
+    lag = (step / DT) ** 2 / (2 * m.max_accel)
+    err = np.abs(commanded - measured)
+    assert err.max() <= 2 * (step + lag) + 5
+    assert summary.max_tracking_error_counts == err.max()
+    assert measured[:, 0].max() > 0.8 * commanded[:, 0].max()  # the motor really moved
+    # motion commands went out exactly as the dry run lists them; motors stopped at the end
+    sent = [p for p in emu.received if p.command in MOVES]
+    planned = [c.frame for c in iter_command_stream(plan_trajectory(u, DT, ["front", "back"],
+                                                                     cfg.with_port_override(emu.port)))
+               if c.frame[1] in MOVES]
+    assert [bytes((0x80, p.command)) + p.data for p in sent] == [f[:-2] for f in planned]
+    assert emu.commands()[-2:] == [P.Cmd.DUTY_M1, P.Cmd.DUTY_M2]
+    assert emu.snapshot().modes == ("idle", "idle")
+
+
+def test_drift_free_schedule_with_fake_clock(emu: RoboClawEmulator) -> None:
+    """Sleeps overshoot by 0.4 steps each time; deadlines are absolute, so lateness never accumulates."""
+    fake = FakeTime(DT)
+    summary = play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port,
+                              clock=fake.clock, sleep=fake.sleep)
+    assert summary.steps_sent == 60
+    assert 0.3 < summary.max_lateness_steps < 1.0  # a naive sleep(dt) loop would end ~24 steps late
+    assert abs(summary.timing_drift_steps) < 1.0
+    assert summary.duration_s == pytest.approx(60 * DT, abs=DT)
+
+
+def test_preroll_and_loops(emu: RoboClawEmulator) -> None:
+    u = 0.002 + smooth_u(12, 0.001)  # starts away from the assembly pose, periodic
+    summary = play_trajectory(u, 0.03, ["front", "back"], tripod_config(), port_override=emu.port, loops=2)
+    assert summary.steps_sent == 24
+    first_target = tripod_config().motors["front"].to_counts(u[0, 0])
+    moves = [p for p in emu.received if p.command == P.Cmd.SPEED_ACCEL_DECEL_POSITION_M1]
+    assert moves[0].data[12:16] == first_target.to_bytes(4, "big", signed=True)  # pre-roll move
+    assert len(moves) == 1 + 24
+
+
+def test_dry_run_prints_stream_without_port() -> None:
+    out = io.StringIO()
+    cfg = tripod_config()  # port /dev/ttyACM0 does not exist here: nothing may be opened
+    summary = play_trajectory(smooth_u(5, 0.0002), DT, ["front", "back"], cfg, dry_run=True, out=out)
+    text = out.getvalue()
+    assert summary.dry_run and summary.steps_sent == 0 and summary.steps_planned == 5
+    assert "read firmware" in text and "80 15 59 0c" in text
+    assert "front M1 move to" in text and "80 41" in text
+    assert text.strip().splitlines()[-1].endswith("80 21 00 00 6c ce")  # final stop of M2
+    assert len(text.strip().splitlines()) == 5 + 5 * 4 + 2
+
+
+# --------------------------------------------------------------------------- refusals
+def test_speed_limit_refused_before_any_command(emu: RoboClawEmulator) -> None:
+    u = smooth_u()
+    u[30, 1] -= 0.008  # an 8 mm drop within one step: ~ 28 000 counts/s
+    with pytest.raises(TrajectoryLimitError, match=r"'back'.*speed \d+ counts/s between steps (29 -> 30|30 -> 31)"):
+        play_trajectory(u, DT, ["front", "back"], tripod_config(), port_override=emu.port)
+    assert emu.received == []
+
+
+def test_accel_limit_and_bounds_refused(emu: RoboClawEmulator) -> None:
+    u = smooth_u()
+    zigzag = np.zeros((10, 2))
+    zigzag[1::2, 0] = 0.0002  # 23 counts up and down: slow (~690 counts/s) but ~40 000 counts/s^2
+    with pytest.raises(TrajectoryLimitError, match=r"'front'.*acceleration \d+ counts/s\^2 at step 1 exceeds"):
+        play_trajectory(zigzag, DT, ["front", "back"], tripod_config(), port_override=emu.port)
+    with pytest.raises(TrajectoryLimitError, match=r"'front'.*u = 0.05 m at step 3 outside"):
+        bad = np.zeros((6, 2))
+        bad[3:, 0] = 0.05
+        play_trajectory(bad, 100.0, ["front", "back"], tripod_config(), port_override=emu.port)
+    with pytest.raises(TrajectoryLimitError, match="loop wrap-around"):
+        play_trajectory(np.linspace(0, 0.01, 60)[:, None].repeat(2, 1), DT, ["front", "back"], tripod_config(),
+                        port_override=emu.port, loops=2)
+    with pytest.raises(ValueError, match="'middle'"):
+        play_trajectory(u, DT, ["front", "middle"], tripod_config(), port_override=emu.port)
+    assert emu.received == []
+
+
+def test_low_battery_refused_before_motion(emu: RoboClawEmulator) -> None:
+    emu.set_battery_voltage(9.8)
+    with pytest.raises(PlaybackError, match=r"9\.8 V is below min_battery_voltage = 10\.5"):
+        play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port)
+    assert not MOVES & set(emu.commands())
+
+
+# --------------------------------------------------------------------------- faults mid-playback
+def two_port_config(tmp_path: Path, port_a: str, port_b: str) -> Path:
+    path = tmp_path / "two_ports.toml"
+    motor = ("[motors.{name}]\nport = \"{port}\"\naddress = 0x80\nchannel = 1\nspool_radius = 0.005\n"
+             "max_speed = 4500\nmax_accel = 30000\n")
+    path.write_text("[settings]\ntimeout = 0.05\nretries = 1\nmin_battery_voltage = 10.5\n"
+                    + motor.format(name="front", port=port_a) + motor.format(name="back", port=port_b))
+    return path
+
+
+def test_disconnect_mid_playback_stops_reachable_motors(tmp_path: Path) -> None:
+    with RoboClawEmulator() as emu_a, RoboClawEmulator() as emu_b:
+        cfg = load_hardware_config(two_port_config(tmp_path, emu_a.port, emu_b.port))
+        # pre-flight: firmware, battery, duty 0 x2, reset = 5 packets; then 2 per step -> dies at step 10
+        emu_a.disconnect_after(5 + 2 * 10 + 1)
+        log = tmp_path / "crash.csv"
+        with pytest.raises(RoboClawConnectionError) as info:
+            play_trajectory(smooth_u(), DT, ["front", "back"], cfg, log_path=log)
+        assert info.value.address == 0x80
+        assert any("log kept" in note for note in getattr(info.value, "__notes__", []))
+        assert not emu_a.connected
+        assert emu_b.commands()[-2:] == [P.Cmd.DUTY_M1, P.Cmd.DUTY_M2]
+        assert emu_b.snapshot().modes == ("idle", "idle")
+        header, rows = read_log(log)
+        assert len(header) == 6 and rows.shape == (10, 6)
+
+
+def test_keyboard_interrupt_stops_motors(emu: RoboClawEmulator) -> None:
+    calls = 0
+
+    def sleep(seconds: float) -> None:
+        nonlocal calls
+        calls += 1
+        if calls == 5:
+            raise KeyboardInterrupt
+        __import__("time").sleep(seconds)
+
+    with pytest.raises(KeyboardInterrupt):
+        play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port, sleep=sleep)
+    assert emu.commands()[-2:] == [P.Cmd.DUTY_M1, P.Cmd.DUTY_M2]
+    assert emu.snapshot().modes == ("idle", "idle")
+
+
+def test_unresponsive_controller_raises_timeout(emu: RoboClawEmulator) -> None:
+    emu.inject_no_reply(None)
+    with pytest.raises(RoboClawTimeout, match="no complete reply.*after 2 attempts"):
+        play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port)
+    # firmware read (2 attempts), then the stop attempt on the way out (duty M1, 2 attempts, then M2)
+    assert emu.commands()[:3] == [P.Cmd.READ_FIRMWARE] * 2 + [P.Cmd.DUTY_M1]
+    assert not MOVES & set(emu.commands())
+
+
+# --------------------------------------------------------------------------- CLI hook
+@pytest.fixture
+def fake_results(monkeypatch: pytest.MonkeyPatch) -> dict[str, object]:
+    """Stand-in for ``trajopt.results`` (written separately): Result.load returns a prepared object."""
+    store: dict[str, object] = {}
+
+    class Result:
+        @staticmethod
+        def load(path: str) -> object:
+            if path not in store:
+                raise FileNotFoundError(path)
+            return store[path]
+
+    module = types.ModuleType("trajopt.results")
+    module.Result = Result  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "trajopt.results", module)
+    store["res.npz"] = types.SimpleNamespace(u_post=smooth_u(), dt=DT, motor_names=["front", "back"])
+    return store
+
+
+def parse(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="trajopt")
+    add_play_parser(parser.add_subparsers(dest="command", required=True))
+    return parser.parse_args(argv)
+
+
+def test_cli_parser() -> None:
+    args = parse(["play", "r.npz", "--hardware", "hw.toml", "--dry-run", "--loops", "3", "--log", "x.csv",
+                  "--port-override", "loop://"])
+    assert (args.result, args.hardware, args.dry_run, args.loops, args.log, args.port_override) == \
+        ("r.npz", "hw.toml", True, 3, "x.csv", "loop://")
+    assert args.func is run_play
+    with pytest.raises(SystemExit):
+        parse(["play", "r.npz", "--hardware", "hw.toml", "--loops", "0"])
+
+
+def test_cli_plays_and_dry_runs(fake_results: dict, emu: RoboClawEmulator, tmp_path: Path,
+                                capsys: pytest.CaptureFixture[str]) -> None:
+    args = parse(["play", "res.npz", "--hardware", str(EXAMPLE_TRIPOD), "--dry-run"])
+    assert args.func(args) == 0
+    assert "move to" in capsys.readouterr().out
+    fake_results["short.npz"] = types.SimpleNamespace(u_post=smooth_u(10, 0.0005), dt=0.03,
+                                                      motor_names=["front", "back"])
+    log = tmp_path / "ok.csv"
+    args = parse(["play", "short.npz", "--hardware", str(EXAMPLE_TRIPOD), "--port-override", emu.port,
+                  "--log", str(log)])
+    assert args.func(args) == 0
+    assert "10/10 steps sent" in capsys.readouterr().out
+    assert len(log.read_text().splitlines()) == 11
+
+
+def test_cli_hardware_error_exits_nonzero_and_keeps_log(fake_results: dict, tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    with RoboClawEmulator() as emu_a, RoboClawEmulator() as emu_b:
+        hw = two_port_config(tmp_path, emu_a.port, emu_b.port)
+        emu_a.disconnect_after(5 + 2 * 5 + 1)
+        log = tmp_path / "cli.csv"
+        args = parse(["play", "res.npz", "--hardware", str(hw), "--log", str(log)])
+        assert args.func(args) == 1
+        assert emu_b.commands()[-2:] == [P.Cmd.DUTY_M1, P.Cmd.DUTY_M2]
+    err = capsys.readouterr().err
+    assert "hardware error" in err and "RoboClawConnectionError" in err and str(log) in err
+    assert len(log.read_text().splitlines()) == 1 + 5
+
+
+def test_cli_input_errors(fake_results: dict, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[motors.left]\nport = 1\n")
+    assert run_play(parse(["play", "res.npz", "--hardware", str(bad)])) == 2
+    assert str(bad) in capsys.readouterr().err
+    assert run_play(parse(["play", "missing.npz", "--hardware", str(EXAMPLE_TRIPOD)])) == 2
+    fake_results["fast.npz"] = types.SimpleNamespace(u_post=smooth_u(), dt=DT / 10, motor_names=["front", "back"])
+    assert run_play(parse(["play", "fast.npz", "--hardware", str(EXAMPLE_TRIPOD), "--dry-run"])) == 2
+    assert "exceeds" in capsys.readouterr().err

@@ -1,0 +1,90 @@
+"""``trajopt play``: command-line hook for trajectory playback.
+
+Hook into an argparse-based CLI::
+
+    parser = argparse.ArgumentParser(prog="trajopt")
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_play_parser(sub)                   # registers "play", sets func=run_play
+    args = parser.parse_args()
+    sys.exit(args.func(args))
+
+Exit codes of :func:`run_play`: 0 success, 1 hardware / communication /
+pre-flight error (the CSV log is kept), 2 invalid input (result file, hardware
+TOML, trajectory limits), 130 interrupted (motors stopped).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+EXIT_OK, EXIT_HARDWARE, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def add_play_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Register ``play RESULT --hardware HW.toml [--dry-run] [--loops N] [--log CSV] [--port-override PORT]``."""
+    parser: argparse.ArgumentParser = subparsers.add_parser(
+        "play", help="play an optimised trajectory on the robot's RoboClaw motor controllers",
+        description="Stream the optimised cable trajectory u_post of RESULT to the motors described in "
+                    "the hardware TOML. The robot must rest at its assembly pose (u = 0): encoders are "
+                    "zeroed before playing.")
+    parser.add_argument("result", metavar="RESULT", help="trajectory-optimisation result (trajopt.results.Result)")
+    parser.add_argument("--hardware", required=True, metavar="HW.toml", help="hardware description (TOML)")
+    parser.add_argument("--dry-run", action="store_true", help="print the command stream, open no port")
+    parser.add_argument("--loops", type=_positive_int, default=1, metavar="N", help="play N times (default 1)")
+    parser.add_argument("--log", metavar="CSV", default=None,
+                        help="CSV log of commanded vs measured counts (default: play_<RESULT>_<time>.csv)")
+    parser.add_argument("--port-override", metavar="PORT", default=None,
+                        help="use PORT (device or pyserial URL) for every motor")
+    parser.set_defaults(func=run_play)
+    return parser
+
+
+def _describe(exc: BaseException) -> str:
+    notes = getattr(exc, "__notes__", None) or []
+    return "; ".join([f"{type(exc).__name__}: {exc}", *notes])
+
+
+def run_play(args: argparse.Namespace) -> int:
+    """Handler of ``trajopt play``; returns the process exit code (messages go to stderr)."""
+    from .config import load_hardware_config
+    from .errors import PlaybackError, RoboClawError
+    from .playback import play_trajectory
+
+    try:
+        from trajopt.results import Result  # written separately; imported lazily on purpose
+
+        res = Result.load(args.result)
+        config = load_hardware_config(args.hardware)
+    except (ValueError, OSError, ImportError) as exc:
+        print(f"trajopt play: cannot load inputs: {_describe(exc)}", file=sys.stderr)
+        return EXIT_INPUT
+    log_path = args.log
+    if log_path is None and not args.dry_run:
+        log_path = f"play_{Path(args.result).stem}_{time.strftime('%Y%m%d-%H%M%S')}.csv"
+    try:
+        summary = play_trajectory(res.u_post, float(res.dt), list(res.motor_names), config, loops=args.loops,
+                                  log_path=log_path, dry_run=args.dry_run, port_override=args.port_override)
+    except KeyboardInterrupt:
+        print(f"trajopt play: interrupted, motors stopped; log: {log_path}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (RoboClawError, PlaybackError, OSError, ImportError) as exc:
+        print(f"trajopt play: hardware error: {_describe(exc)}", file=sys.stderr)
+        if log_path is not None and Path(log_path).exists():
+            print(f"trajopt play: log kept at {log_path}", file=sys.stderr)
+        return EXIT_HARDWARE
+    except ValueError as exc:
+        print(f"trajopt play: refused: {_describe(exc)}", file=sys.stderr)
+        return EXIT_INPUT
+    print(summary)
+    return EXIT_OK
