@@ -39,7 +39,8 @@ def build(xs, ys, zs, boxes, fine: bool):
     if fine:
         xs, ys, zs = refine(xs), refine(ys), refine(zs)
     occ = box_occupancy(xs, ys, zs, boxes)
-    return voxel_tet_mesh(xs, ys, zs, occ)
+    # mirror-symmetric split about the sagittal plane: left and right behave identically
+    return voxel_tet_mesh(xs, ys, zs, occ, mirror_z=0.5 * (zs[0] + zs[-1]))
 
 
 def volume(boxes) -> float:
@@ -110,29 +111,34 @@ def write(name: str, description: str, body_length: float, xs, ys, zs, boxes, bo
 
 
 def tripod() -> None:
-    L, W, H_leg, H_body = 0.14, 0.04, 0.03, 0.02
+    # The middle leg is `drop` longer than the outer legs: at rest it carries much of the weight,
+    # so pushing with it moves the body, while co-contraction lifts it and the outer legs take
+    # over. Measured with hand-made gaits: drop 0 -> ~1 BL/min, 3 mm -> ~4.5 BL/min.
+    L, W, H_leg, H_body, drop = 0.14, 0.04, 0.03, 0.02, 0.003
     xs = [0, 0.02, 0.04, 0.06, 0.07, 0.08, 0.10, 0.12, 0.14]
-    ys = [0, 0.01, 0.02, H_leg, H_leg + 0.01, H_leg + H_body]
+    ys = [0, drop, drop + 0.01, drop + 0.02, drop + H_leg, drop + H_leg + 0.01, drop + H_leg + H_body]
     zs = [0, 0.02, W]
-    body = ((0, L), (H_leg, H_leg + H_body), (0, W))
-    legs = [((0, 0.02), (0, H_leg), (0, W)), ((0.06, 0.08), (0, H_leg), (0, W)),
-            ((0.12, L), (0, H_leg), (0, W))]
-    heights = [0.004, 0.015, 0.026, 0.040]
+    top = drop + H_leg
+    body = ((0, L), (top, top + H_body), (0, W))
+    legs = [((0, 0.02), (drop, top), (0, W)), ((0.06, 0.08), (0, top), (0, W)),
+            ((0.12, L), (drop, top), (0, W))]
+    heights = [0.004, 0.015, 0.025, top + 0.01]
     inset = 0.002
     motors = [
         dict(name="front", tendons=leg_tendons("front", 0.08 - inset, 0, W, heights)),
         dict(name="back", tendons=leg_tendons("back", 0.06 + inset, 0, W, heights)),
     ]
-    write("tripod", "Tripod (paper IV-A): 14 cm, body 24 g, motor assembly 44 g; the middle leg is "
-          "bent forward by 'front', backward by 'back', and lifted by both.",
-          L, xs, ys, zs, [body, *legs], 0.024, 0.044, motors, u_max=0.008)
+    write("tripod", "Tripod (paper IV-A): 14 cm, body 24 g, motor assembly 44 g; the middle leg "
+          f"({1000 * drop:.0f} mm longer than the outer ones) is bent forward by 'front', backward by "
+          "'back', and lifted by both.",
+          L, xs, ys, zs, [body, *legs], 0.024, 0.044, motors, u_max=0.016)
 
 
 def puppy() -> None:
     L, W, H_leg, H_body = 0.13, 0.08, 0.04, 0.03
     xs = [0, 0.015, 0.03, 0.065, 0.10, 0.115, 0.13]
     ys = [0, 0.01, 0.02, 0.03, H_leg, H_leg + 0.015, H_leg + H_body]
-    zs = [0, 0.02, 0.06, W]
+    zs = [0, 0.02, 0.04, 0.06, W]
     body = ((0, L), (H_leg, H_leg + H_body), (0, W))
     leg_x = {"hind": (0.0, 0.03), "fore": (0.10, L)}
     leg_z = {"left": (0.0, 0.02), "right": (0.06, W)}     # left is -z
@@ -149,7 +155,7 @@ def puppy() -> None:
                                    tendons=leg_tendons(name, xf, z0, z1, heights)))
     write("puppy", "Puppy (paper IV-B): 13 cm, body 90 g, motor assembly 140 g (top-heavy); four "
           "legs, two motors each (front and back face), each motor a tendon pair; left/right mirrored.",
-          L, xs, ys, zs, [body, *legs], 0.090, 0.140, motors, u_max=0.008)
+          L, xs, ys, zs, [body, *legs], 0.090, 0.140, motors, u_max=0.016)
 
 
 if __name__ == "__main__":

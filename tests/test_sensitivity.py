@@ -25,7 +25,7 @@ def gait(robot, control: str, K: int = K) -> np.ndarray:
     u = np.zeros((K, robot.n_motors))
     for m in range(robot.n_motors):
         wave = 0.5 * (1 - np.cos(2 * np.pi * t / 1.0 + 2.0 * m))
-        u[:, m] = 0.8 * robot.u_bounds[m, 1] * wave if control == "length" else 0.5 + 3.5 * wave   # [N]
+        u[:, m] = 0.5 * robot.u_bounds[m, 1] * wave if control == "length" else 0.5 + 3.5 * wave   # [N]
     return u
 
 

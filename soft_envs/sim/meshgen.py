@@ -35,10 +35,15 @@ def box_occupancy(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float],
 
 
 def voxel_tet_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float],
-                   occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                   occupied: np.ndarray, mirror_z: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(points, tets)`` of the occupied cells of the grid ``xs x ys x zs``.
 
-    Unused grid nodes are dropped; every tet is positively oriented."""
+    The Freudenthal split has a preferred diagonal, so a mesh of a left/right symmetric body is
+    not itself symmetric (and a simulated robot slowly turns). With ``mirror_z`` the cells whose
+    centre lies above that plane use the split reflected in z: the mesh is then exactly
+    symmetric about the plane (the grid must be too), and still conforming (faces in the
+    plane keep their diagonal). Unused grid nodes are dropped; every tet is positively
+    oriented."""
     xs, ys, zs = (np.asarray(v, dtype=np.float64) for v in (xs, ys, zs))
     occ = np.asarray(occupied, dtype=bool)
     if occ.shape != (len(xs) - 1, len(ys) - 1, len(zs) - 1):
@@ -54,7 +59,11 @@ def voxel_tet_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float]
         corner_tets.append(np.array(path))
     corner_tets = np.array(corner_tets)                      # (6, 4, 3) offsets
     cells = np.argwhere(occ)                                 # (c, 3)
-    idx = cells[:, None, None, :] + corner_tets[None]        # (c, 6, 4, 3)
+    offsets = np.broadcast_to(corner_tets, (len(cells), *corner_tets.shape)).copy()
+    if mirror_z is not None:
+        upper = 0.5 * (zs[cells[:, 2]] + zs[cells[:, 2] + 1]) > mirror_z
+        offsets[upper, :, :, 2] = 1 - offsets[upper, :, :, 2]
+    idx = cells[:, None, None, :] + offsets                  # (c, 6, 4, 3)
     tets = node(idx[..., 0], idx[..., 1], idx[..., 2]).reshape(-1, 4)
     X, Y, Z = np.meshgrid(xs, ys, zs, indexing="ij")
     points = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)

@@ -1,0 +1,184 @@
+"""trajopt: parameterisation, targets, objective Jacobian through rollouts, Gauss-Newton,
+results files, resume."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from soft_envs.sim import NewtonOptions
+from trajopt import GaitParameterization, GaussNewtonOptions, ObjectiveWeights, Result, optimize_gait
+from trajopt.evaluation import zero_slack_controls
+from trajopt.hooks import SimulatorHooks, as_hooks
+from trajopt.objectives import gait_residuals
+from trajopt.optimize import GaitProblem
+from trajopt.parameterization import hermite_cycle_basis
+from trajopt.targets import quarter_circle, straight_line
+
+from .conftest import shipped
+
+
+def puppy_param(symmetry=True, **kw):
+    robot = shipped("puppy")[0]
+    return robot, GaitParameterization(robot.u_bounds, robot.mirror_map, symmetry=symmetry, **kw)
+
+
+def test_spline_is_periodic_zero_tangent_and_bounded():
+    B = hermite_cycle_basis(72, 4)
+    assert np.allclose(B.sum(axis=1), 1.0) and (B >= 0).all()
+    kf = np.array([0.0, 1.0, 0.3, 0.7])
+    u = B @ kf
+    assert np.allclose(u[::18], kf)                        # passes through the keyframes
+    assert u.min() >= kf.min() and u.max() <= kf.max()     # never leaves their range
+    # zero tangent at keyframes (one-sided differences vanish to second order)
+    for j in range(4):
+        i = 18 * j
+        assert abs(u[(i + 1) % 72] - u[i]) < 0.02 and abs(u[i - 1] - u[i]) < 0.02
+
+
+def test_dudz_matches_finite_differences_and_layout():
+    robot, p = puppy_param()
+    assert p.nz == 16 and p.dudz().shape == (168, 8, 16)    # paper: 16 with symmetry
+    assert puppy_param(symmetry=False)[1].nz == 32           # and 32 without
+    rng = np.random.default_rng(0)
+    z = p.initial_z(0.5, rng, noise=0.4)
+    d = rng.normal(size=p.nz)
+    h = 1e-6
+    fd = (p.controls(z + h * d) - p.controls(z - h * d)) / (2 * h)
+    assert np.allclose(fd, p.dudz() @ d, rtol=1e-8, atol=1e-12)
+    u = p.controls(z)
+    assert np.allclose(u[0], 0.0, atol=1e-12) or np.abs(u[0]).max() < 0.01 * np.abs(u).max()
+    assert np.allclose(u[p.n_prep - 1], u[p.n_prep])        # prep ends at the cycle's start
+    assert np.allclose(u[p.n_prep:p.n_prep + 72], u[p.n_prep + 72:])   # two identical cycles
+
+
+def test_symmetry_is_half_period_shift_of_mirror_motor():
+    robot, p = puppy_param()
+    z = p.initial_z(0.5, np.random.default_rng(1), noise=0.4)
+    u = p.controls(z)[p.n_prep:p.n_prep + 72]
+    for m, mm in enumerate(robot.mirror_map):
+        assert np.allclose(u[:, mm], np.roll(u[:, m], -36))
+    kf = p.keyframes(z)
+    lo, hi = p.bounds()
+    assert np.allclose(p.z_from_keyframes(kf), z)
+    assert (lo == 0).all() and np.allclose(hi, robot.u_bounds[p.free_motors, 1].repeat(4))
+
+
+def test_targets():
+    line = straight_line([0.0, 0.0], 10, 0.1, 0.5, heading_deg=90.0)
+    assert np.allclose(line[-1], [0.0, 0.5])
+    arc = quarter_circle([0.0, 0.0], 100, 0.05, 0.2, direction="right")
+    R = 2 * 0.2 * 5.0 / np.pi
+    assert np.allclose(arc[-1], [R, R])                     # a quarter circle towards +z (right)
+    assert np.allclose(np.linalg.norm(np.diff(arc, axis=0), axis=1).sum(), 1.0, rtol=1e-3)
+    with pytest.raises(ValueError, match="direction"):
+        quarter_circle([0, 0], 10, 0.1, 0.1, direction="up")
+
+
+def test_objective_jacobian_matches_finite_differences_of_rollouts():
+    """The residual Jacobian (COM tracking, slack eating with active cables, regularisers) equals
+    central differences of whole rollouts."""
+    robot = shipped("tripod")[0]
+    hooks = SimulatorHooks(robot)
+    hooks.simulator.newton.options = NewtonOptions(tol=1e-12)
+    p = GaitParameterization(robot.u_bounds, robot.mirror_map, n_prep=6, n_cycle=16)
+    x0, _ = hooks.reset_state()
+    target = straight_line(robot.com(x0)[[0, 2]], p.n_steps(), hooks.dt, 0.02)
+    weights = ObjectiveWeights(slack=1.0, slack_eps=2e-4)
+    prob = GaitProblem(hooks, p, target, weights)
+    z = p.initial_z(0.5, np.random.default_rng(2), noise=0.45)
+    r, J, terms = prob(z)
+    assert terms["terms"]["slack"] > 0 and terms["terms"]["com"] > 0
+    rng = np.random.default_rng(3)
+    for _ in range(2):
+        d = rng.normal(size=p.nz)
+        d /= np.linalg.norm(d)
+        h = 2e-8
+        fd = (prob(z + h * d, False)[0] - prob(z - h * d, False)[0]) / (2 * h)
+        assert np.linalg.norm(fd - J @ d) / np.linalg.norm(fd) < 1e-4
+
+
+@pytest.fixture(scope="module")
+def short_walk():
+    robot = shipped("tripod")[0]
+    hooks = SimulatorHooks(robot)
+    res = optimize_gait(hooks, "walk", n_prep=12, n_cycle=36, options=GaussNewtonOptions(max_iter=2),
+                        n_seeds=2, eval_cycles=3, robot_spec="tripod")
+    return hooks, res
+
+
+def test_short_optimisation_lowers_objective_and_walks_forward(short_walk):
+    hooks, res = short_walk
+    hist = res.history
+    assert hist and hist[-1]["objective_after"] <= hist[0]["objective"]
+    ev = res.evaluation
+    assert ev["speed_bl_per_min"] > 0.5 and ev["upright"]
+    assert res.u.shape == (12 + 2 * 36, 2) and res.com.shape == (85, 3)
+    assert (res.u_post >= res.u - 1e-15).all()              # post-processing only reels in slack
+
+
+def test_zero_slack_post_processing():
+    u = np.zeros((3, 2))
+    gamma = np.array([[0, 0, 0, 0], [-0.002, -0.001, 0.001, -0.003], [0.0, 0.0, -0.001, -0.001],
+                      [-0.004, -0.004, 0.0, 0.0]], float)
+    tm = np.array([0, 0, 1, 1])
+    out = zero_slack_controls(u, gamma, tm, np.array([[0, 0.003], [0, 0.003]]))
+    assert np.allclose(out, [[0.001, 0.0], [0.0, 0.001], [0.003, 0.0]])   # min slack of the pair, clipped
+
+
+def test_result_round_trip_and_bad_files(short_walk, tmp_path):
+    _, res = short_walk
+    path = res.save(tmp_path / "walk")
+    assert path.suffix == ".npz" and path.with_suffix(".json").is_file()
+    back = Result.load(path)
+    for key in ("z", "u", "u_post", "target", "com"):
+        assert np.array_equal(getattr(back, key), getattr(res, key))
+    assert back.settings == json.loads(json.dumps(res.settings))
+    assert back.evaluation["speed_bl_per_min"] == res.evaluation["speed_bl_per_min"]
+    assert not list(tmp_path.glob("*.tmp"))
+    with pytest.raises(ValueError, match="not found"):
+        Result.load(tmp_path / "nope.npz")
+    (tmp_path / "junk.npz").write_bytes(b"junk")
+    with pytest.raises(ValueError, match=r"junk\.npz.*not a readable"):
+        Result.load(tmp_path / "junk.npz")
+    import io
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files if k != "u_post"}
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    (tmp_path / "missing.npz").write_bytes(buf.getvalue())
+    with pytest.raises(ValueError, match=r"missing\.npz: field 'u_post' is missing"):
+        Result.load(tmp_path / "missing.npz")
+    arrays["u_post"] = np.full_like(res.u, np.nan)
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    (tmp_path / "nan.npz").write_bytes(buf.getvalue())
+    with pytest.raises(ValueError, match=r"field 'u_post' contains NaN"):
+        Result.load(tmp_path / "nan.npz")
+
+
+def test_resume_continues_from_saved_iterate(tmp_path):
+    """An optimisation stopped after one iteration (as by Ctrl-C, which saves first) and resumed
+    ends where an uninterrupted run ends."""
+    robot = shipped("tripod")[0]
+    hooks = SimulatorHooks(robot)
+    kw = dict(n_prep=4, n_cycle=12, n_seeds=1, eval_cycles=1, robot_spec="tripod")
+    full = optimize_gait(hooks, "walk", options=GaussNewtonOptions(max_iter=3, ftol=0), **kw)
+    saved = {}
+
+    def stop_after_first(entry, partial):
+        partial.save(tmp_path / "ckpt")
+        saved["n"] = entry["iteration"]
+        return True
+    optimize_gait(hooks, "walk", options=GaussNewtonOptions(max_iter=3, ftol=0), callback=stop_after_first, **kw)
+    part = Result.load(tmp_path / "ckpt.npz")
+    assert saved["n"] == 1 and len(part.history) == 1 and part.status == "running"
+    resumed = optimize_gait(hooks, "walk", options=GaussNewtonOptions(max_iter=2, ftol=0), resume=part, **kw)
+    assert [h["iteration"] for h in resumed.history] == [h["iteration"] for h in full.history]
+    assert np.allclose(resumed.z, full.z, atol=1e-10)
+
+
+def test_as_hooks_rejects_objects_without_hooks():
+    with pytest.raises(TypeError, match="gradient hook"):
+        as_hooks(object())

@@ -1,0 +1,128 @@
+"""The ``trajopt`` command.
+
+    trajopt optimize tripod --task walk --out results/
+    trajopt optimize puppy --task turn --warm-start results/puppy_walk.npz --out results/
+    trajopt optimize puppy --task incline --angle 10 --out results/
+    trajopt evaluate results/tripod_walk.npz [--cycles 10]
+    trajopt render results/tripod_walk.npz --gif tripod.gif [--mp4 tripod.mp4]
+    trajopt export results/tripod_walk.npz --vtu paraview/
+    trajopt plot results/tripod_walk.npz --out plots/
+    trajopt play results/tripod_walk.npz --hardware hw.toml [--dry-run]
+    trajopt rl train tripod --algo ppo --timesteps 20000 --out runs/
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["main", "build_parser"]
+
+
+def _add_optimize(sub) -> None:
+    p = sub.add_parser("optimize", help="optimise a gait (paper III) and save a result")
+    p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
+    p.add_argument("--task", choices=["walk", "turn", "incline"], default="walk")
+    p.add_argument("--speed", type=float, default=None, help="target speed [body lengths/min]")
+    p.add_argument("--heading", type=float, default=0.0, help="walking direction [deg from +x to +z]")
+    p.add_argument("--turn", choices=["right", "left"], default="right", help="turn direction (task turn)")
+    p.add_argument("--angle", type=float, default=10.0, help="slope [deg] (task incline)")
+    sym = p.add_mutually_exclusive_group()
+    sym.add_argument("--symmetry", dest="symmetry", action="store_true", default=None,
+                     help="bilateral symmetry on (default for walk and incline)")
+    sym.add_argument("--no-symmetry", dest="symmetry", action="store_false", help="symmetry off (default for turn)")
+    p.add_argument("--warm-start", type=Path, default=None, help="start from this result's keyframes")
+    p.add_argument("--iterations", type=int, default=15, help="Gauss-Newton iterations at most")
+    p.add_argument("--keyframes", type=int, default=4, help="spline keyframes per cycle")
+    p.add_argument("--seeds", type=int, default=12, help="random starting patterns tried (no warm start)")
+    p.add_argument("--cycles", type=int, default=6, help="cycles played for the evaluation")
+    p.add_argument("--out", type=Path, default=Path("results"), help="output directory")
+    p.add_argument("--name", default=None, help="result file name (default ROBOT_TASK)")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted run of the same name")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_optimize)
+
+
+def _add_result_commands(sub) -> None:
+    p = sub.add_parser("evaluate", help="re-simulate a result and report its speed")
+    p.add_argument("result", type=Path)
+    p.add_argument("--cycles", type=int, default=None, help="cycles to play (default: as optimised)")
+    p.set_defaults(func=_cmd_evaluate)
+    p = sub.add_parser("render", help="animate a result (GIF through Pillow, MP4 with imageio-ffmpeg)")
+    p.add_argument("result", type=Path)
+    p.add_argument("--gif", type=Path, default=None)
+    p.add_argument("--mp4", type=Path, default=None)
+    p.add_argument("--cycles", type=int, default=2)
+    p.add_argument("--every", type=int, default=2, help="render every n-th simulation step")
+    p.add_argument("--size", default="480x360", help="frame size WIDTHxHEIGHT")
+    p.set_defaults(func=_cmd_render)
+    p = sub.add_parser("export", help="ParaView time series (.vtu per step + .pvd)")
+    p.add_argument("result", type=Path)
+    p.add_argument("--vtu", type=Path, required=True, help="output directory")
+    p.add_argument("--cycles", type=int, default=2)
+    p.set_defaults(func=_cmd_export)
+    p = sub.add_parser("plot", help="COM path, controls, convergence and speed plots")
+    p.add_argument("result", type=Path)
+    p.add_argument("--out", type=Path, default=Path("plots"))
+    p.add_argument("--format", choices=["png", "svg"], default="png")
+    p.set_defaults(func=_cmd_plot)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="trajopt", description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_optimize(sub)
+    _add_result_commands(sub)
+    try:
+        from .hardware.cli import add_play_parser
+        add_play_parser(sub)
+    except ImportError:   # pragma: no cover
+        pass
+    try:
+        from .rl.cli import add_rl_parser
+        add_rl_parser(sub)
+    except ImportError:
+        pass
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ValueError as exc:          # bad input: files, fields, values
+        print(f"trajopt: error: {exc}", file=sys.stderr)
+        return 2
+
+
+# ---------------------------------------------------------------------- commands
+def _cmd_optimize(args) -> int:
+    from .commands import run_optimize
+    return run_optimize(args)
+
+
+def _cmd_evaluate(args) -> int:
+    from .commands import run_evaluate
+    return run_evaluate(args)
+
+
+def _cmd_render(args) -> int:
+    from .commands import run_render
+    return run_render(args)
+
+
+def _cmd_export(args) -> int:
+    from .commands import run_export
+    return run_export(args)
+
+
+def _cmd_plot(args) -> int:
+    from .commands import run_plot
+    return run_plot(args)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    np.seterr(all="ignore")
+    sys.exit(main())

@@ -1,0 +1,151 @@
+"""Projected Gauss-Newton (Levenberg-Marquardt damped) for bound-constrained least squares.
+
+Minimises ``O(z) = 0.5 |r(z)|^2`` subject to ``lower <= z <= upper``, where ``fun(z, need_jac)``
+returns ``(r, J, info)`` and may raise :class:`~soft_envs.sim.SimulationError` (a trial point
+whose rollout fails counts as ``O = inf``: a rejected step, not a crash).
+
+Each iteration
+  1. evaluates r and J at z (one rollout with sensitivities);
+  2. freezes the variables at a bound whose gradient pushes outwards (active set);
+  3. solves ``(J_f^T J_f + lambda diag(J_f^T J_f) + lambda mu I) dz_f = -J_f^T r`` on the free
+     variables (Levenberg-Marquardt, Marquardt scaling, mu = mean of the diagonal);
+  4. backtracks ``z_new = clip(z + alpha dz)`` with alpha = 1, 1/2, ... until the Armijo
+     condition ``O(z_new) <= O(z) + c alpha g . dz`` holds (one rollout per trial);
+  5. decreases lambda after a full step, increases it after a backtracked or rejected one.
+
+Stopping criteria (the first that holds; ``status`` in the result names it):
+  * ``"max_iter"``: ``max_iter`` iterations done;
+  * ``"ftol"``: an accepted step decreased O by less than ``ftol * O``;
+  * ``"gtol"``: the projected gradient's max-norm is below ``gtol``;
+  * ``"xtol"``: the accepted step's max-norm is below ``xtol * (upper - lower)``;
+  * ``"stalled"``: ``max_rejections`` consecutive iterations found no decrease;
+  * ``"callback"``: the callback returned True.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from soft_envs.sim import SimulationError
+
+__all__ = ["GaussNewtonOptions", "GaussNewtonResult", "gauss_newton"]
+
+
+@dataclass(frozen=True)
+class GaussNewtonOptions:
+    max_iter: int = 15
+    ftol: float = 1e-4
+    gtol: float = 1e-10
+    xtol: float = 1e-5
+    lambda0: float = 1e-4
+    lambda_decrease: float = 0.3
+    lambda_increase: float = 10.0
+    armijo: float = 1e-4
+    max_backtracks: int = 3
+    max_rejections: int = 3
+
+
+@dataclass
+class GaussNewtonResult:
+    z: np.ndarray
+    objective: float
+    status: str
+    history: list[dict] = field(default_factory=list)
+    lam: float = 0.0
+    info: dict = field(default_factory=dict)
+
+
+def _evaluate(fun, z, need_jac):
+    try:
+        r, J, info = fun(z, need_jac)
+    except SimulationError as err:
+        return np.inf, None, None, {"sim_failure": str(err)}
+    if not np.isfinite(r).all():
+        return np.inf, None, None, {"sim_failure": "non-finite residual"}
+    return 0.5 * float(r @ r), r, J, info
+
+
+def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                 options: GaussNewtonOptions = GaussNewtonOptions(), *,
+                 callback: Callable[[dict], bool | None] | None = None,
+                 lam: float | None = None, first_iteration: int = 1) -> GaussNewtonResult:
+    """Run the solver from ``z0`` (projected onto the bounds). ``callback(entry)`` is called
+    after every iteration with its history entry (plus ``"z"``); returning True stops.
+    ``lam`` and ``first_iteration`` let an interrupted run resume where it stopped."""
+    opt = options
+    lower = np.asarray(lower, dtype=np.float64)
+    upper = np.asarray(upper, dtype=np.float64)
+    z = np.clip(np.asarray(z0, dtype=np.float64), lower, upper)
+    scale = np.where(upper > lower, upper - lower, 1.0)
+    lam = opt.lambda0 if lam is None else float(lam)
+    f, r, J, info = _evaluate(fun, z, True)
+    if not np.isfinite(f):
+        raise SimulationError(f"the starting point cannot be simulated: {info['sim_failure']}")
+    history: list[dict] = []
+    status = "max_iter"
+    rejections = 0
+    it = first_iteration - 1
+    for it in range(first_iteration, first_iteration + opt.max_iter):
+        t0 = time.perf_counter()
+        g = J.T @ r
+        at_lo = (z <= lower) & (g > 0)
+        at_hi = (z >= upper) & (g < 0)
+        free = ~(at_lo | at_hi)
+        pg = np.where(free, g, 0.0)
+        if np.abs(pg * scale).max() < opt.gtol:
+            status = "gtol"
+            break
+        Jf = J[:, free]
+        A = Jf.T @ Jf
+        d = np.diag(A).copy()
+        mu = d.mean() if d.size else 1.0
+        A[np.diag_indices_from(A)] += lam * (d + mu)
+        dz = np.zeros_like(z)
+        dz[free] = np.linalg.solve(A, -g[free])
+        slope = float(g @ dz)
+        alpha, accepted, trials = 1.0, False, 0
+        for _ in range(opt.max_backtracks + 1):
+            trials += 1
+            z_try = np.clip(z + alpha * dz, lower, upper)
+            f_try, r_try, _, info_try = _evaluate(fun, z_try, False)
+            if f_try <= f + opt.armijo * alpha * slope:
+                accepted = True
+                break
+            alpha *= 0.5
+        entry = {"iteration": it, "objective": f, "accepted": accepted, "alpha": alpha if accepted else 0.0,
+                 "step": float(np.abs(z_try - z).max()) if accepted else 0.0, "lambda": lam,
+                 "trials": trials, "terms": info.get("terms", {})}
+        if accepted:
+            step = z_try - z
+            f_old = f
+            z = z_try
+            lam = max(lam * (opt.lambda_decrease if alpha == 1.0 else opt.lambda_increase), 1e-12)
+            rejections = 0
+            f, r, J, info = _evaluate(fun, z, True)
+            if not np.isfinite(f):          # cannot happen: z_try was just simulated
+                raise SimulationError(f"re-evaluation failed: {info['sim_failure']}")
+            entry.update(objective_after=f, terms_after=info.get("terms", {}))
+        else:
+            lam *= opt.lambda_increase
+            rejections += 1
+            entry.update(objective_after=f, sim_failure=info_try.get("sim_failure"))
+        entry["time"] = time.perf_counter() - t0
+        history.append(entry)
+        stop = callback({**entry, "z": z.copy(), "lam": lam}) if callback else False
+        if stop:
+            status = "callback"
+            break
+        if accepted and f_old - f < opt.ftol * f_old:
+            status = "ftol"
+            break
+        if accepted and np.abs(step / scale).max() < opt.xtol:
+            status = "xtol"
+            break
+        if rejections >= opt.max_rejections:
+            status = "stalled"
+            break
+    return GaussNewtonResult(z=z, objective=f, status=status, history=history, lam=lam,
+                             info={**info, "last_iteration": it})

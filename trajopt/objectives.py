@@ -1,0 +1,74 @@
+r"""The gait objective as a residual vector with its Jacobian (for Gauss-Newton).
+
+.. math::
+    O(z) = \tfrac12 |r(z)|^2, \qquad r = [r_{com}; r_{slack}; r_{mag}; r_{smooth}]
+
+* COM tracking (paper eq. 5): ``r_com,k = sqrt(w_com / K) (c_k - c_hat_k) / BL`` for the
+  horizontal COM ``c_k = (x, z)`` of states k = 1..K, in body lengths (BL).
+* Slack eating (paper eq. 13): ``r_slack,k,t = sqrt(w_slack / (K T)) max(eps - Gamma_kt, 0) / range``:
+  its square is the one-sided quadratic Q(eps - Gamma); it drives every cable to be at least
+  slightly taut (eps, default 0.05 mm), removing the flat slack regions of the landscape.
+  ``range`` is the mean contraction range of the motors.
+* Magnitude and smoothness regularisers on the keyframes (small; normalised by each motor's
+  range): ``sqrt(w_mag / nz) (z - u_min) / range`` and ``sqrt(w_smooth / nz) (z_{j+1} - z_j) / range``
+  (periodic in j).
+
+Jacobians use ``traj.dcomdz`` and ``traj.dgammadz`` from the simulator's sensitivity analysis.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+__all__ = ["ObjectiveWeights", "gait_residuals"]
+
+
+@dataclass(frozen=True)
+class ObjectiveWeights:
+    """Weights of the objective's terms (each term is normalised by its size, see module doc)."""
+
+    com: float = 1.0
+    slack: float = 0.05
+    slack_eps: float = 5e-5        # [m] the epsilon of eq. 13
+    magnitude: float = 1e-3
+    smoothness: float = 1e-3
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def gait_residuals(traj, target: np.ndarray, z: np.ndarray, param, body_length: float,
+                   weights: ObjectiveWeights, need_jac: bool = True):
+    """``(r, J, terms)``: residual vector, its Jacobian (or None) and the objective's terms
+    ``{name: 0.5 |r_name|^2}``."""
+    K = len(traj.x) - 1
+    com = traj.com[1:, [0, 2]]
+    s_com = np.sqrt(weights.com / K) / body_length
+    r_com = (s_com * (com - target[1:])).ravel()
+    gam = traj.cable_deformation[1:]
+    T = gam.shape[1]
+    lo, hi = param.bounds()
+    rng_u = float(np.mean(hi - lo))
+    s_sl = np.sqrt(weights.slack / max(K * T, 1)) / rng_u
+    active = gam < weights.slack_eps
+    r_sl = (s_sl * np.where(active, weights.slack_eps - gam, 0.0)).ravel()
+    nz = len(z)
+    rng_z = hi - lo
+    s_mag = np.sqrt(weights.magnitude / nz)
+    r_mag = s_mag * (z - lo) / rng_z
+    Kf = param.n_keyframes
+    D = (np.roll(np.eye(Kf), 1, axis=1) - np.eye(Kf))          # z_{j+1} - z_j, periodic
+    Dz = np.kron(np.eye(nz // Kf), D) / rng_z[None, :] if nz else np.zeros((0, 0))
+    s_sm = np.sqrt(weights.smoothness / nz) if nz else 0.0
+    r_sm = s_sm * (Dz @ z) if nz else np.zeros(0)
+    r = np.concatenate([r_com, r_sl, r_mag, r_sm])
+    terms = {"com": 0.5 * float(r_com @ r_com), "slack": 0.5 * float(r_sl @ r_sl),
+             "magnitude": 0.5 * float(r_mag @ r_mag), "smoothness": 0.5 * float(r_sm @ r_sm)}
+    if not need_jac:
+        return r, None, terms
+    J_com = (s_com * traj.dcomdz[1:, [0, 2], :]).reshape(-1, nz)
+    J_sl = (-s_sl * np.where(active[:, :, None], traj.dgammadz[1:], 0.0)).reshape(-1, nz)
+    J_mag = np.diag(s_mag / rng_z)
+    J_sm = s_sm * Dz
+    return r, np.vstack([J_com, J_sl, J_mag, J_sm]), terms

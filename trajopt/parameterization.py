@@ -1,0 +1,179 @@
+"""Control trajectories from a few keyframes (paper III-B, eq. 12).
+
+``u = (u_prep, u_cycle, u_cycle)``: each motor's cycle is a periodic zero-tangent cubic Hermite
+spline through ``n_keyframes`` equally spaced keyframes; the preparatory phase eases from rest
+(u = 0) into the cycle's first value. With zero tangents the spline never leaves the range of
+its keyframes, so bounds on the keyframes z are bounds on u.
+
+Tendon pairs share a motor (that is what a motor is in :class:`soft_envs.sim.Robot`).
+Bilateral symmetry: a motor's mirror motor plays the same signal shifted by half a period,
+which for an even number of keyframes is a rotation of its keyframes by ``n_keyframes / 2``;
+only one motor of each mirror pair then carries parameters.
+
+Everything here is linear in z: ``u = dudz . z``, and ``dudz`` is exact and constant.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["GaitParameterization", "hermite_cycle_basis", "prep_ease"]
+
+
+def _smoothstep(s: np.ndarray) -> np.ndarray:
+    """Zero-tangent cubic Hermite blend 3 s^2 - 2 s^3 on [0, 1]."""
+    return s * s * (3.0 - 2.0 * s)
+
+
+def hermite_cycle_basis(n_steps: int, n_keyframes: int) -> np.ndarray:
+    """(n_steps, n_keyframes) matrix B with ``u_cycle = B @ keyframes``: step i sits at spline
+    time ``i * n_keyframes / n_steps``; between keyframes j and j+1 (periodic) the value is
+    ``z_j + (z_{j+1} - z_j) (3 s^2 - 2 s^3)``."""
+    if n_keyframes < 1 or n_steps < n_keyframes:
+        raise ValueError(f"need 1 <= n_keyframes <= n_steps, got {n_keyframes}, {n_steps}")
+    t = np.arange(n_steps) * n_keyframes / n_steps
+    j = np.floor(t).astype(int)
+    s = _smoothstep(t - j)
+    B = np.zeros((n_steps, n_keyframes))
+    B[np.arange(n_steps), j % n_keyframes] += 1.0 - s
+    B[np.arange(n_steps), (j + 1) % n_keyframes] += s
+    return B
+
+
+def prep_ease(n_prep: int) -> np.ndarray:
+    """(n_prep,) weights easing from 0 to 1 (smoothstep), ending exactly at 1."""
+    return _smoothstep(np.arange(1, n_prep + 1) / n_prep) if n_prep > 0 else np.zeros(0)
+
+
+@dataclass
+class GaitParameterization:
+    """Maps parameters z to controls u (K, n_motors) for prep + ``n_cycles`` cycles.
+
+    Parameters
+    ----------
+    u_bounds : (n_motors, 2) lower/upper contraction of each motor [m].
+    mirror_map : (n_motors,) index of each motor's mirror motor (itself if none).
+    n_prep, n_cycle, n_keyframes : phase lengths in steps and keyframes per cycle (paper: 24,
+        72, 4).
+    symmetry : bilateral symmetry on (mirror motors = half-period shift of their partner).
+    """
+
+    u_bounds: np.ndarray
+    mirror_map: np.ndarray
+    n_prep: int = 24
+    n_cycle: int = 72
+    n_keyframes: int = 4
+    symmetry: bool = True
+    free_motors: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        self.u_bounds = np.asarray(self.u_bounds, dtype=np.float64).reshape(-1, 2)
+        self.mirror_map = np.asarray(self.mirror_map, dtype=np.int64)
+        n = len(self.u_bounds)
+        if self.mirror_map.shape != (n,):
+            raise ValueError(f"mirror_map must have {n} entries")
+        if self.n_prep < 0 or self.n_cycle < self.n_keyframes:
+            raise ValueError("need n_prep >= 0 and n_cycle >= n_keyframes")
+        has_pairs = np.any(self.mirror_map != np.arange(n))
+        if self.symmetry and has_pairs and self.n_keyframes % 2:
+            raise ValueError("bilateral symmetry needs an even number of keyframes "
+                             f"(half-period shift), got {self.n_keyframes}")
+        if self.symmetry:
+            self.free_motors = np.array([m for m in range(n) if self.mirror_map[m] >= m], dtype=np.int64)
+        else:
+            self.free_motors = np.arange(n, dtype=np.int64)
+        # keyframe matrix: keyframes (n_motors, K) = P @ z, built as a dense (n*K, nz) map
+        K = self.n_keyframes
+        P = np.zeros((n, K, len(self.free_motors), K))
+        for p, m in enumerate(self.free_motors):
+            P[m, :, p, :] = np.eye(K)
+            mm = self.mirror_map[m]
+            if self.symmetry and mm != m:
+                P[mm, :, p, :] = np.roll(np.eye(K), K // 2, axis=1)   # z_{m'}[j] = z_m[j + K/2]
+        self._P = P.reshape(n * K, -1)
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_motors(self) -> int:
+        return len(self.u_bounds)
+
+    @property
+    def nz(self) -> int:
+        return len(self.free_motors) * self.n_keyframes
+
+    def n_steps(self, n_cycles: int = 2) -> int:
+        return self.n_prep + n_cycles * self.n_cycle
+
+    # ------------------------------------------------------------------ maps
+    def keyframes(self, z: np.ndarray) -> np.ndarray:
+        """(n_motors, n_keyframes) keyframes of every motor."""
+        z = self._check_z(z)
+        return (self._P @ z).reshape(self.n_motors, self.n_keyframes)
+
+    def dudz(self, n_cycles: int = 2) -> np.ndarray:
+        """Exact, constant (K, n_motors, nz) Jacobian of :meth:`controls`."""
+        B = hermite_cycle_basis(self.n_cycle, self.n_keyframes)          # (C, Kf)
+        ease = prep_ease(self.n_prep)[:, None] * B[0][None, :]             # prep eases to cycle[0]
+        steps = np.concatenate([ease] + [B] * n_cycles)                     # (K, Kf)
+        P = self._P.reshape(self.n_motors, self.n_keyframes, self.nz)
+        return np.einsum("kj,mjz->kmz", steps, P)
+
+    def controls(self, z: np.ndarray, n_cycles: int = 2) -> np.ndarray:
+        """(n_prep + n_cycles n_cycle, n_motors) controls for parameters z."""
+        return self.dudz(n_cycles) @ self._check_z(z)
+
+    # ------------------------------------------------------------------ bounds and starts
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds on z (= bounds on u thanks to the zero tangents)."""
+        lo = np.repeat(self.u_bounds[self.free_motors, 0], self.n_keyframes)
+        hi = np.repeat(self.u_bounds[self.free_motors, 1], self.n_keyframes)
+        return lo, hi
+
+    def z_from_keyframes(self, keyframes: np.ndarray) -> np.ndarray:
+        """Parameters from full keyframes (n_motors, n_keyframes) (mirror motors are dropped)."""
+        kf = np.asarray(keyframes, dtype=np.float64).reshape(self.n_motors, self.n_keyframes)
+        return kf[self.free_motors].ravel()
+
+    def initial_z(self, fraction: float = 0.3, rng: np.random.Generator | None = None,
+                  noise: float = 0.0) -> np.ndarray:
+        """A start: every keyframe at ``fraction`` of the way from u_min to u_max, plus optional
+        uniform noise of ``noise`` times the range."""
+        lo, hi = self.bounds()
+        z = lo + fraction * (hi - lo)
+        if rng is not None and noise > 0:
+            z = z + noise * (hi - lo) * rng.uniform(-1, 1, size=z.shape)
+        return np.clip(z, lo, hi)
+
+    def seeds(self, n_random: int = 12, rng: np.random.Generator | None = None) -> list[np.ndarray]:
+        """Candidate starting points: the constant mid-range start, the square waves
+        ``[1, 1, 0, 0]``-like (half the keyframes at u_max, half at u_min) with every motor's
+        pattern rotated in turn, and ``n_random`` random rotations (seeded). Gauss-Newton is
+        local; :func:`trajopt.optimize_gait` starts from the best of these."""
+        rng = np.random.default_rng(0) if rng is None else rng
+        K = self.n_keyframes
+        lo, hi = self.u_bounds[:, 0], self.u_bounds[:, 1]
+        square = (np.arange(K) < (K + 1) // 2).astype(float)
+        nf = len(self.free_motors)
+        rots = [np.zeros(nf, dtype=int), np.arange(nf) % K, (-np.arange(nf)) % K]
+        rots += [rng.integers(0, K, size=nf) for _ in range(n_random)]
+        out = [self.initial_z(0.5)]
+        seen = set()
+        for rot in rots:
+            key = tuple(int(r) for r in rot)
+            if key in seen:
+                continue
+            seen.add(key)
+            kf = np.zeros((self.n_motors, K))
+            for p, m in enumerate(self.free_motors):
+                kf[m] = lo[m] + (hi[m] - lo[m]) * np.roll(square, rot[p])
+            out.append(self.z_from_keyframes(kf))
+        return out
+
+    def _check_z(self, z) -> np.ndarray:
+        z = np.asarray(z, dtype=np.float64)
+        if z.shape != (self.nz,):
+            raise ValueError(f"z must have shape ({self.nz},), got {z.shape}")
+        if not np.isfinite(z).all():
+            raise ValueError("z contains NaN or inf")
+        return z

@@ -1,0 +1,57 @@
+"""Target centre-of-mass paths in the ground plane (paper eq. 5, Fig. 3).
+
+A target is a (K+1, 2) array of horizontal COM positions (x, z) [m], one per state of a
+rollout (index 0 = the start). Headings are measured in degrees from +x towards +z (so a
+positive heading and a right turn go to +z: left is -z for a robot facing +x with +y up).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["straight_line", "quarter_circle", "from_array", "bl_per_min_to_mps"]
+
+
+def bl_per_min_to_mps(speed_bl_per_min: float, body_length: float) -> float:
+    """Body lengths per minute -> metres per second."""
+    return float(speed_bl_per_min) * float(body_length) / 60.0
+
+
+def _unit(heading_deg: float) -> np.ndarray:
+    a = np.radians(heading_deg)
+    return np.array([np.cos(a), np.sin(a)])
+
+
+def straight_line(start, n_steps: int, dt: float, speed: float, heading_deg: float = 0.0) -> np.ndarray:
+    """COM moving at constant ``speed`` [m/s] along ``heading_deg`` from ``start`` (x, z)."""
+    t = np.arange(n_steps + 1) * dt
+    return np.asarray(start, dtype=np.float64)[None, :] + speed * t[:, None] * _unit(heading_deg)[None, :]
+
+
+def quarter_circle(start, n_steps: int, dt: float, speed: float, heading_deg: float = 0.0,
+                   direction: str = "right", radius: float | None = None) -> np.ndarray:
+    """COM moving at ``speed`` along a circular arc that starts tangent to ``heading_deg`` and
+    turns ``direction`` ("right" or "left"). By default the radius makes the arc exactly a
+    quarter circle over the horizon: ``R = 2 speed T / pi``."""
+    if direction not in ("right", "left"):
+        raise ValueError(f"direction must be 'right' or 'left', got {direction!r}")
+    T = n_steps * dt
+    R = 2.0 * speed * T / np.pi if radius is None else float(radius)
+    if not R > 0:
+        raise ValueError("the turning radius must be positive (speed > 0)")
+    sgn = 1.0 if direction == "right" else -1.0             # right = towards +z
+    t = np.arange(n_steps + 1) * dt
+    theta = speed * t / R
+    fwd = _unit(heading_deg)
+    side = sgn * np.array([-fwd[1], fwd[0]])                # +90 degrees towards +z for "right"
+    pts = R * np.sin(theta)[:, None] * fwd[None, :] + R * (1 - np.cos(theta))[:, None] * side[None, :]
+    return np.asarray(start, dtype=np.float64)[None, :] + pts
+
+
+def from_array(target, n_steps: int) -> np.ndarray:
+    """Validate a user target: (n_steps + 1, 2) finite horizontal positions."""
+    arr = np.asarray(target, dtype=np.float64)
+    if arr.shape != (n_steps + 1, 2):
+        raise ValueError(f"target must have shape ({n_steps + 1}, 2) (x, z per state), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError("target contains NaN or inf")
+    return arr
