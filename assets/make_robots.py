@@ -113,8 +113,8 @@ def write(name: str, description: str, body_length: float, xs, ys, zs, boxes, bo
 def tripod() -> None:
     # The middle leg is `drop` longer than the outer legs: at rest it carries much of the weight,
     # so pushing with it moves the body, while co-contraction lifts it and the outer legs take
-    # over. Measured with hand-made gaits: drop 0 -> ~1 BL/min, 3 mm -> ~4.5 BL/min.
-    L, W, H_leg, H_body, drop = 0.14, 0.04, 0.03, 0.02, 0.003
+    # over. Optimised walks: drop 0 -> ~1 BL/min, 3 mm -> 4.8, 6 mm (u_max 20 mm) -> 7.3.
+    L, W, H_leg, H_body, drop = 0.14, 0.04, 0.03, 0.02, 0.006
     xs = [0, 0.02, 0.04, 0.06, 0.07, 0.08, 0.10, 0.12, 0.14]
     ys = [0, drop, drop + 0.01, drop + 0.02, drop + H_leg, drop + H_leg + 0.01, drop + H_leg + H_body]
     zs = [0, 0.02, W]
@@ -131,7 +131,7 @@ def tripod() -> None:
     write("tripod", "Tripod (paper IV-A): 14 cm, body 24 g, motor assembly 44 g; the middle leg "
           f"({1000 * drop:.0f} mm longer than the outer ones) is bent forward by 'front', backward by "
           "'back', and lifted by both.",
-          L, xs, ys, zs, [body, *legs], 0.024, 0.044, motors, u_max=0.016)
+          L, xs, ys, zs, [body, *legs], 0.024, 0.044, motors, u_max=0.020)
 
 
 def puppy() -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from soft_envs.sim import SimulationError
-from soft_envs.sim.kinematics import best_fit_rotation, heading_deg, tilt_deg
+from soft_envs.sim.kinematics import BodyFrame, tilt_deg_of, yaw_of
 
 __all__ = ["evaluate_controls", "zero_slack_controls", "mps_to_bl_per_min"]
 
@@ -56,9 +56,10 @@ def evaluate_controls(hooks, u: np.ndarray, *, n_prep: int, n_cycle: int, headin
     per_cycle = [mps_to_bl_per_min((com[marks[i + 1]] - com[marks[i]]) @ direction / (n_cycle * dt), bl)
                  for i in range(n_cycles)]
     mean = mps_to_bl_per_min((com[marks[-1]] - com[marks[0]]) @ direction / (n_cycles * n_cycle * dt), bl)
-    R = best_fit_rotation(robot.mesh.points, traj.x, robot.node_masses)
-    tilt = tilt_deg(R)
-    head = np.unwrap(np.radians(heading_deg(R)))
+    frame = BodyFrame(traj.x[0], robot.node_masses)
+    rots = [frame.rotation(x) for x in traj.x]
+    tilt = np.array([tilt_deg_of(R) for R in rots])
+    head = np.unwrap([yaw_of(R) for R in rots])
     com_h = com[:, 1]
     upright = bool(tilt.max() <= max_tilt_deg and com_h.min() >= 0.5 * com_h[0])
     path = np.linalg.norm(np.diff(com[marks[0]:, [0, 2]], axis=0), axis=1).sum()

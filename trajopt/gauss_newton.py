@@ -36,7 +36,7 @@ __all__ = ["GaussNewtonOptions", "GaussNewtonResult", "gauss_newton"]
 
 @dataclass(frozen=True)
 class GaussNewtonOptions:
-    max_iter: int = 15
+    max_iter: int = 10
     ftol: float = 1e-4
     gtol: float = 1e-10
     xtol: float = 1e-5

@@ -96,7 +96,7 @@ def optimize_gait(env: Any, task: str = "walk", *, speed_bl_per_min: float | Non
                   n_keyframes: int = 4, n_prep: int = 24, n_cycle: int = 72,
                   target: np.ndarray | None = None, weights: ObjectiveWeights = ObjectiveWeights(),
                   options: GaussNewtonOptions = GaussNewtonOptions(), warm_start: Result | None = None,
-                  z0: np.ndarray | None = None, n_seeds: int = 12, eval_cycles: int = 6,
+                  z0: np.ndarray | None = None, n_seeds: int = 8, eval_cycles: int = 6,
                   robot_spec: str | None = None,
                   callback: Callable[[dict, Result], bool | None] | None = None,
                   resume: Result | None = None) -> Result:
@@ -104,9 +104,10 @@ def optimize_gait(env: Any, task: str = "walk", *, speed_bl_per_min: float | Non
 
     ``env``: a Gymnasium env with gradient hooks, or a robot / name / robot.toml path.
     ``symmetry``: default on for walk/incline, off for turn (paper IV-B).
-    ``warm_start``: start from another result's keyframes (e.g. turn from walk; symmetric and
-    asymmetric parameterisations are converted). Without ``z0``/``warm_start`` the start is the
-    best objective among ``param.seeds(n_seeds)`` (cheap rollouts without sensitivities). ``resume``: continue an interrupted result
+    ``warm_start``: another result whose keyframes are a starting candidate (e.g. turn from walk;
+    symmetric and asymmetric parameterisations are converted). The start is the best objective
+    among the warm start and ``param.seeds(n_seeds)`` (cheap rollouts without sensitivities);
+    ``n_seeds=0`` with a warm start starts from the warm start alone. ``resume``: continue an interrupted result
     (same settings; its z, history and damping are picked up).
     ``callback(entry, partial_result)`` runs after each Gauss-Newton iteration (checkpointing,
     progress); returning True stops the optimisation.
@@ -126,6 +127,7 @@ def optimize_gait(env: Any, task: str = "walk", *, speed_bl_per_min: float | Non
     lo, hi = param.bounds()
     history: list[dict] = []
     lam, first = None, 1
+    problem = GaitProblem(hooks, param, tgt, weights)
     if resume is not None:
         z_start = np.asarray(resume.z, dtype=np.float64)
         history = list(resume.history)
@@ -133,17 +135,16 @@ def optimize_gait(env: Any, task: str = "walk", *, speed_bl_per_min: float | Non
             lam, first = history[-1].get("lambda_next"), history[-1]["iteration"] + 1
     elif z0 is not None:
         z_start = np.asarray(z0, dtype=np.float64)
-    elif warm_start is not None:
-        kf = np.asarray(warm_start.settings.get("keyframes"), dtype=np.float64)
-        if kf.shape != (robot.n_motors, n_keyframes):
-            raise ValueError(f"warm start has keyframes of shape {kf.shape}, this problem needs "
-                             f"({robot.n_motors}, {n_keyframes})")
-        z_start = param.z_from_keyframes(kf)
     else:
-        z_start = None
-    problem = GaitProblem(hooks, param, tgt, weights)
-    if z_start is None:
-        z_start = _best_seed(problem, param.seeds(n_seeds))
+        candidates = []
+        if warm_start is not None:
+            kf = np.asarray(warm_start.settings.get("keyframes"), dtype=np.float64)
+            if kf.shape != (robot.n_motors, n_keyframes):
+                raise ValueError(f"warm start has keyframes of shape {kf.shape}, this problem needs "
+                                 f"({robot.n_motors}, {n_keyframes})")
+            candidates.append(np.clip(param.z_from_keyframes(kf), lo, hi))
+        candidates += param.seeds(n_seeds) if (n_seeds > 0 or not candidates) else []
+        z_start = candidates[0] if len(candidates) == 1 else _best_seed(problem, candidates)
     if z_start.shape != (param.nz,):
         raise ValueError(f"starting parameters must have shape ({param.nz},), got {z_start.shape}")
     settings = {"n_prep": n_prep, "n_cycle": n_cycle, "n_keyframes": n_keyframes, "symmetry": sym,

@@ -56,6 +56,7 @@ class NewtonOptions:
     max_backtracks: int = 40
     reuse_factor: bool = True
     refactor_ratio: float = 0.5
+    predictor: float = 1.0
     solver: str = "auto"
 
 
@@ -127,7 +128,7 @@ class NewtonSolver:
         sys = self.system
         free = sys.free
         xt = 2.0 * x_prev - x_prev2
-        x = xt.copy()
+        x = x_prev + opt.predictor * (x_prev - x_prev2)      # initial guess (1: x~)
         fixed_src = x_prev if x_fixed is None else x_fixed
         if len(free) < sys.n_dof:
             x.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]

@@ -65,6 +65,21 @@ class Simulator:
         self.control = control
         self._rest_cache: dict = {}
 
+    # ------------------------------------------------------------------ pickling
+    def __getstate__(self) -> dict:
+        """Pickle only what defines the simulator (the CHOLMOD objects do not pickle): robot,
+        time step, gravity, control mode, Newton options and the rest-state cache. The energy
+        system and the solver are rebuilt on unpickling (with no factorisation held, exactly
+        like a freshly constructed simulator)."""
+        return {"robot": self.robot, "dt": self.dt, "gravity": np.array(self.gravity),
+                "control": self.control, "newton": self.newton.options,
+                "rest_cache": {k: v.copy() for k, v in self._rest_cache.items()}}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["robot"], dt=state["dt"], gravity=state["gravity"],
+                      control=state["control"], newton=state["newton"])
+        self._rest_cache.update(state["rest_cache"])
+
     @property
     def n_motors(self) -> int:
         return self.robot.n_motors
@@ -143,6 +158,11 @@ class Simulator:
         x, _ = self.newton.step(self._check_x(x_prev, "x_prev"), self._check_x(x_prev2, "x_prev2"), u, k)
         return x
 
+    def reset_solver(self) -> None:
+        """Forget the factorisation kept for reuse, so the next step starts afresh. Results then
+        depend only on the inputs, not on what the solver did before (determinism)."""
+        self.newton._have_factor = False
+
     # ------------------------------------------------------------------ rollouts
     def rollout(self, u, x0=None, dudz=None, *, x_prev0=None, store_dxdz: bool = False) -> Trajectory:
         """Simulate controls ``u`` (K, n_motors) from ``x0`` (default :meth:`rest_state`) with
@@ -176,6 +196,7 @@ class Simulator:
             dxdz = np.zeros((K + 1, sysm.n_dof, nz)) if store_dxdz else None
             tm = sysm.tendon_motor
         prev, prev2 = x0, xm1
+        self.reset_solver()           # a rollout depends on its inputs only
         for k in range(K):
             x, info = self.newton.step(prev, prev2, u[k], k, need_exact=sens)
             xs[k + 1] = x

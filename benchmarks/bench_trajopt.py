@@ -1,0 +1,79 @@
+"""Gait optimisation benchmark and the paper's tasks (issue: trajopt).
+
+Runs, in one go: Tripod walk; Puppy walk (symmetry on); Puppy turn right (symmetry off,
+warm-started from the walk); Puppy incline (slope of INCLINE_DEG, re-optimised) and, for
+comparison, the flat-ground Puppy gait played on that slope. Prints per task: mesh size,
+parameters, Gauss-Newton iterations, mean time per iteration (line search included), total
+optimisation time, simulation steps spent, and the evaluation over 10 cycles (speed in body
+lengths per minute along the target direction, heading change, upright), next to the paper's
+Table I (simulation: Tripod 6.1, Puppy 8.6 BL/min). Results go to benchmarks/results/.
+Run: python benchmarks/bench_trajopt.py   (a few minutes)
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from common import report
+from trajopt import GaussNewtonOptions, optimize_gait
+from trajopt.evaluation import evaluate_controls
+from trajopt.hooks import make_hooks
+from trajopt.parameterization import GaitParameterization
+
+OUT = Path(__file__).with_name("results")
+INCLINE_DEG = 20.0
+EVAL_CYCLES = 10
+PAPER = {"tripod": 6.1, "puppy": 8.6}
+
+
+def row(task: str, robot_name: str, hooks, res, wall: float) -> dict:
+    it_times = [h["time"] for h in res.history]
+    ev = res.evaluation
+    return {"task": task, "nodes": hooks.robot.mesh.n_nodes, "nz": len(res.z), "iterations": len(res.history),
+            "s_per_iteration": float(np.mean(it_times)) if it_times else 0.0, "total_s": wall,
+            "sim_steps": ev["optimization_sim_steps"], "speed_bl_min": ev["speed_bl_per_min"],
+            "paper_bl_min": PAPER.get(robot_name, float("nan")) if task.endswith("walk") else float("nan"),
+            "heading_change_deg": ev["heading_change_deg"], "upright_10_cycles": ev["upright"]}
+
+
+def optimise(task: str, robot_name: str, **kw):
+    hooks = make_hooks(robot_name, incline_deg=kw.pop("incline_deg", 0.0))
+    t0 = time.perf_counter()
+    res = optimize_gait(hooks, task, eval_cycles=EVAL_CYCLES, robot_spec=robot_name,
+                        options=GaussNewtonOptions(max_iter=kw.pop("max_iter", 10)), **kw)
+    wall = time.perf_counter() - t0
+    res.save(OUT / f"{robot_name}_{task}.npz")
+    return hooks, res, wall
+
+
+def main() -> None:
+    rows = []
+    hooks, res, wall = optimise("walk", "tripod")
+    rows.append(row("tripod walk", "tripod", hooks, res, wall))
+    hooks, walk, wall = optimise("walk", "puppy")
+    rows.append(row("puppy walk", "puppy", hooks, walk, wall))
+    walk.settings["source"] = str(OUT / "puppy_walk.npz")
+    hooks, res, wall = optimise("turn", "puppy", warm_start=walk)
+    rows.append(row("puppy turn (warm)", "puppy", hooks, res, wall))
+    hooks, res, wall = optimise("incline", "puppy", incline_deg=INCLINE_DEG, warm_start=walk)
+    rows.append(row(f"puppy incline {INCLINE_DEG:g} deg", "puppy", hooks, res, wall))
+    # the flat-ground gait on the slope
+    s = walk.settings
+    param = GaitParameterization(hooks.robot.u_bounds, hooks.robot.mirror_map, s["n_prep"], s["n_cycle"],
+                                 s["n_keyframes"], s["symmetry"])
+    u = param.controls(np.asarray(walk.z), EVAL_CYCLES)
+    ev = evaluate_controls(hooks, u, n_prep=param.n_prep, n_cycle=param.n_cycle)
+    rows.append({"task": f"puppy flat gait on {INCLINE_DEG:g} deg", "nodes": hooks.robot.mesh.n_nodes,
+                 "nz": len(walk.z), "iterations": 0, "s_per_iteration": 0.0, "total_s": 0.0, "sim_steps": 0,
+                 "speed_bl_min": ev["speed_bl_per_min"], "paper_bl_min": float("nan"),
+                 "heading_change_deg": ev["heading_change_deg"], "upright_10_cycles": ev["upright"]})
+    report("trajopt: paper tasks", rows)
+    puppy = rows[1]
+    print(f"puppy walk: {puppy['s_per_iteration']:.2f} s per Gauss-Newton iteration (target <= 5 s), "
+          f"{puppy['total_s']:.1f} s in all (target <= 60 s)")
+
+
+if __name__ == "__main__":
+    main()

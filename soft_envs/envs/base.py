@@ -1,0 +1,402 @@
+"""SoftRobotEnv: the Gymnasium environment shared by ``SoftTripod-v0`` and ``SoftPuppy-v0``.
+
+A thin layer over :class:`soft_envs.sim.Simulator`: actions in [-1, 1] become cable
+contractions (with a motor speed limit), ``frame_skip`` implicit-Euler steps are taken, and the
+observation, reward and termination are computed from the node positions. The full
+specification (spaces, rewards, arguments) is in the docstrings of
+:class:`~soft_envs.envs.tripod.SoftTripodEnv` and :class:`~soft_envs.envs.puppy.SoftPuppyEnv`.
+The gradient hooks of :class:`~soft_envs.envs.protocol.GradientEnv` are implemented here.
+
+Determinism: the simulator's Newton solver may reuse the Cholesky factorisation of an earlier
+step (chord iterations), which makes a step's result depend, at the level of the Newton
+tolerance, on what the solver did before. Every :meth:`step` and :meth:`rollout` therefore starts
+with no factorisation held, so a step is a function of (state, action) only: a seeded reset
+replays bit for bit, and a pickled copy steps exactly like the original.
+"""
+from __future__ import annotations
+
+import math
+import os
+from collections import deque
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from ..sim import Robot, SimulationError, Simulator, Trajectory, incline_gravity, load_robot
+from .domain import parse_domain_randomization, randomized_robot, sample_factors
+from ..sim.kinematics import BodyFrame, heading_vector, tilt_deg_of, wrap_angle, yaw_of
+from .viewer import EnvViewer, cable_polylines
+
+__all__ = ["SoftRobotEnv", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM"]
+
+PAPER_GAIT_PERIOD = 72 * 0.033      # [s] the paper's gait cycle: 72 steps of 0.033 s
+MOTOR_NO_LOAD_RPM = 100.0           # Pololu 298:1 micro metal gearmotor, no-load at 6 V
+_TRAIL_LENGTH = 3000                # COM trail points kept for rendering
+
+
+class SoftRobotEnv(gym.Env[np.ndarray, np.ndarray]):
+    """A cable-driven soft robot on the ground plane (see the module docstring and the
+    per-robot subclasses for the specification)."""
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
+
+    def __init__(
+        self,
+        robot: str | os.PathLike | Robot = "puppy",
+        *,
+        frame_skip: int = 1,
+        timestep: float = 0.033,
+        task: str = "walk",
+        target_heading_deg: float = 0.0,
+        turn_direction: str = "right",
+        turn_radius: float | None = None,
+        incline_deg: float = 0.0,
+        forward_reward_weight: float = 10.0,
+        ctrl_cost_weight: float = 0.01,
+        healthy_reward: float = 0.1,
+        terminate_when_unhealthy: bool = True,
+        healthy_tilt_deg: float = 60.0,
+        healthy_height_fraction: float = 0.5,
+        reset_noise_scale: float = 1e-4,
+        motor_speed_rpm: float | None = MOTOR_NO_LOAD_RPM,
+        gait_period: float = PAPER_GAIT_PERIOD,
+        observe_nodes: bool = False,
+        domain_randomization: Mapping[str, tuple[float, float]] | None = None,
+        render_mode: str | None = None,
+        width: int = 480,
+        height: int = 360,
+        camera_config: Mapping[str, Any] | None = None,
+    ):
+        if task not in ("walk", "turn"):
+            raise ValueError(f"task must be 'walk' or 'turn', got {task!r}")
+        if turn_direction not in ("right", "left"):
+            raise ValueError(f"turn_direction must be 'right' or 'left', got {turn_direction!r}")
+        if int(frame_skip) != frame_skip or frame_skip < 1:
+            raise ValueError(f"frame_skip must be a positive integer, got {frame_skip!r}")
+        for name, v in (("timestep", timestep), ("gait_period", gait_period)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be positive, got {v!r}")
+        if not (math.isfinite(reset_noise_scale) and reset_noise_scale >= 0):
+            raise ValueError(f"reset_noise_scale must be >= 0, got {reset_noise_scale!r}")
+        if motor_speed_rpm is not None and not motor_speed_rpm > 0:
+            raise ValueError(f"motor_speed_rpm must be positive or None, got {motor_speed_rpm!r}")
+        if not abs(incline_deg) < 90:
+            raise ValueError(f"incline_deg must be in (-90, 90), got {incline_deg!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
+                             f"got {render_mode!r}")
+        self._base_robot = robot if isinstance(robot, Robot) else load_robot(robot)
+        if self._base_robot.n_motors == 0:
+            raise ValueError(f"robot {self._base_robot.name!r} has no motors")
+        self.frame_skip = int(frame_skip)
+        self._task = task
+        self._turn_sign = 1.0 if turn_direction == "right" else -1.0    # +yaw: from +x towards +z
+        self._turn_radius = turn_radius
+        self._heading = heading_vector(target_heading_deg)
+        self._gravity = incline_gravity(incline_deg, uphill=(self._heading[0], self._heading[2]))
+        self._forward_reward_weight = float(forward_reward_weight)
+        self._ctrl_cost_weight = float(ctrl_cost_weight)
+        self._healthy_reward = float(healthy_reward)
+        self._terminate_when_unhealthy = bool(terminate_when_unhealthy)
+        self._healthy_tilt_deg = float(healthy_tilt_deg)
+        self._healthy_height_fraction = float(healthy_height_fraction)
+        self._reset_noise_scale = float(reset_noise_scale)
+        self._motor_speed_rpm = motor_speed_rpm
+        self._gait_period = float(gait_period)
+        self._observe_nodes = bool(observe_nodes)
+        self._domain_ranges = parse_domain_randomization(domain_randomization)
+        self._timestep = float(timestep)
+        self.render_mode = render_mode
+        self._width, self._height = int(width), int(height)
+        self._camera_config = dict(camera_config or {})
+        self._viewer: EnvViewer | None = None
+
+        r = self._base_robot
+        self._lo, self._hi = r.u_bounds[:, 0].copy(), r.u_bounds[:, 1].copy()
+        self._range = self._hi - self._lo
+        self._u_start = np.clip(0.0, self._lo, self._hi)
+        radius = np.array([m.spool_radius for m in r.motors])
+        rpm = math.inf if motor_speed_rpm is None else float(motor_speed_rpm)
+        self.motor_speed = rpm * 2.0 * math.pi / 60.0 * radius            # (M,) [m/s]
+        self._du_max = self.motor_speed * self._timestep                  # per simulation step [m]
+        tm = r.tendon_motor
+        self._gamma_scale = 1.0 / np.where(tm >= 0, self._range[np.maximum(tm, 0)], self._range.mean())
+
+        n_t, n_m = len(r.tendons), r.n_motors
+        self.observation_structure = {"com_position": 3, "com_velocity": 3, "forward_vector": 3,
+                                      "up_vector": 3, "cable_deformation": n_t, "contraction": n_m,
+                                      "gait_phase": 2, "nodes": 3 * r.mesh.n_nodes if observe_nodes else 0}
+        self._obs_size = sum(self.observation_structure.values())
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(n_m,), dtype=np.float32)
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(self._obs_size,), dtype=np.float64)
+        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.env_dt))}
+
+        self._domain: dict[str, float] = {}
+        self._sim: Simulator | None = None
+        self._set_domain({k: 1.0 for k in (self._domain_ranges or {})})
+        x = self._sim.rest_state(self._u_start)
+        self._x0_reset, self._xm1_reset = x, x.copy()
+        self._restore(x, x.copy(), self._u_start.copy(), 0, self._frame.com(x))
+
+    # ------------------------------------------------------------------ properties (hooks)
+    @property
+    def simulator(self) -> Simulator:
+        """The :class:`Simulator` in use (rebuilt at reset when domain randomisation draws new
+        parameters)."""
+        return self._sim
+
+    @property
+    def robot(self) -> Robot:
+        """The robot in use (the nominal robot with the current randomised parameters)."""
+        return self._sim.robot
+
+    @property
+    def dt(self) -> float:
+        """Simulation time step [s]. NB: unlike MuJoCo environments, where ``dt`` is the
+        duration of an environment step, that is :attr:`env_dt` here."""
+        return self._sim.dt
+
+    @property
+    def env_dt(self) -> float:
+        """Duration of one environment step, ``frame_skip * dt`` [s]."""
+        return self.frame_skip * self._timestep
+
+    @property
+    def domain_parameters(self) -> dict[str, float]:
+        """The multiplicative factors of the current episode (empty without randomisation)."""
+        return dict(self._domain)
+
+    # ------------------------------------------------------------------ simulator management
+    def _set_domain(self, factors: Mapping[str, float]) -> None:
+        """Use the robot with these factors; rebuild the simulator only if they changed."""
+        factors = {k: float(v) for k, v in sorted(factors.items())}
+        if self._sim is not None and factors == self._domain:
+            return
+        robot = randomized_robot(self._base_robot, factors)
+        self._sim = Simulator(robot, dt=self._timestep, gravity=self._gravity, control="length")
+        self._domain = factors
+        x_rest = self._sim.rest_state(self._u_start)
+        self._frame = BodyFrame(x_rest, robot.node_masses)
+        self._rest_com_height = float(self._frame.com(x_rest)[1])
+
+    def _forget_factorization(self) -> None:
+        # The solver's chord iterations may reuse a factorisation from an earlier step; start
+        # every step/rollout without one so that results depend on the inputs only.
+        self._sim.reset_solver()
+
+    # ------------------------------------------------------------------ actions
+    def _check_action(self, action: Any) -> np.ndarray:
+        a = np.asarray(action)
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
+        try:
+            a = a.astype(np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"action must be numeric, got dtype {a.dtype}") from None
+        if not np.isfinite(a).all():
+            raise ValueError(f"action contains NaN or inf: {a.tolist()}")
+        return np.clip(a, -1.0, 1.0)
+
+    def action_to_control(self, action: Any) -> np.ndarray:
+        """Contractions u [m] (M,) commanded by ``action`` (clipped to [-1, 1]):
+        ``u = u_min + (a + 1) / 2 (u_max - u_min)``; no speed limit."""
+        return self._lo + 0.5 * (self._check_action(action) + 1.0) * self._range
+
+    def control_to_action(self, u: Any) -> np.ndarray:
+        """The action (float64, not clipped) that commands contractions ``u`` [m], (..., M)."""
+        return 2.0 * (np.asarray(u, dtype=np.float64) - self._lo) / self._range - 1.0
+
+    # ------------------------------------------------------------------ Gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        if self._domain_ranges is not None:
+            self._set_domain(sample_factors(self._domain_ranges, self.np_random))
+        x_rest = self._sim.rest_state(self._u_start)
+        s = self._reset_noise_scale
+        if s > 0:
+            x0 = x_rest + self.np_random.uniform(-s, s, size=x_rest.shape)
+            xm1 = x0 - self.np_random.uniform(-s, s, size=x_rest.shape)
+        else:
+            x0, xm1 = x_rest, x_rest.copy()
+        self._x0_reset, self._xm1_reset = x0.copy(), xm1.copy()
+        self._restore(x0, xm1, self._u_start.copy(), 0, self._frame.com(x0))
+        if self.render_mode == "human":
+            self.render()
+        return self._get_obs(), self._get_info()
+
+    def step(self, action: Any):
+        a = self._check_action(action)
+        u_cmd = self._lo + 0.5 * (a + 1.0) * self._range
+        x, xp, u = self._x, self._x_prev, self._u
+        u_sub = np.empty((self.frame_skip, len(u)))
+        self._forget_factorization()
+        try:
+            for i in range(self.frame_skip):
+                d = u_cmd - u
+                u = np.where(np.abs(d) <= self._du_max, u_cmd, u + np.clip(d, -self._du_max, self._du_max))
+                xp, x = x, self._sim.step(x, xp, u, k=self._n_sub + i)
+                u_sub[i] = u
+        except SimulationError as err:     # keep the state of before the step
+            info = self._get_info()
+            info.update(reward_forward=0.0, reward_ctrl=0.0, reward_survive=0.0,
+                        sim_failure=str(err))
+            return self._get_obs(), 0.0, True, False, info
+        com_before, yaw_before = self._com, self._yaw
+        self._restore(x, xp, u, self._n_sub + self.frame_skip, self._com_start)
+        forward_velocity = float((self._com - com_before) @ self._heading) / self.env_dt / self._body_length
+        yaw_rate = wrap_angle(self._yaw - yaw_before) / self.env_dt
+        reward, reward_info = self._get_rew(forward_velocity, yaw_rate, a)
+        terminated = self._terminate_when_unhealthy and not self.is_healthy
+        info = self._get_info()
+        info.update(forward_velocity=forward_velocity, yaw_rate=yaw_rate, u_substeps=u_sub, **reward_info)
+        if self.render_mode == "human":
+            self.render()
+        # truncation is left to the TimeLimit wrapper added by gymnasium.make
+        return self._get_obs(), reward, terminated, False, info
+
+    # ------------------------------------------------------------------ state and measurements
+    @property
+    def _body_length(self) -> float:
+        return float(self._base_robot.body_length)
+
+    def _restore(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray, n_sub: int,
+                 com_start: np.ndarray) -> None:
+        """Set the dynamic state and recompute the quantities derived from it."""
+        self._x, self._x_prev, self._u, self._n_sub = x, x_prev, u, int(n_sub)
+        self._com_start = np.array(com_start, dtype=np.float64)
+        self._com = self._frame.com(x)
+        self._rot = self._frame.rotation(x)
+        self._yaw = yaw_of(self._rot)
+        self._tilt = tilt_deg_of(self._rot)
+        self._healthy = bool(self._tilt <= self._healthy_tilt_deg
+                             and self._com[1] >= self._healthy_height_fraction * self._rest_com_height
+                             and np.isfinite(self._com).all())
+        if n_sub == 0 or not hasattr(self, "_trail"):
+            self._trail: deque[np.ndarray] = deque(maxlen=_TRAIL_LENGTH)
+        if self.render_mode is not None:     # the COM path drawn on the ground
+            self._trail.append(self._com)
+
+    @property
+    def is_healthy(self) -> bool:
+        """Upright (tilt of the up vector from +y at most ``healthy_tilt_deg``), COM at least
+        ``healthy_height_fraction`` of its rest height, and a finite state."""
+        return self._healthy
+
+    def _get_obs(self) -> np.ndarray:
+        s = self.observation_structure
+        obs = np.empty(self._obs_size)
+        obs[0:3] = self._com - self._com_start
+        obs[1] = self._com[1]
+        obs[3:6] = (self._com - self._frame.com(self._x_prev)) / self._timestep
+        obs[6:9] = self._rot[:, 0]
+        obs[9:12] = self._rot[:, 1]
+        i = 12 + s["cable_deformation"]
+        obs[12:i] = self._sim.cable_deformation(self._x, self._u) * self._gamma_scale
+        j = i + s["contraction"]
+        obs[i:j] = 2.0 * (self._u - self._lo) / self._range - 1.0
+        phase = 2.0 * math.pi * self._n_sub * self._timestep / self._gait_period
+        obs[j] = math.sin(phase)
+        obs[j + 1] = math.cos(phase)
+        if self._observe_nodes:
+            obs[j + 2:] = (self._x - self._com).ravel()
+        return obs
+
+    def _get_info(self) -> dict[str, Any]:
+        return {"x_position": float(self._com[0]), "z_position": float(self._com[2]),
+                "com": self._com.copy(), "displacement": self._com - self._com_start,
+                "yaw": self._yaw, "tilt_deg": self._tilt, "time": self._n_sub * self._timestep,
+                "u": self._u.copy(), "is_healthy": self.is_healthy}
+
+    def _get_rew(self, forward_velocity: float, yaw_rate: float, action: np.ndarray
+                 ) -> tuple[float, dict[str, float]]:
+        """``reward = reward_forward + reward_survive + reward_ctrl`` (the last is <= 0)."""
+        if self._task == "walk":
+            progress = forward_velocity
+        else:
+            radius = self._body_length if self._turn_radius is None else self._turn_radius
+            progress = self._turn_sign * yaw_rate * radius / self._body_length
+        forward = self._forward_reward_weight * progress
+        ctrl_cost = self._ctrl_cost_weight * float(np.sum(np.square(0.5 * (action + 1.0))))
+        survive = self._healthy_reward if self.is_healthy else 0.0
+        reward_info = {"reward_forward": forward, "reward_ctrl": -ctrl_cost, "reward_survive": survive}
+        return forward + survive - ctrl_cost, reward_info
+
+    # ------------------------------------------------------------------ gradient hooks
+    def reset_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(x_0, x_{-1})`` of the last reset (copies): where :meth:`rollout` starts."""
+        return self._x0_reset.copy(), self._xm1_reset.copy()
+
+    def rollout(self, u: np.ndarray, dudz: np.ndarray | None = None, *,
+                store_dxdz: bool = False) -> Trajectory:
+        """Simulate contractions ``u`` (K, M) [m] from the reset state, with sensitivities when
+        ``dudz`` (K, M, nz) is given (see :meth:`Simulator.rollout`). ``u`` is applied as given:
+        no action clipping and no motor speed limit. The environment's state is not touched."""
+        self._forget_factorization()
+        return self._sim.rollout(u, x0=self._x0_reset, dudz=dudz, x_prev0=self._xm1_reset,
+                                 store_dxdz=store_dxdz)
+
+    def get_state(self) -> dict[str, Any]:
+        """A copy of everything a step depends on: positions ``x`` and ``x_prev`` (n, 3),
+        applied contractions ``u`` (M,), simulation steps since reset ``sim_steps``, the start
+        COM ``com_start`` (3,) and the ``domain`` parameters."""
+        return {"x": self._x.copy(), "x_prev": self._x_prev.copy(), "u": self._u.copy(),
+                "sim_steps": self._n_sub, "com_start": self._com_start.copy(), "domain": dict(self._domain)}
+
+    def set_state(self, state: Mapping[str, Any]) -> None:
+        """Restore a state from :meth:`get_state` (``x`` required; ``x_prev`` defaults to ``x``,
+        i.e. at rest, other keys to their current values)."""
+        if "domain" in state:
+            self._set_domain(state["domain"])
+        n = self._sim.n_nodes
+        x = np.array(state["x"], dtype=np.float64)
+        xp = np.array(state.get("x_prev", x), dtype=np.float64)
+        u = np.array(state.get("u", self._u), dtype=np.float64)
+        for name, v, shape in (("x", x, (n, 3)), ("x_prev", xp, (n, 3)), ("u", u, self._u.shape)):
+            if v.shape != shape or not np.isfinite(v).all():
+                raise ValueError(f"state[{name!r}] must be a finite array of shape {shape}, got {v.shape}")
+        self._trail.clear()
+        self._restore(x, xp, u, int(state.get("sim_steps", self._n_sub)),
+                      state.get("com_start", self._com_start))
+
+    def com(self) -> np.ndarray:
+        """Current centre of mass (3,) [m]."""
+        return self._com.copy()
+
+    def cable_deformation(self) -> np.ndarray:
+        """Current cable deformation Gamma (T,) [m] per tendon (> 0: stretched, < 0: slack)."""
+        return self._sim.cable_deformation(self._x, self._u)
+
+    # ------------------------------------------------------------------ rendering
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' "
+                            "or 'human' to gymnasium.make")
+            return None
+        frame = self._render_frame()
+        if self.render_mode == "rgb_array":
+            return frame
+        self._viewer.show(frame)
+        return None
+
+    def _render_frame(self) -> np.ndarray:
+        if self._viewer is None:
+            self._viewer = EnvViewer(self._base_robot.mesh.surface, width=self._width, height=self._height,
+                                     body_length=self._body_length, fps=self.metadata["render_fps"],
+                                     camera_config=self._camera_config)
+        cables = cable_polylines(self.robot, self._x, self._sim.cable_tension(self._x, self._u))
+        return self._viewer.frame(self._x, cables=cables, com_trail=np.array(self._trail),
+                                  gravity=self._gravity,
+                                  title=f"{self.robot.name}  t = {self._n_sub * self._timestep:.2f} s")
+
+    def close(self) -> None:
+        if self._viewer is not None:
+            self._viewer.close()
+        self._viewer = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_viewer"] = None           # matplotlib canvases are rebuilt on demand
+        return state

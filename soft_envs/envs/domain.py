@@ -1,0 +1,68 @@
+"""Domain randomisation: multiplicative ranges on physical parameters, drawn at reset.
+
+``{"friction": (0.7, 1.3), "youngs_modulus": (0.8, 1.2), "payload_mass": (0.9, 1.1)}`` means:
+at every reset draw a factor uniformly from each range (keys in sorted order, from the
+environment's ``np_random``) and multiply the nominal robot's parameter by it. Keys:
+
+========================  =====================================================================
+``friction``              ground friction weight ``robot.contact.friction``
+``contact_stiffness``     ground penalty stiffness ``robot.contact.stiffness``
+``youngs_modulus``        Young's modulus of the foam
+``density``               foam density (body mass)
+``payload_mass``          mass of the motor assembly on top
+========================  =====================================================================
+"""
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..sim import Robot
+
+__all__ = ["DOMAIN_KEYS", "parse_domain_randomization", "sample_factors", "randomized_robot"]
+
+DOMAIN_KEYS = ("contact_stiffness", "density", "friction", "payload_mass", "youngs_modulus")
+
+
+def parse_domain_randomization(spec: Mapping[str, tuple[float, float]] | None
+                               ) -> dict[str, tuple[float, float]] | None:
+    """Validate a randomisation spec; returns ``{key: (lo, hi)}`` in sorted key order, or None."""
+    if spec is None:
+        return None
+    if not isinstance(spec, Mapping):
+        raise TypeError(f"domain_randomization must be a dict or None, got {type(spec).__name__}")
+    out: dict[str, tuple[float, float]] = {}
+    for key in sorted(spec):
+        if key not in DOMAIN_KEYS:
+            raise ValueError(f"domain_randomization: unknown key {key!r}; known keys: {list(DOMAIN_KEYS)}")
+        try:
+            lo, hi = (float(v) for v in spec[key])
+        except (TypeError, ValueError):
+            raise ValueError(f"domain_randomization[{key!r}] must be a (low, high) pair of factors, "
+                             f"got {spec[key]!r}") from None
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo <= hi):
+            raise ValueError(f"domain_randomization[{key!r}] needs 0 < low <= high, got ({lo}, {hi})")
+        out[key] = (lo, hi)
+    return out or None
+
+
+def sample_factors(ranges: Mapping[str, tuple[float, float]], rng: np.random.Generator) -> dict[str, float]:
+    """One multiplicative factor per key (sorted key order, one uniform draw each)."""
+    return {k: float(rng.uniform(*ranges[k])) for k in sorted(ranges)}
+
+
+def randomized_robot(base: Robot, factors: Mapping[str, float]) -> Robot:
+    """``base`` with its parameters multiplied by ``factors`` (``base`` itself if all are 1)."""
+    f = {k: float(v) for k, v in factors.items() if float(v) != 1.0}
+    if not f:
+        return base
+    contact = base.contact
+    if "friction" in f or "contact_stiffness" in f:
+        contact = dataclasses.replace(contact, friction=contact.friction * f.get("friction", 1.0),
+                                      stiffness=contact.stiffness * f.get("contact_stiffness", 1.0))
+    return base.replace(contact=contact,
+                        youngs_modulus=base.youngs_modulus * f.get("youngs_modulus", 1.0),
+                        density=base.density * f.get("density", 1.0),
+                        payload_mass=base.payload_mass * f.get("payload_mass", 1.0))

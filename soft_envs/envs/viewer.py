@@ -1,0 +1,80 @@
+"""Rendering for the environments: offscreen RGB frames and a matplotlib "human" window.
+
+Frames come from :class:`soft_envs.render.Renderer` (matplotlib Agg, no OpenGL). The window is
+created at the first ``"human"`` render only, so importing or constructing an environment never
+touches a display; on a headless machine (non-interactive backend) the frames are drawn but not
+shown and a notice is logged once per process.
+"""
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ..sim import Robot
+
+__all__ = ["EnvViewer", "cable_polylines"]
+
+_NON_INTERACTIVE = {"agg", "pdf", "ps", "svg", "pgf", "cairo", "template"}
+_warned_headless = False
+
+
+def cable_polylines(robot: Robot, x: np.ndarray, tension: np.ndarray) -> list[tuple[np.ndarray, float]]:
+    """``[(points (p, 3), tension [N])]`` per tendon at node positions ``x`` (n, 3)."""
+    cd = robot.cable_data
+    pts = np.einsum("pk,pkd->pd", cd.pt_w, x[cd.pt_nodes])
+    return [(pts[cd.ptr[t]:cd.ptr[t + 1]], float(tension[t])) for t in range(len(tension))]
+
+
+class EnvViewer:
+    """Renders states of one robot; holds matplotlib objects (not picklable: recreate)."""
+
+    def __init__(self, surface: np.ndarray, *, width: int, height: int, body_length: float,
+                 fps: float, camera_config: Mapping[str, Any] | None = None):
+        from ..render import Renderer
+        self.renderer = Renderer(surface, width=width, height=height, body_length=body_length,
+                                 **dict(camera_config or {}))
+        self.size = (width, height)
+        self.fps = fps
+        self._window = None
+
+    def frame(self, x: np.ndarray, *, cables: Sequence[tuple[np.ndarray, float]],
+              com_trail: np.ndarray, gravity: np.ndarray, title: str) -> np.ndarray:
+        """A uint8 (height, width, 3) RGB frame."""
+        return self.renderer.render(x, cables=cables, com_trail=com_trail, gravity=gravity, title=title)
+
+    def show(self, frame: np.ndarray) -> None:
+        """Show ``frame`` in a matplotlib window (created on first use) and let it refresh."""
+        global _warned_headless
+        try:
+            import matplotlib
+            import matplotlib.pyplot as plt
+        except Exception as err:  # pragma: no cover - broken GUI toolkits
+            gym.logger.warn(f"render_mode='human' needs matplotlib.pyplot ({err}); nothing shown")
+            return
+        interactive = matplotlib.get_backend().lower() not in _NON_INTERACTIVE
+        if self._window is None:
+            w, h = self.size
+            fig = plt.figure(figsize=(w / 100, h / 100), dpi=100)
+            ax = fig.add_axes((0, 0, 1, 1))
+            ax.set_axis_off()
+            self._window = (fig, ax.imshow(frame))
+            if not interactive and not _warned_headless:
+                _warned_headless = True
+                gym.logger.warn(f"render_mode='human': matplotlib backend {matplotlib.get_backend()!r} "
+                                "cannot open a window (headless?); frames are drawn but not shown")
+        fig, img = self._window
+        img.set_data(frame)
+        if interactive:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)
+                plt.pause(1.0 / self.fps)
+
+    def close(self) -> None:
+        if self._window is not None:
+            import matplotlib.pyplot as plt
+            plt.close(self._window[0])
+            self._window = None
