@@ -203,6 +203,5 @@ def run_plot(args) -> int:
         ref = {"tripod": 6.1, "puppy": 8.6}.get(res.robot)
         written.append(plots.plot_speed_per_cycle(np.asarray(speeds), out / f"{stem}_speed.{ext}", reference=ref))
     for w in written:
-        print(f"wrote {getattr(w, 'name', w)}")
-    print(f"plots in {out}")
+        print(f"wrote {w}")
     return 0
