@@ -73,6 +73,31 @@ def _inv_transpose(F, J, FinvT):
 
 
 @njit(cache=True)
+def _element_kinematics(x, tet, dNe, F, FinvT, q, FN):
+    """Fill F, F^{-T}, q_a = F^{-T} N_a and F N_a of one element; return (J, ln J, tr F^T F).
+    For J <= 0 only F is filled and (J, 0, 0) is returned."""
+    _deformation_gradient(x, tet, dNe, F)
+    J = _det3(F)
+    if J <= 0.0:
+        return J, 0.0, 0.0
+    _inv_transpose(F, J, FinvT)
+    I1 = 0.0
+    for i in range(3):
+        for k in range(3):
+            I1 += F[i, k] * F[i, k]
+    for a in range(4):
+        for i in range(3):
+            sq = 0.0
+            sf = 0.0
+            for k in range(3):
+                sq += FinvT[i, k] * dNe[a, k]
+                sf += F[i, k] * dNe[a, k]
+            q[a, i] = sq
+            FN[a, i] = sf
+    return J, math.log(J), I1
+
+
+@njit(cache=True)
 def psi(F, mu, lam):
     """Energy density Psi(F) of eq. 1 (``+inf`` when det F <= 0)."""
     J = _det3(F)
@@ -101,27 +126,11 @@ def element_gradient_hessian(x, tet, dNe, vol, mu, lam, g, H):
     for an inverted element."""
     F = np.empty((3, 3))
     FinvT = np.empty((3, 3))
-    _deformation_gradient(x, tet, dNe, F)
-    J = _det3(F)
-    if J <= 0.0:
-        return np.inf
-    _inv_transpose(F, J, FinvT)
-    lnJ = math.log(J)
-    I1 = 0.0
-    for i in range(3):
-        for k in range(3):
-            I1 += F[i, k] * F[i, k]
     q = np.empty((4, 3))
     FN = np.empty((4, 3))
-    for a in range(4):
-        for i in range(3):
-            sq = 0.0
-            sf = 0.0
-            for k in range(3):
-                sq += FinvT[i, k] * dNe[a, k]
-                sf += F[i, k] * dNe[a, k]
-            q[a, i] = sq
-            FN[a, i] = sf
+    J, lnJ, I1 = _element_kinematics(x, tet, dNe, F, FinvT, q, FN)
+    if J <= 0.0:
+        return np.inf
     c1 = lam * lnJ - mu
     for a in range(4):
         for i in range(3):
@@ -190,25 +199,9 @@ def fem_assemble(x, tets, dN, vol, mu, lam, grad, hdata, hmap, project, want_hes
     for e in range(tets.shape[0]):
         tet = tets[e]
         dNe = dN[e]
-        _deformation_gradient(x, tet, dNe, F)
-        J = _det3(F)
+        J, lnJ, I1 = _element_kinematics(x, tet, dNe, F, FinvT, q, FN)
         if J <= 0.0:
             return np.inf
-        _inv_transpose(F, J, FinvT)
-        lnJ = math.log(J)
-        I1 = 0.0
-        for i in range(3):
-            for k in range(3):
-                I1 += F[i, k] * F[i, k]
-        for a in range(4):
-            for i in range(3):
-                sq = 0.0
-                sf = 0.0
-                for k in range(3):
-                    sq += FinvT[i, k] * dNe[a, k]
-                    sf += F[i, k] * dNe[a, k]
-                q[a, i] = sq
-                FN[a, i] = sf
         v = vol[e]
         m = mu[e]
         lm = lam[e]
