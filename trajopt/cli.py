@@ -36,6 +36,8 @@ def _add_optimize(sub) -> None:
     p.add_argument("--warm-start", type=Path, default=None, help="start from this result's keyframes")
     p.add_argument("--iterations", type=int, default=10, help="Gauss-Newton iterations at most")
     p.add_argument("--keyframes", type=int, default=4, help="spline keyframes per cycle")
+    p.add_argument("--cycle-steps", type=int, default=72, help="steps per gait cycle (paper: 72)")
+    p.add_argument("--prep-steps", type=int, default=24, help="steps of the preparatory phase (paper: 24)")
     p.add_argument("--seeds", type=int, default=8, help="random starting patterns tried (no warm start)")
     p.add_argument("--cycles", type=int, default=6, help="cycles played for the evaluation")
     p.add_argument("--out", type=Path, default=Path("results"), help="output directory")

@@ -83,6 +83,7 @@ def run_optimize(args) -> int:
     try:
         res = optimize_gait(hooks, task, speed_bl_per_min=args.speed, heading_deg=args.heading,
                             turn=args.turn, symmetry=args.symmetry, n_keyframes=args.keyframes,
+                            n_cycle=args.cycle_steps, n_prep=args.prep_steps,
                             options=options, warm_start=warm, n_seeds=args.seeds, eval_cycles=args.cycles,
                             robot_spec=args.robot, callback=checkpoint, resume=resume)
     except KeyboardInterrupt:

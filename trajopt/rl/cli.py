@@ -1,0 +1,151 @@
+"""``trajopt rl``: train, evaluate and export the RL baseline.
+
+    trajopt rl train tripod --algo ppo --timesteps 30000 --seed 0 --out runs/
+    trajopt rl train puppy --algo sac --timesteps 10000 --hp learning_rate=1e-3
+    trajopt rl evaluate runs/tripod_ppo_seed0 [--cycles 6] [--seed 0] [--json]
+    trajopt rl export runs/tripod_ppo_seed0 --out results/tripod_ppo.npz
+    trajopt render results/tripod_ppo.npz --gif tripod_ppo.gif
+
+This module imports neither Stable-Baselines3 nor PyTorch: the parser exists without them and
+the commands say how to install them (``pip install soft-envs[rl]``).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from .envs import DEFAULT_EVAL_CYCLES, ROBOT_IDS, TRAIN_HORIZON
+from .hyperparams import ALGOS
+
+__all__ = ["add_rl_parser"]
+
+
+def add_rl_parser(sub) -> argparse.ArgumentParser:
+    """Add ``rl`` (with ``train``, ``evaluate``, ``export``) to the ``trajopt`` sub-parsers."""
+    rl = sub.add_parser("rl", help="RL baseline (Stable-Baselines3 PPO / SAC) on the same simulator",
+                        description="RL baseline: Stable-Baselines3 PPO and SAC on SoftTripod-v0 / "
+                                    "SoftPuppy-v0, scored with trajopt's metric. Needs "
+                                    "pip install soft-envs[rl].")
+    rsub = rl.add_subparsers(dest="rl_command", required=True)
+
+    p = rsub.add_parser("train", help="train a policy (checkpoints, TensorBoard + CSV logs)")
+    p.add_argument("robot", choices=sorted(ROBOT_IDS), help="robot (environment SoftTripod-v0 / SoftPuppy-v0)")
+    p.add_argument("--algo", choices=ALGOS, default="ppo")
+    p.add_argument("--timesteps", type=int, default=30_000, help="environment steps to train for")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=Path, default=Path("runs"), help="parent directory of the run")
+    p.add_argument("--name", default=None, help="run directory name (default ROBOT_ALGO_seedS)")
+    p.add_argument("--n-envs", type=int, default=None, help="parallel environments (default: CPU count)")
+    p.add_argument("--vec-env", choices=["auto", "subproc", "dummy"], default="auto",
+                   help="auto: SubprocVecEnv when n-envs > 1")
+    p.add_argument("--frame-skip", type=int, default=1, help="simulation steps per action")
+    p.add_argument("--episode-steps", type=int, default=TRAIN_HORIZON,
+                   help=f"max_episode_steps (default {TRAIN_HORIZON}, trajopt's horizon)")
+    p.add_argument("--incline", type=float, default=0.0, help="ground slope [deg]")
+    p.add_argument("--heading", type=float, default=0.0, help="walking direction [deg from +x to +z]")
+    p.add_argument("--checkpoint-every", type=int, default=None,
+                   help="environment steps between checkpoints (default: a tenth of the budget)")
+    p.add_argument("--hp", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a hyper-parameter (Python literal), repeatable")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing run of the same name")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--verbose", action="store_true", help="also print the SB3 logger to stdout")
+    p.set_defaults(func=_cmd_train)
+
+    p = rsub.add_parser("evaluate", help="trajopt's metric (BL/min along the target, upright) for a policy")
+    p.add_argument("model", type=Path, help="run directory, its model.zip or a checkpoint .zip")
+    p.add_argument("--cycles", type=int, default=DEFAULT_EVAL_CYCLES, help="gait cycles of 72 steps after 24 prep steps")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--reset-noise", type=float, default=0.0,
+                   help="reset noise [m] (default 0: trajopt's start, the exact rest state)")
+    p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
+    p.set_defaults(func=_cmd_evaluate)
+
+    p = rsub.add_parser("export", help="save the policy's deterministic rollout as a trajopt Result (.npz)")
+    p.add_argument("model", type=Path, help="run directory, its model.zip or a checkpoint .zip")
+    p.add_argument("--out", type=Path, required=True, help="result file (.npz, with a .json sibling)")
+    p.add_argument("--cycles", type=int, default=DEFAULT_EVAL_CYCLES)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--reset-noise", type=float, default=0.0)
+    p.set_defaults(func=_cmd_export)
+    return rl
+
+
+def _missing(exc: Exception) -> int:
+    print(f"trajopt: error: {exc}", file=sys.stderr)
+    return 2
+
+
+def _cmd_train(args) -> int:
+    from . import MissingRLDependencies
+    from .hyperparams import parse_overrides
+    try:
+        from .training import train
+        env_kwargs = {}
+        if args.incline:
+            env_kwargs["incline_deg"] = args.incline
+        if args.heading:
+            env_kwargs["target_heading_deg"] = args.heading
+        run = train(args.robot, args.algo, args.timesteps, args.seed, args.out, name=args.name,
+                    n_envs=args.n_envs, vec_env=args.vec_env, frame_skip=args.frame_skip,
+                    max_episode_steps=args.episode_steps, env_kwargs=env_kwargs,
+                    hyperparams=parse_overrides(args.hp), checkpoint_every=args.checkpoint_every,
+                    progress_bar=not args.no_progress, log_stdout=args.verbose,
+                    overwrite=args.overwrite)
+    except MissingRLDependencies as exc:
+        return _missing(exc)
+    print(f"{run.status}: {run.timesteps} steps ({run.sim_steps} simulation steps) in "
+          f"{run.wall_time_s:.1f} s; saved {run.model_path}")
+    print(f"  evaluate:    trajopt rl evaluate {run.run_dir}")
+    print(f"  TensorBoard: tensorboard --logdir {run.run_dir / 'logs'}")
+    return 130 if run.status == "interrupted" else 0
+
+
+def _print_eval(ev: dict) -> None:
+    rows = [("speed", f"{ev['speed_bl_per_min']:.3f} BL/min over {ev.get('cycles')} cycles "
+                      f"(after {ev.get('n_prep')} prep steps)"),
+            ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
+            ("displacement", f"{ev.get('displacement_m', float('nan')) * 1000:.2f} mm along the target"),
+            ("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg"),
+            ("max tilt", f"{ev.get('max_tilt_deg', float('nan')):.1f} deg"),
+            ("upright", str(ev["upright"]))]
+    if "sim_failure" in ev:
+        rows.append(("simulation failure", ev["sim_failure"]))
+    w = max(len(k) for k, _ in rows)
+    for k, v in rows:
+        print(f"  {k.ljust(w)}  {v}")
+
+
+def _cmd_evaluate(args) -> int:
+    from . import MissingRLDependencies
+    try:
+        from .evaluate import evaluate_policy_metric, load_policy
+        policy = load_policy(args.model)
+        ev = evaluate_policy_metric(policy, n_cycles=args.cycles, seed=args.seed,
+                                    reset_noise_scale=args.reset_noise)
+    except MissingRLDependencies as exc:
+        return _missing(exc)
+    if args.json:
+        print(json.dumps({k: v for k, v in ev.items() if k != "com"}, indent=1))
+    else:
+        cfg = policy.config
+        print(f"{cfg['robot']} {cfg['algo'].upper()} seed {cfg.get('seed')}, "
+              f"{cfg.get('timesteps_done', '?')} training steps ({cfg.get('status', '?')}); {policy.path}")
+        _print_eval(ev)
+    return 0 if ev["upright"] else 1
+
+
+def _cmd_export(args) -> int:
+    from . import MissingRLDependencies
+    try:
+        from .evaluate import export_result
+        res = export_result(args.model, args.out, n_cycles=args.cycles, seed=args.seed,
+                            reset_noise_scale=args.reset_noise)
+    except MissingRLDependencies as exc:
+        return _missing(exc)
+    path = args.out if args.out.suffix == ".npz" else args.out.with_suffix(".npz")
+    print(f"wrote {path}: {res.summary()}")
+    print(f"  render: trajopt render {path} --gif {path.with_suffix('.gif')}")
+    return 0

@@ -1,0 +1,93 @@
+"""The environments the RL baseline trains and is evaluated on.
+
+The physics is the registered Gymnasium environment, unchanged (``SoftTripod-v0`` /
+``SoftPuppy-v0``: same simulator, motor speed limit, reward and termination as documented in
+:class:`soft_envs.envs.tripod.SoftTripodEnv`). Two choices are made here, both recorded in the
+run's ``rl_config.json``:
+
+* **Episode length** ``max_episode_steps = 168`` simulation steps, the horizon ``trajopt``
+  optimises over (24 prep steps + 2 cycles of 72), so both methods see episodes of the same
+  length; the evaluation (:mod:`trajopt.rl.evaluate`) then plays 24 + 6 x 72 steps, like
+  ``trajopt``'s.
+* **Translation-invariant observation** (:class:`DropHorizontalPosition`): the COM x and z
+  relative to the start (observation entries 0 and 2) are removed. They grow without bound as
+  the robot walks and carry no information a walking policy needs (the COM velocity, the
+  orientation, the height and the gait phase are kept), and a policy trained on 168-step
+  episodes would otherwise see positions at evaluation (456 steps) it never saw in training.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import signal
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+__all__ = ["ROBOT_IDS", "N_PREP", "N_CYCLE", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES",
+           "DropHorizontalPosition", "make_env", "robot_name", "env_id"]
+
+#: robots of the RL baseline and their Gymnasium ids
+ROBOT_IDS = {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
+N_PREP = 24                       # trajopt's prep phase [simulation steps]
+N_CYCLE = 72                      # trajopt's gait cycle [simulation steps]
+TRAIN_HORIZON = N_PREP + 2 * N_CYCLE   # 168: trajopt's optimisation horizon
+DEFAULT_EVAL_CYCLES = 6           # trajopt's default evaluation: prep + 6 cycles
+
+
+def robot_name(robot: str) -> str:
+    """``"tripod"`` for ``"tripod"`` or ``"SoftTripod-v0"`` (likewise the Puppy)."""
+    if robot in ROBOT_IDS:
+        return robot
+    for name, id_ in ROBOT_IDS.items():
+        if robot == id_:
+            return name
+    raise ValueError(f"robot must be one of {sorted(ROBOT_IDS)} (or their ids "
+                     f"{sorted(ROBOT_IDS.values())}), got {robot!r}")
+
+
+def env_id(robot: str) -> str:
+    return ROBOT_IDS[robot_name(robot)]
+
+
+class DropHorizontalPosition(gym.ObservationWrapper):
+    """Removes observation entries 0 and 2 (COM x and z relative to the COM at reset): the
+    policy becomes invariant to where on the ground the robot is. Everything else is passed
+    through (``observation_structure`` of the environment minus ``com_position`` x, z)."""
+
+    DROPPED = (0, 2)
+
+    def __init__(self, env: gym.Env):
+        super().__init__(env)
+        n = env.observation_space.shape[0]
+        self._keep = np.array([i for i in range(n) if i not in self.DROPPED])
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(len(self._keep),), dtype=np.float64)
+
+    def observation(self, observation: np.ndarray) -> np.ndarray:
+        return np.asarray(observation, dtype=np.float64)[self._keep]
+
+
+def make_env(robot: str, *, frame_skip: int = 1, max_episode_steps: int | None = TRAIN_HORIZON,
+             drop_com_xz: bool = True, env_kwargs: Mapping[str, Any] | None = None,
+             ignore_sigint_in_worker: bool = False) -> gym.Env:
+    """One environment of the RL baseline: ``gym.make(id, max_episode_steps, frame_skip,
+    **env_kwargs)``, wrapped in :class:`DropHorizontalPosition` when ``drop_com_xz``.
+
+    ``max_episode_steps`` counts environment steps (``frame_skip`` simulation steps each);
+    ``None`` keeps the registered 300. ``ignore_sigint_in_worker``: in a SubprocVecEnv worker,
+    ignore Ctrl-C so that only the main process handles it (it saves the model and then closes
+    the workers cleanly)."""
+    import soft_envs  # noqa: F401  (registers the ids)
+
+    if ignore_sigint_in_worker and multiprocessing.current_process().name != "MainProcess":
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    kwargs = dict(env_kwargs or {})
+    kwargs["frame_skip"] = int(frame_skip)
+    if max_episode_steps is not None:
+        kwargs["max_episode_steps"] = int(max_episode_steps)
+    env = gym.make(env_id(robot), **kwargs)
+    if drop_com_xz:
+        env = DropHorizontalPosition(env)
+    return env

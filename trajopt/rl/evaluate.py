@@ -1,0 +1,286 @@
+"""Evaluating an RL policy with trajopt's metric, and exporting it as a trajopt ``Result``.
+
+The metric is :func:`trajopt.evaluation.evaluate_controls`, the very function that scores
+optimised gaits: play ``n_prep`` = 24 steps + ``n_cycles`` (default 6) cycles of 72 steps,
+then ``speed_bl_per_min`` = mean COM velocity along the target direction from the end of the
+prep phase to the end of the last cycle, in body lengths per minute, and ``upright`` = the
+body never tilts more than 60 degrees and the COM never drops below half its rest height.
+
+The policy is run closed loop in the environment (deterministic actions, through the
+``VecNormalize`` statistics saved with it), with ``terminate_when_unhealthy=False`` so that a
+fall is measured rather than cut short, and by default from the exact rest state
+(``reset_noise_scale=0``), the start of every ``trajopt`` rollout. The applied contraction of
+every simulation step is recorded (``info["u_substeps"]``, with the motor speed limit already
+applied); that control trajectory is the exported :class:`~trajopt.results.Result`, which
+``env.unwrapped.rollout`` (no speed limit, nothing clipped) replays to the same trajectory up
+to the Newton tolerance.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import pickle
+from dataclasses import dataclass
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from soft_envs.envs.base import MOTOR_NO_LOAD_RPM
+
+from ..evaluation import evaluate_controls, zero_slack_controls
+from ..results import Result
+from . import require_sb3
+from .envs import DEFAULT_EVAL_CYCLES, N_CYCLE, N_PREP, make_env
+from .training import CONFIG_NAME, MODEL_NAME, VECNORM_NAME
+
+__all__ = ["LoadedPolicy", "load_policy", "run_policy", "evaluate_policy_metric", "export_result",
+           "evaluate_trajopt_result", "play_controls_in_env", "run_metric"]
+
+
+@dataclass
+class LoadedPolicy:
+    """A trained model with its normalisation statistics and run configuration."""
+
+    model: Any
+    vecnormalize: Any | None
+    config: dict[str, Any]
+    path: Path
+
+    @property
+    def robot(self) -> str:
+        return self.config["robot"]
+
+    @property
+    def algo(self) -> str:
+        return self.config["algo"]
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """The deterministic action for one (unnormalised) observation."""
+        if self.vecnormalize is not None:
+            obs = self.vecnormalize.normalize_obs(np.asarray(obs, dtype=np.float64))
+        action, _ = self.model.predict(obs, deterministic=True)
+        return np.asarray(action, dtype=np.float64)
+
+
+def _resolve(path: Path) -> tuple[Path, Path | None, Path]:
+    """(model .zip, VecNormalize .pkl or None, rl_config.json) for a run directory, its
+    model.zip or one of its checkpoints."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / MODEL_NAME
+    if path.suffix != ".zip" and path.with_suffix(".zip").is_file():
+        path = path.with_suffix(".zip")
+    if not path.is_file():
+        raise ValueError(f"{path}: model file not found (give a run directory, its model.zip or a "
+                         "checkpoint model_<N>_steps.zip)")
+    if path.name == MODEL_NAME:
+        vecnorm = path.with_name(VECNORM_NAME)
+    else:                                           # checkpoints/model_<N>_steps.zip
+        vecnorm = path.with_name(path.name.replace("model_", "model_vecnormalize_", 1)
+                                 .replace(".zip", ".pkl"))
+    for cfg in (path.with_name(CONFIG_NAME), path.parent.parent / CONFIG_NAME):
+        if cfg.is_file():
+            break
+    else:
+        raise ValueError(f"{path}: no {CONFIG_NAME} next to it or in its parent directory")
+    return path, (vecnorm if vecnorm.is_file() else None), cfg
+
+
+def load_policy(path: str | os.PathLike, *, torch_threads: int | None = 1) -> LoadedPolicy:
+    """Load a run directory, a ``model.zip`` or a checkpoint (with its VecNormalize stats)."""
+    sb3 = require_sb3()
+    model_path, vecnorm_path, cfg_path = _resolve(Path(path))
+    config = json.loads(cfg_path.read_text())
+    if torch_threads is not None:
+        import torch
+        torch.set_num_threads(int(torch_threads))
+    cls = {"ppo": sb3.PPO, "sac": sb3.SAC}[config["algo"]]
+    model = cls.load(model_path, device="cpu")
+    vecnorm = None
+    if vecnorm_path is not None:
+        with open(vecnorm_path, "rb") as fh:
+            vecnorm = pickle.load(fh)       # VecNormalize without its venv: normalize_obs only
+        vecnorm.training = False
+    return LoadedPolicy(model=model, vecnormalize=vecnorm, config=config, path=model_path)
+
+
+class _RecordedHooks:
+    """Hooks whose ``rollout`` returns an already simulated trajectory, so that
+    :func:`evaluate_controls` scores a closed-loop run with exactly trajopt's formulas."""
+
+    def __init__(self, hooks, u: np.ndarray, traj):
+        self.robot, self.dt, self._u, self._traj = hooks.robot, hooks.dt, u, traj
+
+    def rollout(self, u, dudz=None, **_):
+        assert u is self._u
+        return self._traj
+
+
+def play_controls_in_env(env, policy, n_steps: int, *, seed: int | None = 0) -> dict[str, Any]:
+    """Reset ``env`` (seeded) and step it ``n_steps`` times with ``policy(obs, k) -> action``.
+
+    Returns the applied contraction of every simulation step ``u`` (K, M), the states ``x``
+    (K+1, n, 3) and COM ``com`` (K+1, 3) of every simulation step (intermediate states of a
+    step with ``frame_skip > 1`` are not observable: then ``x`` is None), the actions, and
+    ``sim_failure`` if the simulation failed (the run stops there)."""
+    base = env.unwrapped
+    obs, info = env.reset(seed=seed)
+    fs = base.frame_skip
+    us, actions = [], []
+    xs = [base.get_state()["x"]]
+    coms = [np.asarray(info["com"], dtype=np.float64)]
+    failure = None
+    for k in range(n_steps):
+        a = np.asarray(policy(obs, k), dtype=np.float64)
+        actions.append(a)
+        obs, _, terminated, _, info = env.step(a)
+        if "sim_failure" in info:
+            failure = info["sim_failure"]
+            break
+        us.extend(np.asarray(info["u_substeps"], dtype=np.float64))
+        xs.append(base.get_state()["x"])
+        coms.append(np.asarray(info["com"], dtype=np.float64))
+    return {"u": np.array(us).reshape(-1, len(base.action_space.low)),
+            "x": np.array(xs) if fs == 1 else None, "com": np.array(coms), "actions": np.array(actions),
+            "sim_failure": failure}
+
+
+def run_metric(env, u: np.ndarray, x: np.ndarray | None, *, n_prep: int = N_PREP, n_cycle: int = N_CYCLE,
+               heading_deg: float = 0.0) -> dict[str, Any]:
+    """trajopt's evaluation (:func:`evaluate_controls`) of a run recorded by
+    :func:`play_controls_in_env`: its applied controls ``u`` and states ``x``; replays ``u``
+    from the reset state only when the per-step states were not observed (frame_skip > 1)."""
+    base = env.unwrapped
+    if x is not None:
+        traj = SimpleNamespace(x=x, com=np.einsum("kni,n->ki", x, base.robot.node_masses)
+                               / base.robot.total_mass)         # as Simulator.rollout
+        return evaluate_controls(_RecordedHooks(base, u, traj), u, n_prep=n_prep, n_cycle=n_cycle,
+                                 heading_deg_target=heading_deg)
+    return evaluate_controls(base, u, n_prep=n_prep, n_cycle=n_cycle, heading_deg_target=heading_deg)
+
+
+def _eval_env(policy: LoadedPolicy, n_env_steps: int, reset_noise_scale: float):
+    cfg = policy.config["env"]
+    kwargs = dict(cfg.get("env_kwargs", {}))
+    kwargs.update(reset_noise_scale=float(reset_noise_scale), terminate_when_unhealthy=False)
+    return make_env(cfg["robot"], frame_skip=int(cfg.get("frame_skip", 1)), max_episode_steps=n_env_steps,
+                    drop_com_xz=bool(cfg.get("drop_com_xz", True)), env_kwargs=kwargs)
+
+
+def run_policy(policy: LoadedPolicy, *, n_cycles: int = DEFAULT_EVAL_CYCLES, seed: int = 0,
+               reset_noise_scale: float = 0.0, n_prep: int = N_PREP, n_cycle: int = N_CYCLE
+               ) -> tuple[dict[str, Any], dict[str, Any], Any]:
+    """Run the policy deterministically for ``n_prep + n_cycles * n_cycle`` simulation steps.
+    Returns (evaluation, recording, env); see :func:`evaluate_policy_metric`."""
+    if n_cycles < 1:
+        raise ValueError(f"n_cycles must be >= 1, got {n_cycles}")
+    fs = int(policy.config["env"].get("frame_skip", 1))
+    K = n_prep + n_cycles * n_cycle
+    if n_prep % fs or n_cycle % fs:
+        raise ValueError(f"frame_skip {fs} must divide n_prep {n_prep} and n_cycle {n_cycle}")
+    env = _eval_env(policy, K // fs, reset_noise_scale)
+    try:
+        import torch
+        torch.manual_seed(seed)
+    except ImportError:   # pragma: no cover
+        pass
+    env.action_space.seed(seed)
+    rec = play_controls_in_env(env, lambda obs, k: policy.act(obs), K // fs, seed=seed)
+    heading = float(policy.config["env"].get("env_kwargs", {}).get("target_heading_deg", 0.0))
+    if rec["sim_failure"] is not None:
+        ev = {"cycles": n_cycles, "speed_bl_per_min": float("nan"), "upright": False,
+              "sim_failure": rec["sim_failure"], "sim_steps": len(rec["u"])}
+    else:
+        ev = run_metric(env, rec["u"], rec["x"], n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading)
+    com = rec["com"]
+    a = math.radians(heading)
+    d = np.array([math.cos(a), 0.0, math.sin(a)])
+    i0 = n_prep // fs
+    ev["displacement_m"] = float((com[-1] - com[i0]) @ d) if len(com) == K // fs + 1 else float("nan")
+    ev.update(n_prep=n_prep, n_cycle=n_cycle, seed=int(seed), reset_noise_scale=float(reset_noise_scale),
+              heading_deg=heading, frame_skip=fs, method="closed-loop policy, deterministic",
+              model=str(policy.path), algo=policy.algo, robot=policy.robot)
+    return ev, rec, env
+
+
+def evaluate_policy_metric(model: str | os.PathLike | LoadedPolicy, *, n_cycles: int = DEFAULT_EVAL_CYCLES,
+                           seed: int = 0, reset_noise_scale: float = 0.0) -> dict[str, Any]:
+    """trajopt's metric for an RL policy (see the module docstring): a dict with
+    ``speed_bl_per_min``, ``upright``, ``speed_per_cycle_bl_per_min``, ``max_tilt_deg``,
+    ``heading_change_deg``, ``displacement_m`` (COM displacement along the target direction
+    over the measured cycles), ``com`` (K+1, 3) and the settings. ``seed`` seeds the reset
+    (irrelevant with the default ``reset_noise_scale=0``) and PyTorch; the same model and
+    seed give the same numbers."""
+    policy = model if isinstance(model, LoadedPolicy) else load_policy(model)
+    ev, _, env = run_policy(policy, n_cycles=n_cycles, seed=seed, reset_noise_scale=reset_noise_scale)
+    env.close()
+    return ev
+
+
+def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLike | None = None, *,
+                  n_cycles: int = DEFAULT_EVAL_CYCLES, seed: int = 0,
+                  reset_noise_scale: float = 0.0) -> Result:
+    """The policy's deterministic rollout as a trajopt :class:`Result` (task "rl"), saved to
+    ``out`` when given. ``u`` holds the applied contraction of each simulation step
+    (24 prep + ``n_cycles`` x 72), ``u_post`` its zero-slack version (paper III-B-2, what the
+    hardware plays, as for optimised gaits), ``com`` the simulated COM, ``evaluation`` the
+    metric of :func:`evaluate_policy_metric` and ``settings`` n_prep, n_cycle, the algorithm,
+    budget, seed and environment settings. ``z`` and ``target`` are empty."""
+    policy = model if isinstance(model, LoadedPolicy) else load_policy(model)
+    ev, rec, env = run_policy(policy, n_cycles=n_cycles, seed=seed, reset_noise_scale=reset_noise_scale)
+    if rec["sim_failure"] is not None:
+        env.close()
+        raise ValueError(f"{policy.path}: the simulation failed during the policy's rollout "
+                         f"({rec['sim_failure']}); nothing to export")
+    base = env.unwrapped
+    robot = base.robot
+    u = rec["u"]
+    traj = base.rollout(u)        # open-loop replay: the Result's own physics
+    env.close()
+    cfg = policy.config
+    env_kwargs = cfg["env"].get("env_kwargs", {})
+    settings = {
+        "n_prep": N_PREP, "n_cycle": N_CYCLE, "eval_cycles": int(n_cycles), "algo": cfg["algo"],
+        "timesteps": int(cfg.get("timesteps_done", cfg.get("timesteps", 0))),
+        "timesteps_requested": int(cfg.get("timesteps", 0)), "seed": int(cfg.get("seed", 0)),
+        "eval_seed": int(seed), "sim_steps_training": int(cfg.get("sim_steps", 0)),
+        "training_wall_time_s": cfg.get("wall_time_s"), "model": str(policy.path),
+        "env_id": cfg.get("env_id"), "frame_skip": int(cfg["env"].get("frame_skip", 1)),
+        "env_kwargs": env_kwargs, "reset_noise_scale": float(reset_noise_scale),
+        "heading_deg": float(env_kwargs.get("target_heading_deg", 0.0)),
+        "incline_deg": float(env_kwargs.get("incline_deg", 0.0)),
+        "motor_speed_rpm": env_kwargs.get("motor_speed_rpm", MOTOR_NO_LOAD_RPM),
+        "control": base.simulator.control, "source": str(policy.path),
+    }
+    evaluation = dict(ev)
+    evaluation["replay_max_com_error_m"] = float(np.abs(traj.com - np.asarray(ev["com"])).max())
+    res = Result(robot=cfg["robot"], task="rl", motor_names=list(robot.motor_names), dt=float(base.dt),
+                 z=np.zeros(0), u=u, u_post=zero_slack_controls(u, traj.cable_deformation, robot.tendon_motor,
+                                                                 robot.u_bounds),
+                 target=np.zeros((0, 2)), com=np.asarray(ev["com"], dtype=np.float64), settings=settings,
+                 evaluation=evaluation, status=f"rl:{cfg.get('status', 'done')}")
+    res.validate(str(out or policy.path))
+    if out is not None:
+        res.save(out)
+    return res
+
+
+def evaluate_trajopt_result(result: Result | str | os.PathLike, n_cycles: int = DEFAULT_EVAL_CYCLES
+                            ) -> dict[str, Any]:
+    """``trajopt evaluate`` as a function: the metric of a saved gait over ``n_cycles`` cycles
+    (keyframe results are re-expanded; others, like exported RL gaits, play their ``u``)."""
+    from ..commands import hooks_for_result, parameterization_for
+    res = result if isinstance(result, Result) else Result.load(result)
+    hooks = hooks_for_result(res)
+    s = res.settings
+    if "keyframes" in s:
+        param = parameterization_for(res, hooks.robot)
+        u = param.controls(param.z_from_keyframes(np.asarray(s["keyframes"])), n_cycles)
+        n_prep, n_cycle = param.n_prep, param.n_cycle
+    else:
+        u, n_prep, n_cycle = res.u, int(s.get("n_prep", 0)), int(s.get("n_cycle", len(res.u)))
+    return evaluate_controls(hooks, u, n_prep=n_prep, n_cycle=n_cycle,
+                             heading_deg_target=float(s.get("heading_deg", 0.0)))

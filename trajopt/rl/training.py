@@ -1,0 +1,216 @@
+"""Training PPO / SAC (Stable-Baselines3) on ``SoftTripod-v0`` / ``SoftPuppy-v0``.
+
+A run writes one directory, ``OUT/NAME`` (default ``NAME = ROBOT_ALGO_seedS``)::
+
+    model.zip               the final policy (also after Ctrl-C)
+    vecnormalize.pkl        observation (and for PPO reward) normalisation statistics
+    rl_config.json          robot, algorithm, budget, seed, environment settings,
+                            hyper-parameters, simulation steps used, wall time, status
+    checkpoints/            model_<N>_steps.zip + model_vecnormalize_<N>_steps.pkl, every
+                            ``checkpoint_every`` environment steps (and N = 0, the untrained policy)
+    logs/                   SB3 logger output: progress.csv and TensorBoard event files
+                            (``tensorboard --logdir OUT``)
+    monitor/                per-environment episode returns and lengths (SB3 Monitor)
+"""
+from __future__ import annotations
+
+import copy
+import functools
+import json
+import os
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from . import require_sb3
+from .envs import TRAIN_HORIZON, env_id, make_env, robot_name
+from .hyperparams import ALGOS, default_hyperparams, jsonable, vecnormalize_kwargs
+
+__all__ = ["train", "TrainRun", "CONFIG_NAME", "MODEL_NAME", "VECNORM_NAME", "write_config",
+           "checkpoint_steps"]
+
+CONFIG_NAME = "rl_config.json"
+MODEL_NAME = "model.zip"
+VECNORM_NAME = "vecnormalize.pkl"
+
+
+@dataclass
+class TrainRun:
+    """What :func:`train` did: where it saved, how many steps, how long, and how it ended
+    (``status`` "done" or "interrupted")."""
+
+    run_dir: Path
+    model_path: Path
+    config: dict[str, Any]
+    status: str
+    timesteps: int
+    sim_steps: int
+    wall_time_s: float
+    checkpoints: list[Path] = field(default_factory=list)
+
+
+def write_config(run_dir: Path, config: dict[str, Any]) -> Path:
+    from ..results import atomic_write_bytes
+    path = Path(run_dir) / CONFIG_NAME
+    atomic_write_bytes(path, json.dumps(jsonable(config), indent=1).encode())
+    return path
+
+
+def _algo_class(algo: str):
+    sb3 = require_sb3()
+    return {"ppo": sb3.PPO, "sac": sb3.SAC}[algo]
+
+
+def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
+          out: str | os.PathLike = "runs", *, name: str | None = None, n_envs: int | None = None,
+          vec_env: str = "auto", frame_skip: int = 1, max_episode_steps: int = TRAIN_HORIZON,
+          env_kwargs: dict[str, Any] | None = None, hyperparams: dict[str, Any] | None = None,
+          checkpoint_every: int | None = None, progress_bar: bool = True, verbose: int = 0,
+          log_stdout: bool = False, torch_threads: int | None = 1, callback=None,
+          overwrite: bool = False) -> TrainRun:
+    """Train ``algo`` ("ppo" | "sac") on ``robot`` ("tripod" | "puppy") for ``timesteps``
+    environment steps and save the run in ``out/name`` (see the module docstring).
+
+    ``n_envs``: parallel environments (default ``os.cpu_count()``); ``vec_env``: "subproc",
+    "dummy" or "auto" (subprocesses when ``n_envs > 1``). ``env_kwargs`` go to ``gym.make``
+    (e.g. ``incline_deg``, ``target_heading_deg``). ``hyperparams`` override
+    :func:`~trajopt.rl.hyperparams.default_hyperparams`. ``checkpoint_every``: environment steps
+    between checkpoints (default: a tenth of the budget). ``torch_threads``: PyTorch CPU
+    threads of the learner (1: the networks are tiny and the environment workers need the
+    cores; ``None`` leaves PyTorch's default). Ctrl-C stops training and saves the model with
+    ``status="interrupted"``. An existing run of the same name is an error unless
+    ``overwrite`` (then its checkpoints are deleted first).
+    """
+    require_sb3()
+    import torch
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+    robot = robot_name(robot)
+    algo = algo.lower()
+    if algo not in ALGOS:
+        raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
+    timesteps = int(timesteps)
+    if timesteps < 1:
+        raise ValueError(f"timesteps must be positive, got {timesteps}")
+    n_envs = int(n_envs or os.cpu_count() or 1)
+    if n_envs < 1:
+        raise ValueError(f"n_envs must be positive, got {n_envs}")
+    if vec_env not in ("auto", "subproc", "dummy"):
+        raise ValueError(f"vec_env must be 'auto', 'subproc' or 'dummy', got {vec_env!r}")
+    use_subproc = vec_env == "subproc" or (vec_env == "auto" and n_envs > 1)
+    env_kwargs = dict(env_kwargs or {})
+    env_kwargs.setdefault("task", "walk")
+    hp = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
+    hp.update(hyperparams or {})
+    checkpoint_every = int(checkpoint_every or max(timesteps // 10, 1))
+
+    name = name or f"{robot}_{algo}_seed{seed}"
+    run_dir = Path(out) / name
+    ckpt_dir = run_dir / "checkpoints"
+    if (run_dir / CONFIG_NAME).exists():
+        if not overwrite:
+            raise ValueError(f"{run_dir} holds a run already; choose another name or overwrite it "
+                             "(--overwrite)")
+        for old in [*ckpt_dir.glob("model_*_steps.zip"), *ckpt_dir.glob("model_vecnormalize_*_steps.pkl")]:
+            old.unlink()
+    for d in (run_dir, ckpt_dir, run_dir / "logs", run_dir / "monitor"):
+        d.mkdir(parents=True, exist_ok=True)
+    if torch_threads is not None:
+        torch.set_num_threads(int(torch_threads))
+
+    env_cfg = {"robot": robot, "frame_skip": int(frame_skip), "max_episode_steps": int(max_episode_steps),
+               "drop_com_xz": True, "env_kwargs": env_kwargs}
+    factory = functools.partial(make_env, robot, frame_skip=int(frame_skip),
+                                max_episode_steps=int(max_episode_steps), drop_com_xz=True,
+                                env_kwargs=env_kwargs, ignore_sigint_in_worker=use_subproc)
+    venv = make_vec_env(factory, n_envs=n_envs, seed=seed, monitor_dir=str(run_dir / "monitor"),
+                        vec_env_cls=SubprocVecEnv if use_subproc else DummyVecEnv)
+    vn_kwargs = vecnormalize_kwargs(algo, hp.get("gamma", 0.99))
+    venv = VecNormalize(venv, **vn_kwargs)
+    try:
+        return _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_subproc, env_cfg,
+                      hp, vn_kwargs, checkpoint_every, frame_skip, progress_bar, verbose, log_stdout, callback)
+    finally:
+        try:
+            venv.close()
+        except (EOFError, BrokenPipeError, ConnectionResetError, OSError):   # workers already gone
+            pass
+
+
+def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_subproc, env_cfg, hp,
+           vn_kwargs, checkpoint_every, frame_skip, progress_bar, verbose, log_stdout, callback) -> TrainRun:
+    import torch
+    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
+    from stable_baselines3.common.logger import configure
+
+    config: dict[str, Any] = {
+        "robot": robot, "env_id": env_id(robot), "algo": algo, "timesteps": timesteps,
+        "seed": int(seed), "n_envs": n_envs, "vec_env": "subproc" if use_subproc else "dummy",
+        "env": env_cfg, "hyperparams": hp, "vecnormalize": vn_kwargs,
+        "checkpoint_every": checkpoint_every, "status": "running",
+        "sb3_version": require_sb3().__version__, "torch_version": torch.__version__,
+    }
+    write_config(run_dir, config)
+
+    # (a copy: SB3 writes into policy_kwargs, the config keeps what was asked for)
+    model = _algo_class(algo)("MlpPolicy", venv, seed=seed, device="cpu", verbose=verbose, **copy.deepcopy(hp))
+    formats = ["csv"] + (["tensorboard"] if _available("torch.utils.tensorboard", "tensorboard") else [])
+    formats += ["stdout"] if log_stdout else []
+    if progress_bar and not _available("tqdm", "rich"):
+        warnings.warn("no progress bar: it needs tqdm and rich (pip install rich)", stacklevel=2)
+        progress_bar = False
+    model.set_logger(configure(str(run_dir / "logs"), formats))
+    # the untrained policy is checkpoint 0 (the start of the speed-vs-steps curves)
+    model.save(ckpt_dir / "model_0_steps.zip")
+    venv.save(str(ckpt_dir / "model_vecnormalize_0_steps.pkl"))
+    callbacks = [CheckpointCallback(save_freq=max(checkpoint_every // n_envs, 1), save_path=str(ckpt_dir),
+                                    name_prefix="model", save_vecnormalize=True)]
+    if callback is not None:
+        callbacks.append(callback)
+
+    status = "done"
+    t0 = time.perf_counter()
+    try:
+        model.learn(total_timesteps=timesteps, callback=CallbackList(callbacks),
+                    progress_bar=progress_bar)
+    except KeyboardInterrupt:
+        status = "interrupted"
+        print(f"\ninterrupted after {model.num_timesteps} steps: saving the model to {run_dir}",
+              file=sys.stderr)
+    wall = time.perf_counter() - t0
+    model_path = run_dir / MODEL_NAME
+    model.save(model_path)
+    venv.save(str(run_dir / VECNORM_NAME))
+    done = int(model.num_timesteps)
+    config.update(status=status, timesteps_done=done, sim_steps=done * int(frame_skip), wall_time_s=wall)
+    write_config(run_dir, config)
+    checkpoints = sorted(ckpt_dir.glob("model_*_steps.zip"), key=checkpoint_steps)
+    return TrainRun(run_dir=run_dir, model_path=model_path, config=config, status=status,
+                    timesteps=done, sim_steps=done * int(frame_skip), wall_time_s=wall,
+                    checkpoints=checkpoints)
+
+
+def _available(*modules: str) -> bool:
+    import importlib
+    try:
+        for m in modules:
+            importlib.import_module(m)
+    except ImportError:
+        if "tensorboard" in modules:
+            warnings.warn("no TensorBoard log: tensorboard is not installed (pip install tensorboard)",
+                          stacklevel=3)
+        return False
+    return True
+
+
+def checkpoint_steps(path: Path) -> int:
+    """N of ``model_<N>_steps.zip`` (environment steps at which it was saved)."""
+    stem = Path(path).stem
+    try:
+        return int(stem.split("_")[-2])
+    except (IndexError, ValueError):
+        raise ValueError(f"{path}: not a checkpoint name model_<N>_steps.zip") from None
