@@ -47,8 +47,10 @@ class NewtonOptions:
     ``max_backtracks``: halvings of the line search. ``reuse_factor``: keep the last
     factorisation (from this or an earlier step) while it still contracts the step by at least
     ``refactor_ratio`` per iteration (chord iterations cost a gradient and a solve instead of a
-    Hessian assembly and a factorisation); ``False`` gives plain Newton. ``solver``: "auto",
-    "cholmod" or "lu"."""
+    Hessian assembly and a factorisation) and while the predicted number of further chord
+    steps stays below ``max_chord``; ``False`` gives plain Newton. ``predictor``: initial
+    guess ``x_{k-1} + predictor (x_{k-1} - x_{k-2})`` (1 = the inertial prediction x~).
+    ``solver``: "auto", "cholmod" or "lu"."""
 
     tol: float = 1e-8
     max_iter: int = 50
@@ -56,6 +58,7 @@ class NewtonOptions:
     max_backtracks: int = 40
     reuse_factor: bool = True
     refactor_ratio: float = 0.5
+    max_chord: float = 4.0
     predictor: float = 1.0
     solver: str = "auto"
 
@@ -155,7 +158,7 @@ class NewtonSolver:
             if not np.isfinite(dx).all():
                 raise SimulationError("non-finite Newton step", k)
             norm = np.abs(dx).max()
-            if not fresh and norm > opt.refactor_ratio * prev_norm:
+            if not fresh and self._chord_too_slow(norm, prev_norm):
                 # the reused factorisation no longer contracts fast enough: refresh it here
                 exact, nf = self._refactor(x, xt, x_prev, u)
                 n_fact += 1
@@ -209,6 +212,20 @@ class NewtonSolver:
             fresh, prev_norm = False, alpha * norm
         raise SimulationError(f"Newton did not converge in {opt.max_iter} iterations "
                               f"(last |dx| = {norm:.3e} m)", k)
+
+    def _chord_too_slow(self, norm: float, prev_norm: float) -> bool:
+        """Refresh the factorisation when a chord step contracts by less than
+        ``refactor_ratio``, or when the contraction it does achieve would still need more than
+        ``max_chord`` further steps to reach the tolerance (a fresh Newton step converges
+        quadratically: about two more)."""
+        if not np.isfinite(prev_norm) or prev_norm <= 0.0:
+            return False
+        rho = norm / prev_norm
+        if rho > self.options.refactor_ratio:
+            return True
+        if rho <= 1e-3 or norm <= self.options.tol:
+            return False
+        return np.log(self.options.tol / norm) / np.log(rho) > self.options.max_chord
 
     def _refactor(self, x, xt, x_prev, u) -> tuple[bool, int]:
         _, _, hdata = self.phi_assemble(x, xt, x_prev, u)
