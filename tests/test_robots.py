@@ -174,3 +174,30 @@ def test_overrides_and_frames(robot_dir):
 
 def _fmt(pts) -> str:
     return "[" + ", ".join("[" + ", ".join(f"{c:.4f}" for c in p) + "]" for p in pts) + "]"
+
+
+@pytest.mark.parametrize("old,new,message", [
+    ("body_length = 0.14", "body_length = -0.14", r"body_length must be positive"),
+    ("blend = 2e-4", "blend = -2e-4", r"cables\.blend must be positive"),
+    ("stiffness = 2000.0", "stiffness = -1.0", r"\[contact\] contact\.stiffness must be positive"),
+    ("[cables]", '[fixed]\nbox = [[0, 1]]\n\n[cables]', r"\[fixed\]\.box must be"),
+])
+def test_more_bad_values_name_file_and_field(robot_dir, old, new, message):
+    path = edit(robot_dir / "robot.toml", old, new)
+    with pytest.raises(ValueError, match=message) as err:
+        load_robot(path)
+    assert str(path) in str(err.value)
+
+
+def test_robot_keeps_its_own_tendon_points(bar_robot):
+    pts = np.array([[0.055, 0.015, 0.01], [0.005, 0.015, 0.01]])
+    from soft_envs.sim import Robot
+    from .conftest import block_mesh
+    r = Robot.from_mesh(block_mesh(), youngs_modulus=1e5, poisson_ratio=0.3, density=100.0,
+                        tendons=[dict(name="t", points=pts, rest_length=0.05)],
+                        motors=[dict(name="m", tendons=["t"])])
+    pts[0, 0] = 99.0
+    assert r.tendons[0].points[0, 0] == 0.055
+    with pytest.raises(ValueError, match="rest_length must be positive"):
+        Robot.from_mesh(block_mesh(), youngs_modulus=1e5, poisson_ratio=0.3, density=100.0,
+                        tendons=[dict(name="t", points=pts, rest_length=float("nan"))])

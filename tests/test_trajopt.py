@@ -182,3 +182,46 @@ def test_resume_continues_from_saved_iterate(tmp_path):
 def test_as_hooks_rejects_objects_without_hooks():
     with pytest.raises(TypeError, match="gradient hook"):
         as_hooks(object())
+
+
+def test_results_reject_malformed_metadata(short_walk, tmp_path):
+    import io
+    _, res = short_walk
+    path = res.save(tmp_path / "ok")
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    meta = json.loads(str(arrays["meta"]))
+    cases = {"dt": None, "settings": [], "format_version": "1"}
+    for key, bad in cases.items():
+        m = dict(meta)
+        m[key] = bad
+        buf = io.BytesIO()
+        np.savez(buf, **{**arrays, "meta": np.array(json.dumps(m))})
+        p = tmp_path / f"bad_{key}.npz"
+        p.write_bytes(buf.getvalue())
+        with pytest.raises(ValueError, match=rf"bad_{key}\.npz: metadata field '{key}' has the wrong type"):
+            Result.load(p)
+    m = dict(meta)
+    m["settings"] = {**meta["settings"], "keyframes": [[0.0]]}
+    buf = io.BytesIO()
+    np.savez(buf, **{**arrays, "meta": np.array(json.dumps(m))})
+    (tmp_path / "kf.npz").write_bytes(buf.getvalue())
+    with pytest.raises(ValueError, match=r"settings field 'keyframes' must have shape"):
+        Result.load(tmp_path / "kf.npz")
+
+
+def test_nan_is_written_as_null_and_resume_checks_settings(short_walk, tmp_path):
+    hooks, res = short_walk
+    res.evaluation = {**res.evaluation, "speed_bl_per_min": float("nan")}
+    path = res.save(tmp_path / "nan")
+    assert json.loads(path.with_suffix(".json").read_text())["evaluation"]["speed_bl_per_min"] is None
+    with pytest.raises(ValueError, match="cannot resume"):
+        optimize_gait(hooks, "walk", n_prep=12, n_cycle=24, resume=res, robot_spec="tripod")
+    with pytest.raises(ValueError, match="eval_cycles"):
+        optimize_gait(hooks, "walk", eval_cycles=0)
+
+
+def test_incline_is_recorded_from_the_environment():
+    from trajopt.hooks import make_hooks
+    hooks = make_hooks("tripod", incline_deg=15.0)
+    assert hooks.incline_deg == 15.0 and hooks.simulator.gravity[0] < 0

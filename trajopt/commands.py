@@ -18,9 +18,13 @@ __all__ = ["run_optimize", "run_evaluate", "run_render", "run_export", "run_plot
 
 
 def hooks_for_result(res: Result):
+    """The physics a result was made on (robot, slope, heading); refuses a different time step."""
     s = res.settings
-    return make_hooks(res.robot, incline_deg=float(s.get("incline_deg", 0.0)),
-                      heading_deg=float(s.get("heading_deg", 0.0)))
+    hooks = make_hooks(res.robot, incline_deg=float(s.get("incline_deg", 0.0)),
+                       heading_deg=float(s.get("heading_deg", 0.0)))
+    if abs(hooks.dt - res.dt) > 1e-12:
+        raise ValueError(f"the result was made with dt = {res.dt} s, the simulator here uses {hooks.dt} s")
+    return hooks
 
 
 def parameterization_for(res: Result, robot) -> GaitParameterization:
@@ -58,6 +62,16 @@ def run_optimize(args) -> int:
         if prev.status not in ("running", "interrupted"):
             print(f"{out} is finished ({prev.status}); nothing to resume. {prev.summary()}")
             return 0
+        wanted = {"n_keyframes": args.keyframes, "n_cycle": args.cycle_steps, "n_prep": args.prep_steps,
+                  "heading_deg": args.heading, "turn": args.turn, "incline_deg": incline}
+        if args.speed is not None:
+            wanted["speed_bl_per_min"] = args.speed
+        if args.symmetry is not None:
+            wanted["symmetry"] = args.symmetry
+        differ = {k: (prev.settings.get(k), v) for k, v in wanted.items() if prev.settings.get(k) != v}
+        if prev.task != task or differ:
+            raise ValueError(f"{out}: --resume needs the settings of the interrupted run; these differ "
+                             f"(saved, asked): {differ or {'task': (prev.task, task)}}")
         resume = prev
         print(f"resuming {out} after iteration {len(prev.history)}")
     warm = Result.load(args.warm_start) if args.warm_start else None
@@ -118,7 +132,9 @@ def run_evaluate(args) -> int:
     res = Result.load(args.result)
     hooks = hooks_for_result(res)
     s = res.settings
-    cycles = args.cycles or int(s.get("eval_cycles", 6))
+    cycles = int(s.get("eval_cycles", 6)) if args.cycles is None else args.cycles
+    if cycles < 1:
+        raise ValueError(f"--cycles must be >= 1, got {cycles}")
     if "keyframes" in s:
         param = parameterization_for(res, hooks.robot)
         u = param.controls(param.z_from_keyframes(np.asarray(s["keyframes"])), cycles)

@@ -42,7 +42,9 @@ def evaluate_controls(hooks, u: np.ndarray, *, n_prep: int, n_cycle: int, headin
     robot = hooks.robot
     dt = hooks.dt
     K = len(u)
-    n_cycles = (K - n_prep) // n_cycle
+    n_cycles = (K - n_prep) // n_cycle if n_cycle > 0 else 0
+    if n_cycles < 1:
+        raise ValueError(f"need at least one full cycle to evaluate: {K} steps, prep {n_prep}, cycle {n_cycle}")
     try:
         traj = hooks.rollout(u)
     except SimulationError as err:

@@ -105,13 +105,12 @@ def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.nda
         A[np.diag_indices_from(A)] += lam * (d + mu)
         dz = np.zeros_like(z)
         dz[free] = np.linalg.solve(A, -g[free])
-        slope = float(g @ dz)
         alpha, accepted, trials = 1.0, False, 0
         for _ in range(opt.max_backtracks + 1):
             trials += 1
             z_try = np.clip(z + alpha * dz, lower, upper)
             f_try, r_try, _, info_try = _evaluate(fun, z_try, False)
-            if f_try <= f + opt.armijo * alpha * slope:
+            if f_try <= f + opt.armijo * min(float(g @ (z_try - z)), 0.0):   # slope of the clipped step
                 accepted = True
                 break
             alpha *= 0.5

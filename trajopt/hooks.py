@@ -81,13 +81,11 @@ def make_hooks(robot: str, *, incline_deg: float = 0.0, heading_deg: float = 0.0
     when there is one (``SoftTripod-v0`` / ``SoftPuppy-v0``), else a bare simulator."""
     ids = {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
     if use_env and robot in ids:
-        try:
-            import gymnasium as gym
-            import soft_envs  # noqa: F401  (registers the ids)
-            env = gym.make(ids[robot], incline_deg=incline_deg, target_heading_deg=heading_deg,
-                           reset_noise_scale=0.0)
-            env.reset(seed=0)
-            return as_hooks(env)
-        except (ImportError, gym.error.Error, TypeError):
-            pass
+        import gymnasium as gym
+
+        import soft_envs  # noqa: F401  (registers the ids)
+        env = gym.make(ids[robot], incline_deg=incline_deg, target_heading_deg=heading_deg,
+                       reset_noise_scale=0.0)
+        env.reset(seed=0)
+        return as_hooks(env)
     return as_hooks(robot, incline_deg=incline_deg, heading_deg=heading_deg)

@@ -117,6 +117,11 @@ def optimize_gait(env: Any, task: str = "walk", *, speed_bl_per_min: float | Non
     if task == "custom" and target is None:
         raise ValueError("task='custom' needs a target array")
     hooks = as_hooks(env)
+    if hooks.simulator.control != "length":
+        raise ValueError("optimize_gait optimises contracted cable lengths; the environment's simulator "
+                         f"uses {hooks.simulator.control!r} control")
+    if eval_cycles < 1:
+        raise ValueError(f"eval_cycles must be >= 1, got {eval_cycles}")
     robot = hooks.robot
     name = robot_spec or robot.name
     speed = float(speed_bl_per_min if speed_bl_per_min is not None else DEFAULT_SPEED.get(robot.name, 8.0))
@@ -153,6 +158,13 @@ def optimize_gait(env: Any, task: str = "walk", *, speed_bl_per_min: float | Non
                 "gauss_newton": asdict(options), "eval_cycles": eval_cycles,
                 "warm_start": warm_start.settings.get("source") if warm_start is not None else None,
                 "control": hooks.simulator.control}
+    if resume is not None:
+        keys = ("n_prep", "n_cycle", "n_keyframes", "symmetry", "speed_bl_per_min", "heading_deg", "turn",
+                "incline_deg")
+        differ = {k: (resume.settings.get(k), settings[k]) for k in keys if resume.settings.get(k) != settings[k]}
+        if differ or resume.task != task:
+            raise ValueError(f"cannot resume: the settings differ from the interrupted run's (saved, asked): "
+                             f"{differ or {'task': (resume.task, task)}}")
     t_start = time.perf_counter()
 
     def make_result(z, status, hist) -> Result:

@@ -81,7 +81,7 @@ class Result:
         path = Path(path)
         if path.suffix != ".npz":
             path = path.with_suffix(".npz")
-        meta = json.dumps(self.metadata(), default=_json_default, indent=1)
+        meta = json.dumps(_finite(self.metadata()), default=_json_default, indent=1, allow_nan=False)
         import io
         buf = io.BytesIO()
         np.savez(buf, meta=np.array(meta), **{k: np.asarray(getattr(self, k)) for k in _ARRAYS})
@@ -110,9 +110,18 @@ class Result:
             meta = json.loads(str(arrays["meta"]))
         except json.JSONDecodeError as exc:
             raise ValueError(f"{src}: field 'meta' is not valid JSON ({exc})") from exc
+        if not isinstance(meta, dict):
+            raise ValueError(f"{src}: field 'meta' must be a JSON object")
         for key in ("robot", "task", "motor_names", "dt"):
             if key not in meta:
                 raise ValueError(f"{src}: metadata field {key!r} is missing")
+        types = {"robot": str, "task": str, "motor_names": list, "dt": (int, float), "settings": dict,
+                 "history": list, "evaluation": dict, "status": str, "format_version": int}
+        for key, typ in types.items():
+            if key in meta and (isinstance(meta[key], bool) or not isinstance(meta[key], typ)):
+                raise ValueError(f"{src}: metadata field {key!r} has the wrong type ({type(meta[key]).__name__})")
+        if not all(isinstance(h, dict) for h in meta.get("history", [])):
+            raise ValueError(f"{src}: metadata field 'history' must be a list of objects")
         if meta.get("format_version", 0) > FORMAT_VERSION:
             raise ValueError(f"{src}: format_version {meta['format_version']} is newer than this "
                              f"library reads ({FORMAT_VERSION})")
@@ -137,6 +146,22 @@ class Result:
             raise ValueError(f"{src}: field 'u_post' has shape {self.u_post.shape}, u has {self.u.shape}")
         if self.target.size and self.target.shape != (len(self.u) + 1, 2):
             raise ValueError(f"{src}: field 'target' must have shape ({len(self.u) + 1}, 2), got {self.target.shape}")
+        if self.com.size and self.com.shape != (len(self.u) + 1, 3):
+            raise ValueError(f"{src}: field 'com' must have shape ({len(self.u) + 1}, 3), got {self.com.shape}")
+        if self.z.ndim != 1 or not np.isfinite(self.z).all():
+            raise ValueError(f"{src}: field 'z' must be a finite vector, got shape {self.z.shape}")
+        s = self.settings
+        if "keyframes" in s:
+            for key in ("n_prep", "n_cycle", "n_keyframes", "symmetry"):
+                if key not in s:
+                    raise ValueError(f"{src}: settings field {key!r} is missing (needed with keyframes)")
+            for key in ("n_prep", "n_cycle", "n_keyframes"):
+                if isinstance(s[key], bool) or not isinstance(s[key], int) or s[key] < 0:
+                    raise ValueError(f"{src}: settings field {key!r} must be a non-negative integer, got {s[key]!r}")
+            kf = np.asarray(s["keyframes"], dtype=object)
+            if kf.shape != (M, s["n_keyframes"]):
+                raise ValueError(f"{src}: settings field 'keyframes' must have shape ({M}, {s['n_keyframes']}), "
+                                 f"got {kf.shape}")
 
     def summary(self) -> str:
         ev = self.evaluation
@@ -148,8 +173,25 @@ class Result:
         if "heading_change_deg" in ev:
             parts.append(f"heading change {ev['heading_change_deg']:+.1f} deg")
         if self.history:
-            parts.append(f"{len(self.history)} GN iterations, objective {self.history[-1]['objective_after']:.4g}")
+            last = self.history[-1]
+            parts.append(f"{len(self.history)} GN iterations, objective "
+                         f"{last.get('objective_after', last.get('objective', float('nan'))):.4g}")
         return ", ".join(parts)
+
+
+def _finite(o):
+    """NaN and infinities become null: the .json files stay valid JSON for other tools."""
+    if isinstance(o, float) and not np.isfinite(o):
+        return None
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return _finite(o.tolist())
+    if isinstance(o, np.floating):
+        return _finite(float(o))
+    return o
 
 
 def _json_default(o):

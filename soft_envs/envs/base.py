@@ -97,6 +97,7 @@ class SoftRobotEnv(gym.Env[np.ndarray, np.ndarray]):
         self._turn_radius = turn_radius
         self._heading = heading_vector(target_heading_deg)
         self._gravity = incline_gravity(incline_deg, uphill=(self._heading[0], self._heading[2]))
+        self.incline_deg = float(incline_deg)      # read by trajopt (results record the slope)
         self._forward_reward_weight = float(forward_reward_weight)
         self._ctrl_cost_weight = float(ctrl_cost_weight)
         self._healthy_reward = float(healthy_reward)

@@ -62,6 +62,17 @@ class NewtonOptions:
     predictor: float = 1.0
     solver: str = "auto"
 
+    def __post_init__(self):
+        for name in ("tol", "armijo", "refactor_ratio", "max_chord"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"NewtonOptions.{name} must be positive, got {v!r}")
+        for name in ("max_iter", "max_backtracks"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"NewtonOptions.{name} must be >= 1, got {getattr(self, name)!r}")
+        if self.solver not in ("auto", "cholmod", "lu"):
+            raise ValueError(f"NewtonOptions.solver must be 'auto', 'cholmod' or 'lu', got {self.solver!r}")
+
 
 @dataclass
 class StepInfo:
@@ -138,6 +149,8 @@ class NewtonSolver:
         phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
         if not np.isfinite(phi_x):
             x = x_prev.copy()
+            if len(free) < sys.n_dof:
+                x.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
             phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
             if not np.isfinite(phi_x):
                 raise SimulationError("the previous state is inverted or non-finite", k)
@@ -166,6 +179,14 @@ class NewtonSolver:
                 fresh = True
                 dx = -self.solver.solve(g)
                 norm = np.abs(dx).max()
+            verified = fresh or (np.isfinite(prev_norm) and norm <= opt.tol * max(1.0 - norm / prev_norm, 0.0))
+            if norm <= opt.tol and not verified:
+                # a chord step from a reused factorisation: its error bound needs the observed
+                # contraction, so take it and measure one more
+                x.reshape(-1)[free] += dx
+                phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
+                prev_norm = norm
+                continue
             if norm <= opt.tol:
                 x.reshape(-1)[free] += dx
                 solver = None
@@ -201,10 +222,15 @@ class NewtonSolver:
                 if not fresh:           # a stale factorisation gave a poor direction: refresh
                     self._have_factor = False
                     continue
-                if norm <= 1e3 * opt.tol:
-                    x.reshape(-1)[free] += dx
-                    solver = self.factorize_exact_at(x, x_prev, x_prev2, u) if need_exact else None
-                    return x, StepInfo(it, n_fact, exact, fallbacks, solver)
+                xn = x.copy()
+                xn.reshape(-1)[free] += dx
+                if norm <= 1e3 * opt.tol and self.phi(xn, xt, x_prev, u) <= phi_x:
+                    # round-off stalls the line search this close to the solution
+                    solver = None
+                    if need_exact:
+                        solver = self.factorize_exact_at(xn, x_prev, x_prev2, u)
+                        n_fact += 1
+                    return xn, StepInfo(it, n_fact, exact, fallbacks, solver)
                 raise SimulationError(f"line search failed (|dx| = {norm:.3e} m)", k)
             if alpha < 1.0 and not fresh:
                 self._have_factor = False      # damped chord step: refresh next iteration
@@ -228,6 +254,7 @@ class NewtonSolver:
         return np.log(self.options.tol / norm) / np.log(rho) > self.options.max_chord
 
     def _refactor(self, x, xt, x_prev, u) -> tuple[bool, int]:
+        self._have_factor = False          # until this factorisation has succeeded
         _, _, hdata = self.phi_assemble(x, xt, x_prev, u)
         exact, nf = self.factorize(hdata, x, xt, x_prev, u)
         self._have_factor = True
@@ -238,13 +265,14 @@ class NewtonSolver:
         the solver object that holds it."""
         xt = 2.0 * x_prev - x_prev2
         _, _, hdata = self.phi_assemble(x, xt, x_prev, u)
-        self._have_factor = True
-        if not self.solver.factorize(hdata):
-            self._have_factor = False
+        self._have_factor = False
+        if self.solver.factorize(hdata):
+            self._have_factor = True
+        else:
             from .linsolve import LUSolver
             if self._fallback is None:
                 self._fallback = LUSolver(self.system.pattern)
-            if not self._fallback.factorize(hdata):
+            if not self._fallback.factorize(hdata, require_pd=False):
                 raise SimulationError("the Hessian at the converged state is singular")
             return self._fallback
         return self.solver

@@ -26,21 +26,28 @@ __all__ = ["CholmodSolver", "LUSolver", "make_solver", "HAVE_CHOLMOD"]
 
 
 class LUSolver:
-    """SuperLU on the full symmetric matrix (any non-singular matrix)."""
+    """SuperLU on the full symmetric matrix.
 
-    exact_only = False
+    ``factorize(data)`` reports, like Cholesky, whether the matrix is positive definite: with
+    symmetric-mode diagonal pivoting the signs of U's diagonal are those of the pivots of an
+    LDL^T factorisation (Sylvester's law of inertia). ``require_pd=False`` accepts any
+    non-singular matrix (for the exact Hessian the sensitivities need)."""
 
     def __init__(self, pattern: Pattern):
         self.pattern = pattern
         self._lu = None
 
-    def factorize(self, data: np.ndarray) -> bool:
+    def factorize(self, data: np.ndarray, require_pd: bool = True) -> bool:
         try:
-            self._lu = sla.splu(self.pattern.full(data), permc_spec="MMD_AT_PLUS_A",
-                                diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+            lu = sla.splu(self.pattern.full(data), permc_spec="MMD_AT_PLUS_A",
+                          diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         except RuntimeError:   # exactly singular
             self._lu = None
             return False
+        if require_pd and not (lu.U.diagonal() > 0).all():
+            self._lu = None
+            return False
+        self._lu = lu
         return True
 
     def solve(self, b: np.ndarray) -> np.ndarray:

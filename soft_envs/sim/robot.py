@@ -113,6 +113,21 @@ class Robot:
             raise ValueError(f"{self.source}: payload.mass > 0 needs payload nodes")
         if self.body_length is None:
             object.__setattr__(self, "body_length", float(np.ptp(self.mesh.points[:, 0])))
+        if not (np.isfinite(self.body_length) and self.body_length > 0):
+            raise ValueError(f"{self.source}: robot.body_length must be positive, got {self.body_length!r}")
+        if not (np.isfinite(self.cable_blend) and self.cable_blend > 0):
+            raise ValueError(f"{self.source}: cables.blend must be positive, got {self.cable_blend!r}")
+        # own read-only copies of the tendon points: the binding and the rest lengths are
+        # derived from them and must not change behind the robot's back
+        tendons = []
+        for i, t in enumerate(self.tendons):
+            pts = np.array(t.points, dtype=np.float64)
+            pts.setflags(write=False)
+            if t.rest_length is not None and not (np.isfinite(t.rest_length) and t.rest_length > 0):
+                raise ValueError(f"{self.source}: tendons[{i}] ({t.name!r}).rest_length must be positive, "
+                                 f"got {t.rest_length!r}")
+            tendons.append(dataclasses.replace(t, points=pts))
+        object.__setattr__(self, "tendons", tuple(tendons))
         self._check_cables()
 
     # ------------------------------------------------------------------ construction

@@ -26,7 +26,7 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     blend = 5e-4                 # [m]
 
     [fixed]                      # optional: clamped nodes
-    nodes = [0, 1, 2]            # and/or box = [[x0, x1], [y0, y1], [z0, z1]] in the mesh frame
+    nodes = [0, 1, 2]            # and/or box = [[x0, x1], [y0, y1], [z0, z1]] (mesh frame and units)
 
     [cables]
     blend = 2e-4                 # [m] width of the one-sided quadratic's C2 blend
@@ -177,10 +177,13 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
     fixed = tables["fixed"]
     fixed_nodes = _index_list(fixed.get("nodes", []), "[fixed].nodes", mesh.n_nodes, src)
     if "box" in fixed:
-        box = np.asarray(fixed["box"], dtype=np.float64)
+        try:
+            box = np.asarray(fixed["box"], dtype=np.float64)
+        except (TypeError, ValueError):
+            box = np.zeros(0)
         if box.shape != (3, 2):
-            raise ValueError(f"{src}: [fixed].box must be [[x0, x1], [y0, y1], [z0, z1]]")
-        q = raw.points * scale
+            raise ValueError(f"{src}: [fixed].box must be [[x0, x1], [y0, y1], [z0, z1]] (mesh frame and units)")
+        q = raw.points            # mesh frame and units, like the tendon points
         inside = np.all((q >= box[:, 0] - 1e-12) & (q <= box[:, 1] + 1e-12), axis=1)
         fixed_nodes = np.union1d(fixed_nodes, np.flatnonzero(inside))
     tendons = []
@@ -208,7 +211,10 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
         motors.append(Motor(m["name"], tuple(m["tendons"]), m.get("mirror"), float(m.get("u_min", 0.0)),
                             float(m["u_max"]), float(m.get("spool_radius", 0.005))))
     mat = tables["material"]
-    contact = ContactParams(**{k: float(v) for k, v in tables["contact"].items()})
+    try:
+        contact = ContactParams(**{k: float(v) for k, v in tables["contact"].items()})
+    except ValueError as exc:
+        raise ValueError(f"{src}: [contact] {exc}") from exc
     kwargs = dict(name=rt["name"], mesh=mesh, youngs_modulus=float(mat["youngs_modulus"]),
                   poisson_ratio=float(mat["poisson_ratio"]), density=float(mat["density"]),
                   tendons=tuple(tendons), motors=tuple(motors), payload_mass=float(pay.get("mass", 0.0)),

@@ -90,7 +90,7 @@ class Simulator:
 
     # ------------------------------------------------------------------ validation
     def _check_u(self, u, K: int | None = None) -> np.ndarray:
-        arr = np.asarray(u, dtype=np.float64)
+        arr = np.array(u, dtype=np.float64)          # a copy: trajectories keep their own
         shape = (self.n_motors,) if K is None else None
         if K is None and arr.shape != shape:
             raise ValueError(f"controls u must have shape ({self.n_motors},), got {arr.shape}")
