@@ -10,7 +10,6 @@ Run: python benchmarks/bench_sim.py
 """
 from __future__ import annotations
 
-import numpy as np
 import scipy.linalg as la
 
 from common import best_of, gait_controls, report

@@ -11,7 +11,6 @@ from soft_envs.sim import NewtonOptions
 from trajopt import GaitParameterization, GaussNewtonOptions, ObjectiveWeights, Result, optimize_gait
 from trajopt.evaluation import zero_slack_controls
 from trajopt.hooks import SimulatorHooks, as_hooks
-from trajopt.objectives import gait_residuals
 from trajopt.optimize import GaitProblem
 from trajopt.parameterization import hermite_cycle_basis
 from trajopt.targets import quarter_circle, straight_line

@@ -127,22 +127,28 @@ def run_optimize(args) -> int:
     return 0
 
 
-def run_evaluate(args) -> int:
+def evaluate_result(res: Result, n_cycles: int | None = None) -> dict:
+    """The metric of a saved gait over ``n_cycles`` cycles (default: as it was evaluated);
+    keyframe results are re-expanded, others (like exported RL gaits) play their ``u``."""
     from .evaluation import evaluate_controls
-    res = Result.load(args.result)
     hooks = hooks_for_result(res)
     s = res.settings
-    cycles = int(s.get("eval_cycles", 6)) if args.cycles is None else args.cycles
+    cycles = int(s.get("eval_cycles", 6)) if n_cycles is None else int(n_cycles)
     if cycles < 1:
-        raise ValueError(f"--cycles must be >= 1, got {cycles}")
+        raise ValueError(f"the number of cycles must be >= 1, got {cycles}")
     if "keyframes" in s:
         param = parameterization_for(res, hooks.robot)
         u = param.controls(param.z_from_keyframes(np.asarray(s["keyframes"])), cycles)
         n_prep, n_cycle = param.n_prep, param.n_cycle
     else:
         u, n_prep, n_cycle = res.u, int(s.get("n_prep", 0)), int(s.get("n_cycle", len(res.u)))
-    ev = evaluate_controls(hooks, u, n_prep=n_prep, n_cycle=n_cycle,
-                           heading_deg_target=float(s.get("heading_deg", 0.0)))
+    return evaluate_controls(hooks, u, n_prep=n_prep, n_cycle=n_cycle,
+                             heading_deg_target=float(s.get("heading_deg", 0.0)))
+
+
+def run_evaluate(args) -> int:
+    res = Result.load(args.result)
+    ev = evaluate_result(res, args.cycles)
     print(res.summary())
     _print_table([("speed", f"{ev['speed_bl_per_min']:.3f} BL/min over {ev['cycles']} cycles"),
                   ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),

@@ -272,15 +272,6 @@ def evaluate_trajopt_result(result: Result | str | os.PathLike, n_cycles: int = 
                             ) -> dict[str, Any]:
     """``trajopt evaluate`` as a function: the metric of a saved gait over ``n_cycles`` cycles
     (keyframe results are re-expanded; others, like exported RL gaits, play their ``u``)."""
-    from ..commands import hooks_for_result, parameterization_for
+    from ..commands import evaluate_result
     res = result if isinstance(result, Result) else Result.load(result)
-    hooks = hooks_for_result(res)
-    s = res.settings
-    if "keyframes" in s:
-        param = parameterization_for(res, hooks.robot)
-        u = param.controls(param.z_from_keyframes(np.asarray(s["keyframes"])), n_cycles)
-        n_prep, n_cycle = param.n_prep, param.n_cycle
-    else:
-        u, n_prep, n_cycle = res.u, int(s.get("n_prep", 0)), int(s.get("n_cycle", len(res.u)))
-    return evaluate_controls(hooks, u, n_prep=n_prep, n_cycle=n_cycle,
-                             heading_deg_target=float(s.get("heading_deg", 0.0)))
+    return evaluate_result(res, n_cycles)
