@@ -224,3 +224,13 @@ def test_incline_is_recorded_from_the_environment():
     from trajopt.hooks import make_hooks
     hooks = make_hooks("tripod", incline_deg=15.0)
     assert hooks.incline_deg == 15.0 and hooks.simulator.gravity[0] < 0
+
+
+def test_symmetric_keyframes_respect_both_mirror_ranges():
+    bounds = np.array([[0.0, 0.01], [0.0, 0.006]])
+    p = GaitParameterization(bounds, np.array([1, 0]), n_prep=4, n_cycle=8)
+    lo, hi = p.bounds()
+    assert np.allclose(hi, 0.006) and np.allclose(lo, 0.0)
+    u = p.controls(hi)
+    assert u.max() <= 0.006 + 1e-15
+    assert all(np.all(z <= hi + 1e-15) for z in p.seeds(3))

@@ -92,6 +92,15 @@ class GaitParameterization:
             if self.symmetry and mm != m:
                 P[mm, :, p, :] = np.roll(np.eye(K), K // 2, axis=1)   # z_{m'}[j] = z_m[j + K/2]
         self._P = P.reshape(n * K, -1)
+        # a free motor's keyframes also drive its mirror motor: bound them by both motors' ranges
+        zb = self.u_bounds[self.free_motors].copy()
+        if self.symmetry:
+            mm = self.mirror_map[self.free_motors]
+            zb[:, 0] = np.maximum(zb[:, 0], self.u_bounds[mm, 0])
+            zb[:, 1] = np.minimum(zb[:, 1], self.u_bounds[mm, 1])
+            if (zb[:, 0] > zb[:, 1]).any():
+                raise ValueError("mirror motors have disjoint contraction ranges")
+        self._zbounds = zb
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -125,9 +134,11 @@ class GaitParameterization:
 
     # ------------------------------------------------------------------ bounds and starts
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds on z (= bounds on u thanks to the zero tangents)."""
-        lo = np.repeat(self.u_bounds[self.free_motors, 0], self.n_keyframes)
-        hi = np.repeat(self.u_bounds[self.free_motors, 1], self.n_keyframes)
+        """Bounds on z (= bounds on u in the cycles thanks to the zero tangents; with symmetry,
+        the intersection of a motor's and its mirror's ranges). The prep phase eases from
+        u = 0, so it respects the bounds when u_min <= 0 (true of the shipped robots)."""
+        lo = np.repeat(self._zbounds[:, 0], self.n_keyframes)
+        hi = np.repeat(self._zbounds[:, 1], self.n_keyframes)
         return lo, hi
 
     def z_from_keyframes(self, keyframes: np.ndarray) -> np.ndarray:
@@ -167,7 +178,7 @@ class GaitParameterization:
             kf = np.zeros((self.n_motors, K))
             for p, m in enumerate(self.free_motors):
                 kf[m] = lo[m] + (hi[m] - lo[m]) * np.roll(square, rot[p])
-            out.append(self.z_from_keyframes(kf))
+            out.append(np.clip(self.z_from_keyframes(kf), *self.bounds()))
         return out
 
     def _check_z(self, z) -> np.ndarray:
