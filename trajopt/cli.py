@@ -1,4 +1,4 @@
-"""The ``trajopt`` command.
+"""trajopt: optimise, evaluate, render, export and play gaits of cable-driven soft robots.
 
     trajopt optimize tripod --task walk --out results/
     trajopt optimize puppy --task turn --warm-start results/puppy_walk.npz --out results/
