@@ -26,6 +26,8 @@ from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
+from .sim.mesh import boundary_faces
+
 __all__ = ["Renderer", "surface_triangles", "write_animation"]
 
 _SKY = np.array([0.93, 0.95, 0.98])
@@ -37,45 +39,8 @@ _UP = np.array([0.0, 1.0, 0.0])
 
 # Local faces of a tet (a, b, c, d), each outward when det[b-a, c-a, d-a] > 0,
 # and the index of the vertex opposite each face.
-_TET_FACES = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
-_TET_OPPOSITE = np.array([3, 2, 1, 0])
-
-
-def surface_triangles(tets: np.ndarray, points: np.ndarray | None = None) -> np.ndarray:
-    """Boundary faces of a tetrahedral mesh, oriented outward.
-
-    A face is on the boundary when it belongs to exactly one tet.  With
-    ``points`` given, each face is oriented geometrically so that its normal
-    ``(p1 - p0) x (p2 - p0)`` points away from the opposite vertex of its tet
-    (robust to tets of either orientation).  Without ``points`` the tets are
-    assumed positively oriented (``det[b-a, c-a, d-a] > 0``).
-
-    Args:
-        tets: ``(n_tets, 4)`` integer node indices.
-        points: optional ``(n_nodes, 3)`` node positions.
-
-    Returns:
-        ``(m, 3)`` int64 node indices, in order of first appearance.
-    """
-    tets = np.asarray(tets)
-    if tets.ndim != 2 or tets.shape[1] != 4 or not np.issubdtype(tets.dtype, np.integer):
-        raise ValueError(f"tets must be an (n_tets, 4) integer array, got {tets.dtype} {tets.shape}")
-    tets = tets.astype(np.int64)
-    faces = tets[:, _TET_FACES].reshape(-1, 3)
-    opposite = tets[:, _TET_OPPOSITE].reshape(-1)
-    if faces.shape[0] == 0:
-        return np.zeros((0, 3), dtype=np.int64)
-    _, first, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
-    keep = np.sort(first[counts == 1])
-    faces, opposite = faces[keep].copy(), opposite[keep]
-    if points is not None:
-        pts = np.asarray(points, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] <= tets.max():
-            raise ValueError(f"points must be (n_nodes, 3) covering every tet index, got {pts.shape}")
-        p0, p1, p2 = pts[faces[:, 0]], pts[faces[:, 1]], pts[faces[:, 2]]
-        inward = np.einsum("ij,ij->i", np.cross(p1 - p0, p2 - p0), pts[opposite] - p0) > 0
-        faces[inward] = faces[inward][:, [0, 2, 1]]
-    return faces
+#: boundary faces of a tet mesh, outward (the mesh module's function under the name used here)
+surface_triangles = boundary_faces
 
 
 class Renderer:

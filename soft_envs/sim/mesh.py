@@ -19,24 +19,38 @@ __all__ = ["TetMesh", "load_mesh", "boundary_faces", "shape_gradients"]
 DEGENERATE_RTOL = 1e-8
 
 
-def boundary_faces(tets: np.ndarray) -> np.ndarray:
-    """Faces of a tet mesh that belong to exactly one tet, oriented outward.
+def boundary_faces(tets: np.ndarray, points: np.ndarray | None = None) -> np.ndarray:
+    """Faces of a tet mesh that belong to exactly one tet, oriented outward, in the order of
+    their first appearance.
 
-    Parameters
-    ----------
-    tets : (m, 4) int array of positively oriented tets (``det[x1-x0, x2-x0, x3-x0] > 0``).
+    Without ``points`` the tets must be positively oriented (``det[x1-x0, x2-x0, x3-x0] > 0``,
+    as :class:`TetMesh` guarantees); with ``points`` each face is oriented geometrically, away
+    from the opposite vertex of its tet (tets of either orientation).
 
-    Returns
-    -------
-    (f, 3) int array of triangles whose normals ``(b - a) x (c - a)`` point out of the body.
+    Returns an (f, 3) int array of triangles whose normals ``(b - a) x (c - a)`` point out of
+    the body.
     """
-    tets = np.asarray(tets, dtype=np.int64)
+    tets = np.asarray(tets)
+    if tets.ndim != 2 or tets.shape[1] != 4 or not np.issubdtype(tets.dtype, np.integer):
+        raise ValueError(f"tets must be an (n_tets, 4) integer array, got {tets.dtype} {tets.shape}")
+    tets = tets.astype(np.int64)
     # For a positively oriented tet (0,1,2,3) these faces have outward normals.
     local = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
     faces = tets[:, local].reshape(-1, 3)
-    key = np.sort(faces, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return faces[counts[inverse.ravel()] == 1]
+    opposite = tets[:, [0, 1, 2, 3]].reshape(-1)
+    if len(faces) == 0:
+        return np.zeros((0, 3), dtype=np.int64)
+    _, first, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
+    keep = np.sort(first[counts == 1])
+    faces, opposite = faces[keep].copy(), opposite[keep]
+    if points is not None:
+        pts = np.asarray(points, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] <= tets.max():
+            raise ValueError(f"points must be (n_nodes, 3) covering every tet index, got {pts.shape}")
+        p0, p1, p2 = pts[faces[:, 0]], pts[faces[:, 1]], pts[faces[:, 2]]
+        inward = np.einsum("ij,ij->i", np.cross(p1 - p0, p2 - p0), pts[opposite] - p0) > 0
+        faces[inward] = faces[inward][:, [0, 2, 1]]
+    return faces
 
 
 def shape_gradients(points: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

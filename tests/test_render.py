@@ -1,0 +1,221 @@
+"""Renderer, animation writer and boundary extraction on synthetic meshes (no simulator needed)."""
+from __future__ import annotations
+
+import itertools
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from soft_envs.render import Renderer, surface_triangles, write_animation
+
+W, H = 240, 180
+
+
+def box_mesh(nx: int = 4, ny: int = 2, nz: int = 2, size=(0.1, 0.03, 0.05)) -> tuple[np.ndarray, np.ndarray]:
+    """A block of nx*ny*nz cubes, each split into 6 positively oriented tets (Kuhn), resting on y = 0."""
+    xs, ys = np.linspace(0, size[0], nx + 1), np.linspace(0, size[1], ny + 1)
+    zs = np.linspace(-size[2] / 2, size[2] / 2, nz + 1)
+    pts = np.stack([a.ravel() for a in np.meshgrid(xs, ys, zs, indexing="ij")], axis=1)
+    idx = np.arange(len(pts)).reshape(nx + 1, ny + 1, nz + 1)
+    tets = []
+    for i, j, k in itertools.product(range(nx), range(ny), range(nz)):
+        for perm in itertools.permutations(range(3)):
+            cur = [0, 0, 0]
+            path = [idx[i, j, k]]
+            for ax in perm:
+                cur[ax] = 1
+                path.append(idx[i + cur[0], j + cur[1], k + cur[2]])
+            tets.append(path)
+    tets = np.array(tets)
+    a, b, c, d = (pts[tets[:, n]] for n in range(4))
+    neg = np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) < 0
+    tets[neg] = tets[neg][:, [0, 2, 1, 3]]
+    return pts, tets
+
+
+def outward(points: np.ndarray, faces: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    p = points[faces]
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    return np.einsum("ij,ij->i", n, p.mean(axis=1) - centre) > 0
+
+
+@pytest.fixture(scope="module")
+def block():
+    pts, tets = box_mesh()
+    return pts, tets, surface_triangles(tets, pts)
+
+
+@pytest.fixture(scope="module")
+def renderer(block):
+    return Renderer(block[2], width=W, height=H, body_length=0.1)
+
+
+def bent(pts: np.ndarray) -> np.ndarray:
+    x = pts.copy()
+    x[:, 1] += 0.02 * np.sin(np.pi * x[:, 0] / 0.1)
+    return x
+
+
+def changed(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.any(np.abs(a.astype(int) - b.astype(int)) > 30, axis=2)
+
+
+# ----------------------------------------------------------------------------- surface_triangles
+def test_single_tet_faces_are_outward():
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    for tet in ([0, 1, 2, 3], [0, 2, 1, 3]):            # positive and negative orientation
+        f = surface_triangles(np.array([tet]), pts)
+        assert f.shape == (4, 3)
+        assert sorted(map(sorted, f.tolist())) == [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]
+        assert np.all(outward(pts, f, pts.mean(axis=0)))
+    # without points the tet is taken as positively oriented
+    assert np.all(outward(pts, surface_triangles(np.array([[0, 1, 2, 3]])), pts.mean(axis=0)))
+
+
+@pytest.mark.parametrize("split", ["five", "six"])
+def test_cube_split_has_twelve_outward_triangles(split):
+    pts = np.array(list(itertools.product([0.0, 1.0], repeat=3)))  # index = 4x + 2y + z
+    if split == "five":
+        tets = np.array([[0, 3, 5, 6], [1, 0, 3, 5], [2, 0, 6, 3], [4, 0, 5, 6], [7, 3, 6, 5]])
+    else:
+        tets = box_mesh(1, 1, 1, (1, 1, 1))[1]
+        pts = box_mesh(1, 1, 1, (1, 1, 1))[0]
+    f = surface_triangles(tets, pts)
+    assert f.shape == (12, 3) and f.dtype == np.int64
+    assert np.all(outward(pts, f, pts.mean(axis=0)))
+    assert len({tuple(sorted(t)) for t in f.tolist()}) == 12
+
+
+def test_block_surface_count_and_orientation(block):
+    pts, tets, tris = block
+    assert len(tris) == 2 * 2 * (4 * 2 + 2 * 2 + 4 * 2)       # two triangles per boundary square
+    assert np.array_equal(tris, surface_triangles(tets))       # tets are positively oriented
+    assert np.all(outward(pts, tris, pts.mean(axis=0)))
+    with pytest.raises(ValueError, match="tets"):
+        surface_triangles(np.zeros((3, 3), int))
+
+
+# ----------------------------------------------------------------------------- Renderer
+def test_frame_is_rgb_and_not_blank(renderer, block):
+    frame = renderer.render(block[0])
+    assert frame.dtype == np.uint8 and frame.shape == (H, W, 3)
+    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 50
+
+
+def test_robot_is_where_its_mesh_projects_near_the_centre(renderer, block):
+    pts = block[0]
+    target = renderer.camera_target(pts)
+    frame = renderer.render(pts)
+    empty = renderer.render(pts - [0.0, 10.0, 0.0], look_at=target)   # same camera, robot out of view
+    mask = changed(frame, empty)
+    assert 0.02 < mask.mean() < 0.6
+    rows, cols = np.nonzero(mask)
+    assert abs(cols.mean() - W / 2) < 0.15 * W and abs(rows.mean() - H / 2) < 0.15 * H
+    pix, depth = renderer.project(pts, target)
+    assert np.all(depth > 0)
+    c, r = np.clip(pix[:, 0].round().astype(int), 0, W - 1), np.clip(pix[:, 1].round().astype(int), 0, H - 1)
+    near = np.zeros_like(mask)
+    for dr, dc in itertools.product(range(-2, 3), repeat=2):
+        near[np.clip(r + dr, 0, H - 1), np.clip(c + dc, 0, W - 1)] = True
+    assert mask[near].mean() > 0.8
+    # every robot pixel lies inside the projected bounding box of its nodes (plus the shadow below)
+    assert cols.min() >= pix[:, 0].min() - 3 and cols.max() <= pix[:, 0].max() + 3
+    assert rows.min() >= pix[:, 1].min() - 3
+
+
+def test_camera_follows_the_robot(renderer, block):
+    pts = block[0]
+    moved = pts + [0.37, 0.0, -0.21]
+    frame = renderer.render(moved)
+    empty = renderer.render(moved - [0.0, 10.0, 0.0], look_at=renderer.camera_target(moved))
+    rows, cols = np.nonzero(changed(frame, empty))
+    assert abs(cols.mean() - W / 2) < 0.15 * W and abs(rows.mean() - H / 2) < 0.15 * H
+    assert not np.array_equal(frame, renderer.render(pts))          # the ground moved under it
+
+
+def test_deterministic_and_state_dependent(renderer, block):
+    pts = block[0]
+    a, b = renderer.render(pts), renderer.render(bent(pts))
+    assert np.array_equal(a, renderer.render(pts))
+    other = Renderer(block[2], width=W, height=H, body_length=0.1)
+    assert np.array_equal(a, other.render(pts))
+    assert changed(a, b).sum() > 100
+
+
+def test_cables_trail_gravity_and_title(renderer, block):
+    pts = block[0]
+    plain = renderer.render(pts)
+    cables = [(np.array([[0.0, 0.01, 0.0], [0.05, 0.015, 0.0], [0.1, 0.01, 0.0]]), 4.0),
+              (np.array([[0.0, 0.02, 0.02], [0.1, 0.02, 0.02]]), 0.0)]
+    trail = np.stack([np.linspace(-0.1, 0.05, 40), np.full(40, 0.015), 0.01 * np.sin(np.linspace(0, 6, 40))], 1)
+    full = renderer.render(pts, cables=cables, com_trail=trail, gravity=(0.0, -9.81, 0.0), title="t = 1.0 s")
+    assert full.shape == (H, W, 3)
+    assert changed(plain, full).sum() > 50
+    for kw in (dict(cables=cables), dict(com_trail=trail), dict(gravity=(1.0, -9.0, 0.0)), dict(title="x")):
+        assert not np.array_equal(plain, renderer.render(pts, **kw)), kw
+    assert np.array_equal(plain, renderer.render(pts, cables=[], com_trail=trail[:1], gravity=None))
+    # a tension colour scale fixed across frames: same cable, different tension -> different colour
+    fixed = Renderer(block[2], width=W, height=H, body_length=0.1, tension_max=10.0)
+    lo = fixed.render(pts, cables=[(cables[0][0], 1.0)])
+    hi = fixed.render(pts, cables=[(cables[0][0], 9.0)])
+    assert not np.array_equal(lo, hi)
+
+
+def test_ground_height_and_non_finite_nodes(renderer, block):
+    pts = block[0]
+    up = renderer.render(pts + [0, 0.05, 0], ground_height=0.05)
+    assert up.shape == (H, W, 3)
+    bad = pts.copy()
+    bad[3] = np.nan
+    assert renderer.render(bad).shape == (H, W, 3)      # triangles touching a NaN node are skipped
+
+
+def test_input_validation(renderer, block):
+    with pytest.raises(ValueError, match="x must be"):
+        renderer.render(block[0][:, :2])
+    with pytest.raises(ValueError, match="nodes"):
+        renderer.render(block[0][:5])
+    with pytest.raises(ValueError, match="surface_tris"):
+        Renderer(np.zeros((4, 4), int))
+    with pytest.raises(ValueError, match="cables"):
+        renderer.render(block[0], cables=[(np.zeros((3, 2)), 1.0)])
+
+
+def test_odd_image_size(block):
+    frame = Renderer(block[2], width=123, height=77, body_length=0.1).render(block[0])
+    assert frame.shape == (77, 123, 3)
+
+
+# ----------------------------------------------------------------------------- write_animation
+def frames_of(renderer, pts, n):
+    return [renderer.render(pts + [0.01 * k, 0.0, 0.0], title=f"{k}") for k in range(n)]
+
+
+def test_gif_frame_count_and_loop(tmp_path, block):
+    r = Renderer(block[2], width=96, height=72, body_length=0.1)
+    frames = frames_of(r, block[0], 5)
+    path = write_animation(iter(frames), tmp_path / "sub" / "a.gif", fps=10)
+    with Image.open(path) as im:
+        assert im.n_frames == 5 and im.size == (96, 72)
+        assert im.info.get("loop") == 0 and im.info.get("duration") == 100
+    with pytest.raises(ValueError, match="frame 1"):
+        write_animation([frames[0], frames[1][:10]], tmp_path / "b.gif", fps=10)
+    with pytest.raises(ValueError, match="format"):
+        write_animation(frames, tmp_path / "a.avi", fps=10)
+    with pytest.raises(ValueError, match="no frames"):
+        write_animation([], tmp_path / "c.gif", fps=10)
+
+
+def test_mp4_writes_or_says_what_to_install(tmp_path, block, monkeypatch):
+    r = Renderer(block[2], width=96, height=72, body_length=0.1)
+    frames = frames_of(r, block[0], 3)
+    try:
+        path = write_animation(frames, tmp_path / "a.mp4", fps=10)
+        assert path.stat().st_size > 0
+    except RuntimeError as err:
+        assert "pip install imageio imageio-ffmpeg" in str(err)
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # as if it were not installed
+    with pytest.raises(RuntimeError, match="imageio-ffmpeg"):
+        write_animation(frames, tmp_path / "b.mp4", fps=10)
