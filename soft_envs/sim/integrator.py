@@ -78,7 +78,6 @@ class NewtonOptions:
 class StepInfo:
     iterations: int
     factorizations: int
-    exact_factor: bool        # the solver holds the exact Hessian's factorisation at ~x_k
     fallbacks: int            # factorisations that needed the PSD projection / shift
     solver: object = None     # with need_exact: holds the exact Hessian's factorisation at x_k
 
@@ -196,7 +195,7 @@ class NewtonSolver:
                     else:
                         solver = self.factorize_exact_at(x, x_prev, x_prev2, u)
                         n_fact += 1
-                return x, StepInfo(it, n_fact, fresh and exact, fallbacks, solver)
+                return x, StepInfo(it, n_fact, fallbacks, solver)
             slope = float(g @ dx)
             if slope >= 0:
                 if not fresh:
@@ -230,7 +229,7 @@ class NewtonSolver:
                     if need_exact:
                         solver = self.factorize_exact_at(xn, x_prev, x_prev2, u)
                         n_fact += 1
-                    return xn, StepInfo(it, n_fact, exact, fallbacks, solver)
+                    return xn, StepInfo(it, n_fact, fallbacks, solver)
                 raise SimulationError(f"line search failed (|dx| = {norm:.3e} m)", k)
             if alpha < 1.0 and not fresh:
                 self._have_factor = False      # damped chord step: refresh next iteration

@@ -307,14 +307,6 @@ class Robot:
             tendon_motor=self.tendon_motor)
         return cd
 
-    def motor_matrix(self) -> np.ndarray:
-        """(n_tendons, n_motors) 0/1 matrix: which motor drives which tendon."""
-        A = np.zeros((len(self.tendons), self.n_motors))
-        for t, m in enumerate(self.tendon_motor):
-            if m >= 0:
-                A[t, m] = 1.0
-        return A
-
     def summary(self) -> str:
         return (f"{self.name}: {self.mesh.n_nodes} nodes, {self.mesh.n_tets} tets, "
                 f"body {1e3 * self.body_mass:.1f} g + payload {1e3 * self.payload_mass:.1f} g, "

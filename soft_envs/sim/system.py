@@ -120,7 +120,6 @@ class EnergySystem:
         self.cable_hptr = np.asarray(hptr, dtype=np.int64)
         self.diag_slot_full = diag_slot                                     # (3n,), trash if fixed
         self.contact_diag = np.ascontiguousarray(diag_slot.reshape(-1, 3)[self.contact_nodes])
-        self.trash = len(uniq)
         self._no_hess = np.zeros(1)          # placeholder for gradient-only assembly
 
     # ------------------------------------------------------------------ controls
