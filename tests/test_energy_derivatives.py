@@ -172,3 +172,47 @@ def test_friction_cross_derivative_matches_fd():
     outT = np.zeros(s.n_dof)
     friction_cross_T(x, x_prev, s.contact_nodes, s.k_n, s.eps_n, s.mu_f, lam, outT)
     assert np.allclose(lam @ out, outT @ S, rtol=1e-12)
+
+
+def test_projected_element_hessian_is_the_psd_part_of_d2psi_df2():
+    """``element_hessian_projected`` (analytic eigensystem of d2Psi/dF2) equals
+    ``V B^T [d2Psi/dF2]_+ B`` computed with a numerical 9x9 eigen-decomposition, is positive
+    semi-definite, and equals the exact Hessian where d2Psi/dF2 already is."""
+    from soft_envs.sim.materials import element_hessian_projected
+    rng = np.random.default_rng(3)
+    X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]]) * 0.01
+    Dm_inv = np.linalg.inv((X[1:] - X[0]).T)
+    dN = np.vstack([-Dm_inv.sum(0), Dm_inv])
+    vol = 0.01**3 / 6
+    mu, lam = lame_parameters(1e5, 0.3)
+    B = np.zeros((9, 12))                      # vec(F) = B x_e
+    for a in range(4):
+        for i in range(3):
+            B[3 * i:3 * i + 3, 3 * a + i] = dN[a]
+    seen_indefinite = seen_definite = 0
+    for _ in range(60):
+        A = np.eye(3) + rng.normal(scale=0.35, size=(3, 3))
+        if np.linalg.det(A) <= 0.05:
+            continue
+        x = X @ A.T + rng.normal(size=3)
+        g, Hx = np.zeros(12), np.zeros((12, 12))
+        element_gradient_hessian(x, np.arange(4), dN, vol, mu, lam, g, Hx)
+        Hp = np.zeros((12, 12))
+        assert element_hessian_projected(x, np.arange(4), dN, vol, mu, lam, Hp)
+        # d2Psi/dF2 from the exact element Hessian: H = vol B^T D B with B of full row rank
+        Bp = np.linalg.pinv(B.T)
+        D = Bp @ Hx @ Bp.T / vol
+        w, V = np.linalg.eigh(0.5 * (D + D.T))
+        ref = vol * B.T @ (V * np.maximum(w, 0.0)) @ V.T @ B
+        scale = np.abs(Hx).max()
+        assert np.abs(Hp - ref).max() <= 1e-9 * scale
+        assert np.linalg.eigvalsh(Hp).min() >= -1e-9 * scale
+        if w.min() >= 0:
+            seen_definite += 1
+            assert np.abs(Hp - Hx).max() <= 1e-9 * scale
+        else:
+            seen_indefinite += 1
+    assert seen_indefinite > 5 and seen_definite > 5
+    inverted = X.copy()
+    inverted[3, 2] = -0.01
+    assert not element_hessian_projected(inverted, np.arange(4), dN, vol, mu, lam, np.zeros((12, 12)))

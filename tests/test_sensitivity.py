@@ -1,9 +1,10 @@
 """Sensitivity analysis (paper III-A): rollout Jacobians against central finite differences of
 whole rollouts, and adjoint gradients against the forward mode.
 
-Newton tolerance for these checks: |dx|_inf <= 1e-12 m per step (NewtonOptions(tol=1e-12));
-perturbations of ~3e-8 m of contraction (3e-5 N of tension): smaller ones meet the Newton
-tolerance, larger ones the kinks of Q'' at the ends of its C2 blend. Required relative error <= 1e-4.
+Newton tolerance for these checks: estimated error of every step <= 1e-13 m
+(NewtonOptions(tol=1e-13)); perturbations of ~3e-8 m of contraction (3e-5 N of tension):
+central differences of them need states accurate to ~1e-12 m; larger ones meet the kinks of Q''
+at the ends of its C2 blend. Required relative error <= 1e-4.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from soft_envs.sim.gradcheck import relative_error, rollout_jacobian_errors
 from .conftest import small_robot
 
 K = 40
-TIGHT = NewtonOptions(tol=1e-12)
+TIGHT = NewtonOptions(tol=1e-13)
 
 
 def gait(robot, control: str, K: int = K) -> np.ndarray:

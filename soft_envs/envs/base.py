@@ -223,7 +223,7 @@ class SoftRobotEnv(gym.Env[np.ndarray, np.ndarray]):
         else:
             x0, xm1 = x_rest, x_rest.copy()
         self._x0_reset, self._xm1_reset = x0.copy(), xm1.copy()
-        self._restore(x0, xm1, self._u_start.copy(), 0, self._frame.com(x0))
+        self._restore(x0, xm1, self._u_start.copy(), 0, self._frame.com(x0), None if s > 0 else x0.copy())
         if self.render_mode == "human":
             self.render()
         return self._get_obs(), self._get_info()
@@ -231,14 +231,14 @@ class SoftRobotEnv(gym.Env[np.ndarray, np.ndarray]):
     def step(self, action: Any):
         a = self._check_action(action)
         u_cmd = self._lo + 0.5 * (a + 1.0) * self._range
-        x, xp, u = self._x, self._x_prev, self._u
+        x, xp, xp2, u = self._x, self._x_prev, self._x_prev2, self._u
         u_sub = np.empty((self.frame_skip, len(u)))
         self._forget_factorization()
         try:
             for i in range(self.frame_skip):
                 d = u_cmd - u
                 u = np.where(np.abs(d) <= self._du_max, u_cmd, u + np.clip(d, -self._du_max, self._du_max))
-                xp, x = x, self._sim.step(x, xp, u, k=self._n_sub + i)
+                xp2, xp, x = xp, x, self._sim.step(x, xp, u, k=self._n_sub + i, x_prev3=xp2)
                 u_sub[i] = u
         except SimulationError as err:     # keep the state of before the step
             info = self._get_info()
@@ -246,7 +246,7 @@ class SoftRobotEnv(gym.Env[np.ndarray, np.ndarray]):
                         sim_failure=str(err))
             return self._get_obs(), 0.0, True, False, info
         com_before, yaw_before = self._com, self._yaw
-        self._restore(x, xp, u, self._n_sub + self.frame_skip, self._com_start)
+        self._restore(x, xp, u, self._n_sub + self.frame_skip, self._com_start, xp2)
         forward_velocity = float((self._com - com_before) @ self._heading) / self.env_dt / self._body_length
         yaw_rate = wrap_angle(self._yaw - yaw_before) / self.env_dt
         reward, reward_info = self._get_rew(forward_velocity, yaw_rate, a)
@@ -264,9 +264,11 @@ class SoftRobotEnv(gym.Env[np.ndarray, np.ndarray]):
         return float(self._base_robot.body_length)
 
     def _restore(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray, n_sub: int,
-                 com_start: np.ndarray) -> None:
-        """Set the dynamic state and recompute the quantities derived from it."""
+                 com_start: np.ndarray, x_prev2: np.ndarray | None = None) -> None:
+        """Set the dynamic state and recompute the quantities derived from it. ``x_prev2``
+        (the state before ``x_prev``, or None) only improves the Newton solver's first guess."""
         self._x, self._x_prev, self._u, self._n_sub = x, x_prev, u, int(n_sub)
+        self._x_prev2 = x_prev2
         self._com_start = np.array(com_start, dtype=np.float64)
         self._com = self._frame.com(x)
         self._rot = self._frame.rotation(x)
@@ -342,25 +344,34 @@ class SoftRobotEnv(gym.Env[np.ndarray, np.ndarray]):
     def get_state(self) -> dict[str, Any]:
         """A copy of everything a step depends on: positions ``x`` and ``x_prev`` (n, 3),
         applied contractions ``u`` (M,), simulation steps since reset ``sim_steps``, the start
-        COM ``com_start`` (3,) and the ``domain`` parameters."""
+        COM ``com_start`` (3,) and the ``domain`` parameters; also ``x_prev2`` (n, 3) or None,
+        the state before ``x_prev``, which only improves the solver's first guess (the next
+        state is the same to within the Newton tolerance without it)."""
         return {"x": self._x.copy(), "x_prev": self._x_prev.copy(), "u": self._u.copy(),
-                "sim_steps": self._n_sub, "com_start": self._com_start.copy(), "domain": dict(self._domain)}
+                "sim_steps": self._n_sub, "com_start": self._com_start.copy(), "domain": dict(self._domain),
+                "x_prev2": None if self._x_prev2 is None else self._x_prev2.copy()}
 
     def set_state(self, state: Mapping[str, Any]) -> None:
         """Restore a state from :meth:`get_state` (``x`` required; ``x_prev`` defaults to ``x``,
-        i.e. at rest, other keys to their current values)."""
+        i.e. at rest, ``x_prev2`` to ``x`` at rest and to None otherwise, other keys to their
+        current values)."""
         if "domain" in state:
             self._set_domain(state["domain"])
         n = self._sim.n_nodes
         x = np.array(state["x"], dtype=np.float64)
         xp = np.array(state.get("x_prev", x), dtype=np.float64)
+        xp2 = state.get("x_prev2", x if "x_prev" not in state else None)
+        xp2 = None if xp2 is None else np.array(xp2, dtype=np.float64)
         u = np.array(state.get("u", self._u), dtype=np.float64)
-        for name, v, shape in (("x", x, (n, 3)), ("x_prev", xp, (n, 3)), ("u", u, self._u.shape)):
+        checks = [("x", x, (n, 3)), ("x_prev", xp, (n, 3)), ("u", u, self._u.shape)]
+        if xp2 is not None:
+            checks.append(("x_prev2", xp2, (n, 3)))
+        for name, v, shape in checks:
             if v.shape != shape or not np.isfinite(v).all():
                 raise ValueError(f"state[{name!r}] must be a finite array of shape {shape}, got {v.shape}")
         self._trail.clear()
         self._restore(x, xp, u, int(state.get("sim_steps", self._n_sub)),
-                      state.get("com_start", self._com_start))
+                      state.get("com_start", self._com_start), xp2)
 
     def com(self) -> np.ndarray:
         """Current centre of mass (3,) [m]."""

@@ -11,10 +11,17 @@ Newton's method with
     per-element eigenvalue-projected Hessian, and then a growing diagonal shift;
   * a backtracking (Armijo) line search on Phi that never accepts a state with an inverted
     element (Phi = +inf there);
-  * warm start from ``x~`` (or ``x_{k-1}`` if ``x~`` inverts an element);
-  * stopping criterion: the Newton step's largest component ``|dx|_inf <= tol`` [m] (then the
-    step is taken in full). The factorisation of the last iteration is the exact Hessian at a
-    point at most ``tol`` away from ``x_k`` and is reused for the sensitivities.
+  * initial guess ``x~`` (constant velocity) or, when ``x_{k-3}`` is known and its Phi is
+    lower, ``3 x_{k-1} - 3 x_{k-2} + x_{k-3}`` (constant acceleration: about half the distance
+    to x_k on smooth motions); ``x_{k-1}`` if both invert an element;
+  * stopping criterion on the estimated error of the returned state, ``<= tol`` [m] in the
+    max-norm: a full step of size ``n`` after one of the same kind (both Newton steps with a
+    fresh exact Hessian, or both chord steps with the same reused factorisation) of size
+    ``n'`` leaves an error of about ``n rho / (1 - rho)``, ``rho = n / n' < 1/2``; otherwise
+    a Newton step must itself be ``<= tol`` (or a chord step ``<= tol (1 - rho)``). Checked
+    against solves to 1e-14 along gaits and random actions: worst error 1.8 tol, median
+    0.2 tol (tests/test_dynamics.py). With ``need_exact`` (sensitivities) the solver ends
+    holding the exact Hessian factorised at ``x_k`` (or at most ``tol`` away from it).
 Failure (no descent, too many iterations, non-finite values) raises :class:`SimulationError`.
 """
 from __future__ import annotations
@@ -42,14 +49,16 @@ class SimulationError(RuntimeError):
 class NewtonOptions:
     """Newton settings.
 
-    ``tol``: stop when the Newton step's max-norm is below it [m] (the step is then taken).
+    ``tol``: bound on the estimated error of the returned state [m, max-norm] (see the module
+    docstring for the estimate).
     ``max_iter``: iterations per step. ``armijo``: sufficient-decrease constant;
     ``max_backtracks``: halvings of the line search. ``reuse_factor``: keep the last
     factorisation (from this or an earlier step) while it still contracts the step by at least
     ``refactor_ratio`` per iteration (chord iterations cost a gradient and a solve instead of a
     Hessian assembly and a factorisation) and while the predicted number of further chord
-    steps stays below ``max_chord``; ``False`` gives plain Newton. ``predictor``: initial
-    guess ``x_{k-1} + predictor (x_{k-1} - x_{k-2})`` (1 = the inertial prediction x~).
+    steps stays below ``max_chord``; ``False`` gives plain Newton. ``extrapolation``: 1 = start
+    from ``x~`` (constant velocity); 2 = also try the constant-acceleration guess when the
+    caller passes ``x_{k-3}`` and keep the one with the lower Phi (see the module docstring).
     ``solver``: "auto", "cholmod" or "lu"."""
 
     tol: float = 1e-8
@@ -59,7 +68,7 @@ class NewtonOptions:
     reuse_factor: bool = True
     refactor_ratio: float = 0.5
     max_chord: float = 4.0
-    predictor: float = 1.0
+    extrapolation: int = 2
     solver: str = "auto"
 
     def __post_init__(self):
@@ -70,6 +79,8 @@ class NewtonOptions:
         for name in ("max_iter", "max_backtracks"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"NewtonOptions.{name} must be >= 1, got {getattr(self, name)!r}")
+        if self.extrapolation not in (1, 2):
+            raise ValueError(f"NewtonOptions.extrapolation must be 1 or 2, got {self.extrapolation!r}")
         if self.solver not in ("auto", "cholmod", "lu"):
             raise ValueError(f"NewtonOptions.solver must be 'auto', 'cholmod' or 'lu', got {self.solver!r}")
 
@@ -132,19 +143,19 @@ class NewtonSolver:
 
     # ------------------------------------------------------------------ one step
     def step(self, x_prev: np.ndarray, x_prev2: np.ndarray, u: np.ndarray, k: int | None = None,
-             x_fixed: np.ndarray | None = None, need_exact: bool = False) -> tuple[np.ndarray, StepInfo]:
+             x_fixed: np.ndarray | None = None, need_exact: bool = False,
+             x_prev3: np.ndarray | None = None) -> tuple[np.ndarray, StepInfo]:
         """Solve for ``x_k`` given ``x_{k-1}``, ``x_{k-2}`` and controls ``u``. Inputs are not
         modified. Fixed nodes keep their positions in ``x_prev`` (or ``x_fixed``). With
         ``need_exact`` the solver ends holding the exact Hessian's factorisation at ``x_k``
-        (for sensitivities)."""
+        (for sensitivities). ``x_prev3`` (``x_{k-3}``, optional) only improves the initial
+        guess."""
         opt = self.options
         sys = self.system
         free = sys.free
         xt = 2.0 * x_prev - x_prev2
-        x = x_prev + opt.predictor * (x_prev - x_prev2)      # initial guess (1: x~)
         fixed_src = x_prev if x_fixed is None else x_fixed
-        if len(free) < sys.n_dof:
-            x.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
+        x = self._initial_guess(xt, x_prev, x_prev2, x_prev3, u, fixed_src)
         phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
         if not np.isfinite(phi_x):
             x = x_prev.copy()
@@ -157,6 +168,7 @@ class NewtonSolver:
         fresh = False            # the factorisation was computed at the current x
         exact = False
         prev_norm = np.inf
+        prev_kind = None         # the full step of size prev_norm: "newton", "chord" or None
         it = 0
         while it < opt.max_iter:
             it += 1
@@ -178,24 +190,23 @@ class NewtonSolver:
                 fresh = True
                 dx = -self.solver.solve(g)
                 norm = np.abs(dx).max()
-            verified = fresh or (np.isfinite(prev_norm) and norm <= opt.tol * max(1.0 - norm / prev_norm, 0.0))
-            if norm <= opt.tol and not verified:
-                # a chord step from a reused factorisation: its error bound needs the observed
-                # contraction, so take it and measure one more
-                x.reshape(-1)[free] += dx
-                phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
-                prev_norm = norm
-                continue
-            if norm <= opt.tol:
+            kind = ("newton" if exact else None) if fresh else "chord"
+            if self._converged(norm, prev_norm, kind, prev_kind):
                 x.reshape(-1)[free] += dx
                 solver = None
                 if need_exact:
-                    if fresh and exact:
-                        solver = self.solver
+                    if fresh and exact and norm <= opt.tol:
+                        solver = self.solver        # exact Hessian at most tol away from x_k
                     else:
                         solver = self.factorize_exact_at(x, x_prev, x_prev2, u)
                         n_fact += 1
                 return x, StepInfo(it, n_fact, fallbacks, solver)
+            if norm <= opt.tol:
+                # a step this small needs no line search; take it and measure one more
+                x.reshape(-1)[free] += dx
+                phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
+                fresh, prev_norm, prev_kind = False, norm, kind
+                continue
             slope = float(g @ dx)
             if slope >= 0:
                 if not fresh:
@@ -207,7 +218,7 @@ class NewtonSolver:
                 # tell descent from noise, and Newton is in its quadratic regime. Full step.
                 x.reshape(-1)[free] += dx
                 phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
-                fresh, prev_norm = False, norm
+                fresh, prev_norm, prev_kind = False, norm, kind
                 continue
             alpha = 1.0
             for _ in range(opt.max_backtracks):
@@ -234,9 +245,46 @@ class NewtonSolver:
             if alpha < 1.0 and not fresh:
                 self._have_factor = False      # damped chord step: refresh next iteration
             x, phi_x, grad = xn, phi_n, grad_n
+            prev_kind = kind if alpha == 1.0 else None
             fresh, prev_norm = False, alpha * norm
         raise SimulationError(f"Newton did not converge in {opt.max_iter} iterations "
                               f"(last |dx| = {norm:.3e} m)", k)
+
+    def _initial_guess(self, xt, x_prev, x_prev2, x_prev3, u, fixed_src):
+        """``x~`` or, with ``x_{k-3}`` and ``extrapolation=2``, the constant-acceleration guess if
+        its Phi is lower (after abrupt control changes x~ is often the better one)."""
+        sys = self.system
+        x = xt.copy()
+        if x_prev3 is not None and self.options.extrapolation == 2:
+            x2 = 3.0 * (x_prev - x_prev2) + x_prev3
+            if len(self.system.free) < sys.n_dof:
+                x2.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
+            if self.phi(x2, xt, x_prev, u) < self.phi(x, xt, x_prev, u):
+                return x2
+        if len(self.system.free) < sys.n_dof:
+            x.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
+        return x
+
+    def _converged(self, norm: float, prev_norm: float, kind, prev_kind) -> bool:
+        """Whether taking the step of size ``norm`` ends the iteration (module docstring).
+
+        ``kind`` is "newton" (fresh exact Hessian), "chord" (reused factorisation) or None
+        (a fallback Hessian); ``prev_kind`` is that of the full step of size ``prev_norm``
+        before it (None after a damped step). The error left after the step is estimated as
+        ``norm rho / (1 - rho)``, ``rho = norm / prev_norm``, only from two steps of the same
+        kind: the contraction of a chord step measured against a Newton step is not that of
+        the next chord step."""
+        tol = self.options.tol
+        if norm <= tol and kind == "newton":
+            return True
+        if not np.isfinite(prev_norm) or prev_norm <= 0.0:
+            return False
+        rho = norm / prev_norm
+        if rho >= 0.5:
+            return False
+        if kind is not None and kind == prev_kind:
+            return norm * rho / (1.0 - rho) <= tol
+        return norm <= tol * (1.0 - rho)
 
     def _chord_too_slow(self, norm: float, prev_norm: float) -> bool:
         """Refresh the factorisation when a chord step contracts by less than

@@ -151,11 +151,15 @@ class Simulator:
         self._rest_cache[key] = x.copy()
         return x
 
-    def step(self, x_prev, x_prev2, u, k: int | None = None) -> np.ndarray:
-        """One implicit-Euler step: ``x_k`` from ``x_{k-1}``, ``x_{k-2}`` and ``u_k``.
-        Raises :class:`SimulationError` on failure; the inputs are never modified."""
+    def step(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None) -> np.ndarray:
+        """One implicit-Euler step: ``x_k`` from ``x_{k-1}``, ``x_{k-2}`` and ``u_k``. ``x_{k-3}``
+        (optional) gives the Newton solver a better initial guess; the result is the same to
+        within the Newton tolerance. Raises :class:`SimulationError` on failure; the inputs are
+        never modified."""
         u = self._check_u(u)
-        x, _ = self.newton.step(self._check_x(x_prev, "x_prev"), self._check_x(x_prev2, "x_prev2"), u, k)
+        x3 = None if x_prev3 is None else self._check_x(x_prev3, "x_prev3")
+        x, _ = self.newton.step(self._check_x(x_prev, "x_prev"), self._check_x(x_prev2, "x_prev2"), u, k,
+                                x_prev3=x3)
         return x
 
     def reset_solver(self) -> None:
@@ -196,9 +200,10 @@ class Simulator:
             dxdz = np.zeros((K + 1, sysm.n_dof, nz)) if store_dxdz else None
             tm = sysm.tendon_motor
         prev, prev2 = x0, xm1
+        prev3 = x0 if x_prev0 is None else None      # at rest: x_{-2} = x_{-1} = x_0
         self.reset_solver()           # a rollout depends on its inputs only
         for k in range(K):
-            x, info = self.newton.step(prev, prev2, u[k], k, need_exact=sens)
+            x, info = self.newton.step(prev, prev2, u[k], k, need_exact=sens, x_prev3=prev3)
             xs[k + 1] = x
             iters[k] = info.iterations
             gam[k + 1] = sysm.cable_deformation(x, u[k])
@@ -212,7 +217,7 @@ class Simulator:
                 if store_dxdz:
                     dxdz[k + 1] = S
                 S2, S1 = S1, S
-            prev2, prev = prev, x
+            prev3, prev2, prev = prev2, prev, x
         com = np.einsum("kni,n->ki", xs, masses) / mtot
         traj = Trajectory(x=xs, com=com, cable_deformation=gam, u=u, newton_iterations=iters)
         if sens:
