@@ -144,6 +144,11 @@ def test_total_energy_gradient_and_hessian(case):
         err = np.linalg.norm(fd - Hm @ d.ravel()) / np.linalg.norm(fd)
         assert err < RTOL, f"{case}: Hessian relative error {err:.2e}"
     assert abs(Hm - Hm.T).max() <= 1e-9 * abs(Hm).max()
+    # the gradient-only kernels (line searches, chord iterations) give the same E and gradient
+    e_h, g_h, _ = sim.system.assemble(x, x_prev, u, want_hess=True)
+    e_g, g_g, h_g = sim.system.assemble(x, x_prev, u, want_hess=False)
+    assert h_g is None and np.isclose(e_g, e_h, rtol=1e-13, atol=0)
+    np.testing.assert_allclose(g_g, g_h, rtol=0, atol=1e-12 * np.abs(g_h).max())
 
 
 def test_friction_cross_derivative_matches_fd():

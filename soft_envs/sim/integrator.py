@@ -119,10 +119,11 @@ class NewtonSolver:
         """``(Phi, dPhi/dx (3n,), Hessian values or None)`` at x."""
         e, grad, hdata = self.system.assemble(x, x_prev, u, project, want_hess)
         d = (x - xt).ravel()
-        grad += self.inertia * d
+        f = self.inertia * d
+        grad += f
         if want_hess:
             hdata[self.system.pattern.diag] += self._diag_inertia
-        return e + 0.5 * float(d @ (self.inertia * d)), grad, hdata
+        return e + 0.5 * float(d @ f), grad, hdata
 
     def factorize(self, hdata, x, xt, x_prev, u) -> tuple[bool, int]:
         """Factorise; fall back to the projected Hessian, then to diagonal shifts.

@@ -329,11 +329,46 @@ def fem_assemble(x, tets, dN, vol, mu, lam, grad, hdata, hmap, project, want_hes
     ``want_hess=False`` skips the Hessian. Returns the energy (``inf`` if inverted)."""
     if project:
         return _fem_assemble_projected(x, tets, dN, vol, mu, lam, grad, hdata, hmap)
-    return _fem_assemble_exact(x, tets, dN, vol, mu, lam, grad, hdata, hmap, want_hess)
+    if not want_hess:
+        return _fem_gradient(x, tets, dN, vol, mu, lam, grad)
+    return _fem_assemble_exact(x, tets, dN, vol, mu, lam, grad, hdata, hmap)
 
 
 @njit(cache=True)
-def _fem_assemble_exact(x, tets, dN, vol, mu, lam, grad, hdata, hmap, want_hess):
+def _fem_gradient(x, tets, dN, vol, mu, lam, grad):
+    """Energy and gradient only: ``grad_a += V P N_a`` with the stress
+    ``P = mu F + (lam ln J - mu) F^{-T}`` formed once per element."""
+    F = np.empty((3, 3))
+    P = np.empty((3, 3))
+    total = 0.0
+    for e in range(tets.shape[0]):
+        tet = tets[e]
+        dNe = dN[e]
+        _deformation_gradient(x, tet, dNe, F)
+        J = _det3(F)
+        if J <= 0.0:
+            return np.inf
+        lnJ = math.log(J)
+        m = mu[e]
+        lm = lam[e]
+        v = vol[e]
+        _inv_transpose(F, J, P)
+        c1 = lm * lnJ - m
+        I1 = 0.0
+        for i in range(3):
+            for k in range(3):
+                I1 += F[i, k] * F[i, k]
+                P[i, k] = v * (m * F[i, k] + c1 * P[i, k])
+        total += v * (0.5 * m * (I1 - 3.0) - m * lnJ + 0.5 * lm * lnJ * lnJ)
+        for a in range(4):
+            n = tet[a]
+            for i in range(3):
+                grad[3 * n + i] += P[i, 0] * dNe[a, 0] + P[i, 1] * dNe[a, 1] + P[i, 2] * dNe[a, 2]
+    return total
+
+
+@njit(cache=True)
+def _fem_assemble_exact(x, tets, dN, vol, mu, lam, grad, hdata, hmap):
     F = np.empty((3, 3))
     FinvT = np.empty((3, 3))
     q = np.empty((4, 3))
@@ -354,8 +389,6 @@ def _fem_assemble_exact(x, tets, dN, vol, mu, lam, grad, hdata, hmap, want_hess)
             for i in range(3):
                 grad[3 * n + i] += v * (m * FN[a, i] + c1 * q[a, i])
         total += v * (0.5 * m * (I1 - 3.0) - m * lnJ + 0.5 * lm * lnJ * lnJ)
-        if not want_hess:
-            continue
         c2 = m - lm * lnJ
         hm = hmap[e]
         for a in range(4):
@@ -376,7 +409,7 @@ def _fem_assemble_exact(x, tets, dN, vol, mu, lam, grad, hdata, hmap, want_hess)
 
 @njit(cache=True)
 def _fem_assemble_projected(x, tets, dN, vol, mu, lam, grad, hdata, hmap):
-    total = _fem_assemble_exact(x, tets, dN, vol, mu, lam, grad, hdata, hmap, False)
+    total = _fem_gradient(x, tets, dN, vol, mu, lam, grad)
     if total == np.inf:
         return np.inf
     H = np.empty((12, 12))

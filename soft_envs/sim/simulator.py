@@ -271,6 +271,6 @@ class Simulator:
         x = self._check_x(x, "x")
         u = self._check_u(u)
         if self.control == "tension":
-            return self.system.tendon_controls(u)[1]
+            return self.system.tendon_controls(u)[1].copy()
         gam = self.system.cable_deformation(x, u)
         return one_sided_quadratic(gam, self.system.k_cable, self.system.eps_cable)[1]

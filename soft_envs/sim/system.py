@@ -121,16 +121,24 @@ class EnergySystem:
         self.diag_slot_full = diag_slot                                     # (3n,), trash if fixed
         self.contact_diag = np.ascontiguousarray(diag_slot.reshape(-1, 3)[self.contact_nodes])
         self._no_hess = np.zeros(1)          # placeholder for gradient-only assembly
+        self._controls_key = None            # cache of tendon_controls for the last u
 
     # ------------------------------------------------------------------ controls
     def tendon_controls(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per-tendon ``(rest length alpha, tension)`` for motor controls ``u``."""
+        """Per-tendon ``(rest length alpha, tension)`` for motor controls ``u`` (read-only
+        arrays: the last result is reused while ``u`` is unchanged, as within a Newton step)."""
+        u = np.asarray(u, dtype=np.float64)
+        key = u.tobytes()
+        if key == self._controls_key:
+            return self._controls
         uu = np.zeros(len(self.alpha0))
         has = self.tendon_motor >= 0
         uu[has] = u[self.tendon_motor[has]]
-        if self.mode == LENGTH_CONTROL:
-            return self.alpha0 - uu, uu
-        return self.alpha0, uu
+        rest = self.alpha0 - uu if self.mode == LENGTH_CONTROL else self.alpha0.copy()
+        rest.flags.writeable = False
+        uu.flags.writeable = False
+        self._controls_key, self._controls = key, (rest, uu)
+        return rest, uu
 
     # ------------------------------------------------------------------ energy
     def energy(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray) -> float:
