@@ -153,14 +153,14 @@ class NewtonSolver:
         guess."""
         opt = self.options
         sys = self.system
-        free = sys.free
+        free = sys.free if len(sys.free) < sys.n_dof else slice(None)    # views when nothing is fixed
         xt = 2.0 * x_prev - x_prev2
         fixed_src = x_prev if x_fixed is None else x_fixed
         x = self._initial_guess(xt, x_prev, x_prev2, x_prev3, u, fixed_src)
         phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
         if not np.isfinite(phi_x):
             x = x_prev.copy()
-            if len(free) < sys.n_dof:
+            if len(sys.free) < sys.n_dof:
                 x.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
             phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
             if not np.isfinite(phi_x):
