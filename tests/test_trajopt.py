@@ -234,3 +234,22 @@ def test_symmetric_keyframes_respect_both_mirror_ranges():
     u = p.controls(hi)
     assert u.max() <= 0.006 + 1e-15
     assert all(np.all(z <= hi + 1e-15) for z in p.seeds(3))
+
+
+def test_gauss_newton_resume_keeps_the_rejection_count():
+    """A run interrupted inside a streak of rejected steps resumes that streak: with
+    max_rejections = 3 and 2 rejections already made, one more rejection stops it."""
+    from soft_envs.sim import SimulationError
+    from trajopt.gauss_newton import gauss_newton
+
+    def fun(z, need_jac):                  # minimum at z = 1, but nothing beyond 0.01 simulates
+        if z[0] > 0.01:
+            raise SimulationError("out of range")
+        return np.array([z[0] - 1.0]), (np.ones((1, 1)) if need_jac else None), {}
+
+    opts = GaussNewtonOptions(max_iter=10, max_rejections=3)
+    fresh = gauss_newton(fun, np.zeros(1), np.array([-5.0]), np.array([5.0]), opts)
+    assert fresh.status == "stalled" and len(fresh.history) == 3
+    resumed = gauss_newton(fun, np.zeros(1), np.array([-5.0]), np.array([5.0]), opts,
+                           first_iteration=3, rejections=2)
+    assert resumed.status == "stalled" and [h["iteration"] for h in resumed.history] == [3]

@@ -71,10 +71,12 @@ def _evaluate(fun, z, need_jac):
 def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                  options: GaussNewtonOptions = GaussNewtonOptions(), *,
                  callback: Callable[[dict], bool | None] | None = None,
-                 lam: float | None = None, first_iteration: int = 1) -> GaussNewtonResult:
+                 lam: float | None = None, first_iteration: int = 1,
+                 rejections: int = 0) -> GaussNewtonResult:
     """Run the solver from ``z0`` (projected onto the bounds). ``callback(entry)`` is called
     after every iteration with its history entry (plus ``"z"``); returning True stops.
-    ``lam`` and ``first_iteration`` let an interrupted run resume where it stopped."""
+    ``lam``, ``first_iteration`` and ``rejections`` (consecutive rejected steps so far) let an
+    interrupted run resume where it stopped."""
     opt = options
     lower = np.asarray(lower, dtype=np.float64)
     upper = np.asarray(upper, dtype=np.float64)
@@ -86,7 +88,7 @@ def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.nda
         raise SimulationError(f"the starting point cannot be simulated: {info['sim_failure']}")
     history: list[dict] = []
     status = "max_iter"
-    rejections = 0
+    rejections = int(rejections)
     it = first_iteration - 1
     for it in range(first_iteration, first_iteration + opt.max_iter):
         t0 = time.perf_counter()

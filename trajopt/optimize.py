@@ -131,13 +131,17 @@ def optimize_gait(env: Any, task: str = "walk", *, speed_bl_per_min: float | Non
     tgt = _target_for(task, hooks, K, speed, heading_deg, turn, target)
     lo, hi = param.bounds()
     history: list[dict] = []
-    lam, first = None, 1
+    lam, first, rejections = None, 1, 0
     problem = GaitProblem(hooks, param, tgt, weights)
     if resume is not None:
         z_start = np.asarray(resume.z, dtype=np.float64)
         history = list(resume.history)
         if history:
             lam, first = history[-1].get("lambda_next"), history[-1]["iteration"] + 1
+            for entry in reversed(history):        # the run of rejected steps it stopped in
+                if entry.get("accepted", True):
+                    break
+                rejections += 1
     elif z0 is not None:
         z_start = np.asarray(z0, dtype=np.float64)
     else:
@@ -185,7 +189,7 @@ def optimize_gait(env: Any, task: str = "walk", *, speed_bl_per_min: float | Non
         return None
 
     gn = gauss_newton(problem, z_start, lo, hi, options, callback=on_iteration, lam=lam,
-                      first_iteration=first)
+                      first_iteration=first, rejections=rejections)
     z = gn.z
     traj = problem.last_traj if problem.last_traj is not None else hooks.rollout(problem.dudz @ z)
     result = make_result(z, gn.status, history)
