@@ -39,7 +39,7 @@ def _pvd(entries: Sequence[tuple[float, str]]) -> bytes:
     buf.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
               "  <Collection>\n")
     for t, name in entries:
-        buf.write(f'    <DataSet timestep="{t:.6g}" group="" part="0" file={quoteattr(name)}/>\n')
+        buf.write(f'    <DataSet timestep="{float(t)!r}" group="" part="0" file={quoteattr(name)}/>\n')
     buf.write("  </Collection>\n</VTKFile>\n")
     return buf.getvalue().encode()
 

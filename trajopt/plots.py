@@ -68,11 +68,12 @@ def plot_controls(u: np.ndarray, dt: float, motor_names: Sequence[str], path: st
         ax.plot(t, 1000 * u[:, m], color=colors[m], label=name)
         if u_post is not None:
             ax.plot(t, 1000 * np.asarray(u_post)[:, m], ":", color=colors[m], lw=1)
-    if n_prep:
-        ax.axvline(n_prep * dt, color="k", ls="--", lw=0.8)
-        if n_cycle:
-            for c in range(1, (len(u) - n_prep) // n_cycle):
-                ax.axvline((n_prep + c * n_cycle) * dt, color="k", ls="--", lw=0.8)
+    start = n_prep or 0
+    if start:
+        ax.axvline(start * dt, color="k", ls="--", lw=0.8)
+    if n_cycle:
+        for c in range(1, (len(u) - start) // n_cycle):
+            ax.axvline((start + c * n_cycle) * dt, color="k", ls="--", lw=0.8)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("contraction u [mm]")
     ax.legend(loc="upper right", fontsize=7, ncol=2)
