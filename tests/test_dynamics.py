@@ -145,9 +145,9 @@ def test_newton_options_are_validated():
 
 @pytest.mark.parametrize("name", ["tripod", "puppy"])
 def test_newton_error_estimate_holds_along_a_gait(name):
-    """The step's stopping rule bounds the error of x_k by an estimate of tol: against a
-    reference solved to 1e-14 from the same inputs, every step of a gait is within 3 tol
-    (measured: at most 1.8 tol, median 0.2 tol), with or without the x_{k-3} extrapolation."""
+    """The step's stopping rule keeps the error of x_k below tol: against a reference solved to
+    1e-14 from the same inputs, every step of a gait is within tol (measured: at most 0.7 tol,
+    median 0.03 tol), with or without the x_{k-3} extrapolation."""
     from soft_envs.sim import load_robot
     robot = load_robot(name)
     sim = Simulator(robot)
@@ -162,7 +162,7 @@ def test_newton_error_estimate_holds_along_a_gait(name):
         xr = ref.step(traj.x[k], traj.x[k - 1], u[k])
         worst = max(worst, np.abs(sim.step(traj.x[k], traj.x[k - 1], u[k], x_prev3=traj.x[k - 2]) - xr).max(),
                     np.abs(sim.step(traj.x[k], traj.x[k - 1], u[k]) - xr).max())
-    assert worst <= 3 * tol, worst
+    assert worst <= tol, worst
     with pytest.raises(ValueError, match="x_prev3"):
         sim.step(traj.x[3], traj.x[2], u[3], x_prev3=np.zeros((2, 3)))
 
@@ -170,3 +170,5 @@ def test_newton_error_estimate_holds_along_a_gait(name):
 def test_newton_options_extrapolation_is_validated():
     with pytest.raises(ValueError, match="extrapolation"):
         NewtonOptions(extrapolation=3)
+    with pytest.raises(ValueError, match="refactor_ratio"):
+        NewtonOptions(refactor_ratio=1.5)

@@ -194,10 +194,15 @@ def test_projected_element_hessian_is_the_psd_part_of_d2psi_df2():
     for a in range(4):
         for i in range(3):
             B[3 * i:3 * i + 3, 3 * a + i] = dN[a]
+    def rotation():
+        R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        return R * np.sign(np.linalg.det(R))
+
     seen_indefinite = seen_definite = 0
-    for _ in range(60):
-        A = np.eye(3) + rng.normal(scale=0.35, size=(3, 3))
-        if np.linalg.det(A) <= 0.05:
+    nearly_flat = [rotation() @ np.diag([1.0, 1.0, s]) @ rotation() for s in (1e-3, 1e-6, 1e-8)]
+    for trial in range(63):
+        A = nearly_flat[trial - 60] if trial >= 60 else np.eye(3) + rng.normal(scale=0.35, size=(3, 3))
+        if np.linalg.det(A) <= 0.05 and trial < 60:
             continue
         x = X @ A.T + rng.normal(size=3)
         g, Hx = np.zeros(12), np.zeros((12, 12))

@@ -1,8 +1,7 @@
 """Sensitivity analysis (paper III-A): rollout Jacobians against central finite differences of
 whole rollouts, and adjoint gradients against the forward mode.
 
-Newton tolerance for these checks: estimated error of every step <= 1e-13 m
-(NewtonOptions(tol=1e-13)); perturbations of ~3e-8 m of contraction (3e-5 N of tension):
+Newton tolerance for these checks: 1e-13 m per step (NewtonOptions(tol=1e-13)); perturbations of ~3e-8 m of contraction (3e-5 N of tension):
 central differences of them need states accurate to ~1e-12 m; larger ones meet the kinks of Q''
 at the ends of its C2 blend. Required relative error <= 1e-4.
 """

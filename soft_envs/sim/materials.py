@@ -272,15 +272,33 @@ def _element_hessian_projected(x, tet, dNe, vol, mu, lam, H, work, w12):
             C[i, j] = F[0, i] * F[0, j] + F[1, i] * F[1, j] + F[2, i] * F[2, j]
     ev = w12[0:3]
     _sym_eig3(C, ev, V)
-    sig0 = math.sqrt(max(ev[0], 0.0))
-    sig1 = math.sqrt(max(ev[1], 0.0))
-    sig2 = math.sqrt(max(ev[2], 0.0))
+    # the two larger singular values from the eigenvalues; the smallest as J / (their product),
+    # which stays accurate for a nearly flat element, and its U column by a cross product
+    kmin = 0
+    for k in range(1, 3):
+        if ev[k] < ev[kmin]:
+            kmin = k
+    ka = (kmin + 1) % 3
+    kb = (kmin + 2) % 3
+    if ev[ka] <= 0.0 or ev[kb] <= 0.0:
+        return False                       # degenerate beyond repair: the caller falls back
+    sa = math.sqrt(ev[ka])
+    sb = math.sqrt(ev[kb])
+    smin = J / (sa * sb)
     U = C                                  # C is no longer needed
-    for k in range(3):
-        sk = sig0 if k == 0 else (sig1 if k == 1 else sig2)
+    for k in (ka, kb):
+        sk = sa if k == ka else sb
         for i in range(3):
             U[i, k] = (F[i, 0] * V[0, k] + F[i, 1] * V[1, k] + F[i, 2] * V[2, k]) / sk
-    sig = (sig0, sig1, sig2)
+    detV = (V[0, 0] * (V[1, 1] * V[2, 2] - V[1, 2] * V[2, 1]) - V[0, 1] * (V[1, 0] * V[2, 2] - V[1, 2] * V[2, 0])
+            + V[0, 2] * (V[1, 0] * V[2, 1] - V[1, 1] * V[2, 0]))
+    sgn = 1.0 if detV > 0.0 else -1.0      # det U = det V since J > 0
+    U[0, kmin] = sgn * (U[1, ka] * U[2, kb] - U[2, ka] * U[1, kb])
+    U[1, kmin] = sgn * (U[2, ka] * U[0, kb] - U[0, ka] * U[2, kb])
+    U[2, kmin] = sgn * (U[0, ka] * U[1, kb] - U[1, ka] * U[0, kb])
+    sig = (smin if kmin == 0 else (sa if ka == 0 else sb),
+           smin if kmin == 1 else (sa if ka == 1 else sb),
+           smin if kmin == 2 else (sa if ka == 2 else sb))
     c2 = mu - lam * math.log(J)
     for r in range(12):
         for t in range(r + 1):
@@ -415,8 +433,11 @@ def _fem_assemble_projected(x, tets, dN, vol, mu, lam, grad, hdata, hmap):
     H = np.empty((12, 12))
     work = np.empty((16, 3))
     w12 = np.empty(12)
+    g = np.empty(12)
     for e in range(tets.shape[0]):
-        _element_hessian_projected(x, tets[e], dN[e], vol[e], mu[e], lam[e], H, work, w12)
+        if not _element_hessian_projected(x, tets[e], dN[e], vol[e], mu[e], lam[e], H, work, w12):
+            element_gradient_hessian(x, tets[e], dN[e], vol[e], mu[e], lam[e], g, H)
+            H[:, :] = _project_psd(H)      # (nearly) flat element: numerical projection
         hm = hmap[e]
         for r in range(12):
             for c in range(r + 1):      # H is symmetric: the lower triangle covers every stored slot

@@ -121,7 +121,7 @@ class EnergySystem:
         self.diag_slot_full = diag_slot                                     # (3n,), trash if fixed
         self.contact_diag = np.ascontiguousarray(diag_slot.reshape(-1, 3)[self.contact_nodes])
         self._no_hess = np.zeros(1)          # placeholder for gradient-only assembly
-        self._controls_key = None            # cache of tendon_controls for the last u
+        self._controls_cache = (None, None)  # (u bytes, result) of tendon_controls' last call
 
     # ------------------------------------------------------------------ controls
     def tendon_controls(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -129,15 +129,16 @@ class EnergySystem:
         arrays: the last result is reused while ``u`` is unchanged, as within a Newton step)."""
         u = np.asarray(u, dtype=np.float64)
         key = u.tobytes()
-        if key == self._controls_key:
-            return self._controls
+        cached_key, cached = self._controls_cache
+        if key == cached_key:
+            return cached
         uu = np.zeros(len(self.alpha0))
         has = self.tendon_motor >= 0
         uu[has] = u[self.tendon_motor[has]]
         rest = self.alpha0 - uu if self.mode == LENGTH_CONTROL else self.alpha0.copy()
         rest.flags.writeable = False
         uu.flags.writeable = False
-        self._controls_key, self._controls = key, (rest, uu)
+        self._controls_cache = (key, (rest, uu))      # one assignment: never a torn pair
         return rest, uu
 
     # ------------------------------------------------------------------ energy
