@@ -199,6 +199,7 @@ def cable_assemble(x, pt_nodes, pt_w, ptr, rest, k, eps, mode, tension, grad, hd
                         Hp[3 * s + i, 3 * s + 3 + j] -= h
                         Hp[3 * s + 3 + i, 3 * s + j] -= h
         base = hptr[t]
+        trash = hdata.shape[0] - 1          # upper-triangle and fixed-dof entries: not stored
         for s in range(P):
             for a in range(4):
                 wa = pt_w[p0 + s, a]
@@ -210,8 +211,11 @@ def cable_assemble(x, pt_nodes, pt_w, ptr, rest, k, eps, mode, tension, grad, hd
                             wb = pt_w[p0 + s2, b]
                             for j in range(3):
                                 c = 12 * s2 + 3 * b + j
+                                slot = hmap[base + r * n_loc + c]
+                                if slot == trash:
+                                    continue
                                 h = c2 * dLx[r] * dLx[c]
                                 if near:
                                     h += c1 * wa * wb * Hp[3 * s + i, 3 * s2 + j]
-                                hdata[hmap[base + r * n_loc + c]] += h
+                                hdata[slot] += h
     return total
