@@ -53,7 +53,9 @@ class NewtonOptions:
     """Newton settings.
 
     ``tol``: the last step's max-norm [m]; the error of the returned state is below it for
-    tol <= 1e-6 (see the module docstring).
+    tol <= 1e-6 (see the module docstring). Sensitivities use a factorisation taken up to
+    ``tol`` away from ``x_k``: keep tol <= 1e-6 when Jacobians matter (at 1e-8 they match the
+    exact Hessian at x_k to ~1e-12).
     ``max_iter``: iterations per step. ``armijo``: sufficient-decrease constant;
     ``max_backtracks``: halvings of the line search. ``reuse_factor``: keep the last
     factorisation (from this or an earlier step) while it still contracts the step by at least
