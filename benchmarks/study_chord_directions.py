@@ -38,7 +38,7 @@ def hybrid_hessian(newton, x0, x, x_prev, u) -> np.ndarray:
     s = newton.system
     grad = np.zeros(s.n_dof)
     h = np.zeros(s.pattern.nnz + 1)
-    fem_assemble(x0, s.tets, s.dN, s.vol, s.mu, s.lam, grad, h, s.fem_map, False, True)
+    fem_assemble(x0, s.tets, s.dN, s.vol, s.mu, s.lam, grad, h, s.fem_map, True)
     rest, tension = s.tendon_controls(u)
     cable_assemble(x, s.pt_nodes, s.pt_w, s.ptr, rest, s.k_cable, s.eps_cable, s.mode, tension,
                    grad, h, s.cable_map, s.cable_hptr, True)

@@ -183,7 +183,7 @@ def test_projected_element_hessian_is_the_psd_part_of_d2psi_df2():
     """``element_hessian_projected`` (analytic eigensystem of d2Psi/dF2) equals
     ``V B^T [d2Psi/dF2]_+ B`` computed with a numerical 9x9 eigen-decomposition, is positive
     semi-definite, and equals the exact Hessian where d2Psi/dF2 already is."""
-    from soft_envs.sim.materials import element_hessian_projected
+    from soft_envs.sim.psd_projection import element_hessian_projected
     rng = np.random.default_rng(3)
     X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]]) * 0.01
     Dm_inv = np.linalg.inv((X[1:] - X[0]).T)
@@ -226,3 +226,22 @@ def test_projected_element_hessian_is_the_psd_part_of_d2psi_df2():
     inverted = X.copy()
     inverted[3, 2] = -0.01
     assert not element_hessian_projected(inverted, np.arange(4), dN, vol, mu, lam, np.zeros((12, 12)))
+
+
+def test_projected_assembly_adds_only_the_negative_parts():
+    """``assemble(project=True)``: same energy and gradient, and a Hessian that exceeds the exact
+    one by a positive semi-definite matrix (per element, [A]_+ - A = [-A]_+)."""
+    rng = np.random.default_rng(11)
+    robot = small_robot()
+    sim = Simulator(robot)
+    X = robot.mesh.points
+    x = X + rng.normal(scale=2e-3, size=X.shape)        # strongly distorted: indefinite elements
+    u = np.array([0.002])
+    e0, g0, h0 = sim.system.assemble(x, X, u)
+    e1, g1, h1 = sim.system.assemble(x, X, u, project=True)
+    assert np.isclose(e0, e1, rtol=1e-13, atol=0)
+    np.testing.assert_allclose(g1, g0, rtol=0, atol=1e-12 * np.abs(g0).max())
+    pat = sim.system.pattern
+    diff = (pat.full(h1) - pat.full(h0)).toarray()
+    w = np.linalg.eigvalsh(diff)
+    assert w.min() >= -1e-9 * np.abs(w).max() and w.max() > 0     # something was projected

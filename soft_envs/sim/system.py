@@ -17,6 +17,7 @@ import scipy.sparse as sp
 from .cables import LENGTH_CONTROL, TENSION_CONTROL, cable_assemble, cable_energy, cable_lengths
 from .contact import contact_assemble, contact_energy
 from .materials import fem_assemble, fem_energy
+from .psd_projection import fem_assemble_projected
 
 __all__ = ["EnergySystem", "Pattern"]
 
@@ -156,11 +157,17 @@ class EnergySystem:
     def assemble(self, x, x_prev, u, project: bool = False, want_hess: bool = True):
         """``(E, grad (3n,), hdata (nnz + 1,))`` at ``x``. ``hdata[:nnz]`` are the values of the
         lower-triangular Hessian over the free dofs (see :attr:`pattern`); with
-        ``want_hess=False`` hdata is None and only the energy and gradient are computed."""
+        ``want_hess=False`` hdata is None and only the energy and gradient are computed. With
+        ``project`` the elastic part of the Hessian is projected element by element onto its
+        positive semi-definite part (:mod:`.psd_projection`)."""
         grad = -self.f_gravity.copy()
         hdata = np.zeros(self.pattern.nnz + 1) if want_hess else self._no_hess
-        e = fem_assemble(x, self.tets, self.dN, self.vol, self.mu, self.lam, grad, hdata,
-                         self.fem_map, project, want_hess)
+        if project and want_hess:      # the Newton solver's fallback (psd_projection)
+            e = fem_assemble_projected(x, self.tets, self.dN, self.vol, self.mu, self.lam, grad, hdata,
+                                       self.fem_map)
+        else:
+            e = fem_assemble(x, self.tets, self.dN, self.vol, self.mu, self.lam, grad, hdata,
+                             self.fem_map, want_hess)
         if e == np.inf:
             return np.inf, grad, hdata
         rest, tension = self.tendon_controls(u)
