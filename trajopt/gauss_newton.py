@@ -9,8 +9,12 @@ Each iteration
   2. freezes the variables at a bound whose gradient pushes outwards (active set);
   3. solves ``(J_f^T J_f + lambda diag(J_f^T J_f) + lambda mu I) dz_f = -J_f^T r`` on the free
      variables (Levenberg-Marquardt, Marquardt scaling, mu = mean of the diagonal);
-  4. backtracks ``z_new = clip(z + alpha dz)`` with alpha = 1, 1/2, ... until the Armijo
-     condition ``O(z_new) <= O(z) + c alpha g . dz`` holds (one rollout per trial);
+  4. backtracks ``z_new = clip(z + alpha dz)`` with alpha = 1, 1/2, ... 1/64 until the Armijo
+     condition ``O(z_new) <= O(z) + c alpha g . dz`` holds (one rollout per trial). The gait
+     objectives are strongly curved along the Gauss-Newton direction (Tripod walk: a decrease
+     only below ~2 % of the step, with the Jacobian exact there), so six halvings are allowed:
+     with three, Gauss-Newton stalled at the seeds of the Tripod walk and after one step of
+     the Puppy turn (heading +42 instead of +56 deg over 10 cycles);
   5. decreases lambda after a full step, increases it after a backtracked or rejected one.
 
 Stopping criteria (the first that holds; ``status`` in the result names it):
@@ -44,7 +48,7 @@ class GaussNewtonOptions:
     lambda_decrease: float = 0.3
     lambda_increase: float = 10.0
     armijo: float = 1e-4
-    max_backtracks: int = 3
+    max_backtracks: int = 6
     max_rejections: int = 3
 
 
