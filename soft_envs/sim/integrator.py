@@ -228,25 +228,22 @@ class NewtonSolver:
                 phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
                 fresh, prev_norm, prev_kind = False, norm, kind
                 continue
-            alpha = 1.0
+            alpha, accepted = 1.0, False
             for _ in range(opt.max_backtracks):
                 xn = x.copy()
                 xn.reshape(-1)[free] += alpha * dx
                 phi_n, grad_n, _ = self.phi_assemble(xn, xt, x_prev, u, want_hess=False)
                 if phi_n <= phi_x + opt.armijo * alpha * slope:
+                    accepted = True
                     break
                 if not fresh:
-                    break               # a reused factorisation overshoots: refresh, do not damp
+                    break
                 alpha *= 0.5
-            else:
-                alpha = 0.0
-            if alpha == 1.0 and not fresh and not phi_n <= phi_x + opt.armijo * slope:
+            if not accepted and not fresh:
+                # a reused factorisation overshoots: refresh it at this point rather than damp
                 self._have_factor = False
                 continue
-            if alpha == 0.0:
-                if not fresh:           # a stale factorisation gave a poor direction: refresh
-                    self._have_factor = False
-                    continue
+            if not accepted:
                 xn = x.copy()
                 xn.reshape(-1)[free] += dx
                 if norm <= 1e3 * opt.tol and self.phi(xn, xt, x_prev, u) <= phi_x:
@@ -257,8 +254,6 @@ class NewtonSolver:
                         n_fact += 1
                     return xn, StepInfo(it, n_fact, fallbacks, solver)
                 raise SimulationError(f"line search failed (|dx| = {norm:.3e} m)", k)
-            if alpha < 1.0 and not fresh:
-                self._have_factor = False      # damped chord step: refresh next iteration
             x, phi_x, grad = xn, phi_n, grad_n
             prev_kind = kind if alpha == 1.0 else None
             fresh, prev_norm = False, alpha * norm

@@ -98,6 +98,12 @@ def _element_kinematics(x, tet, dNe, F, FinvT, q, FN):
 
 
 @njit(cache=True)
+def _psi_invariants(mu, lam, I1, lnJ):
+    """Psi of eq. 1 from ``I1 = tr F^T F`` and ``ln J``."""
+    return 0.5 * mu * (I1 - 3.0) - mu * lnJ + 0.5 * lam * lnJ * lnJ
+
+
+@njit(cache=True)
 def psi(F, mu, lam):
     """Energy density Psi(F) of eq. 1 (``+inf`` when det F <= 0)."""
     J = _det3(F)
@@ -108,7 +114,7 @@ def psi(F, mu, lam):
     for i in range(3):
         for k in range(3):
             I1 += F[i, k] * F[i, k]
-    return 0.5 * mu * (I1 - 3.0) - mu * lnJ + 0.5 * lam * lnJ * lnJ
+    return _psi_invariants(mu, lam, I1, lnJ)
 
 
 @njit(cache=True)
@@ -145,7 +151,7 @@ def element_gradient_hessian(x, tet, dNe, vol, mu, lam, g, H):
                     if i == j:
                         h += mu * nn
                     H[3 * a + i, 3 * b + j] = vol * h
-    return vol * (0.5 * mu * (I1 - 3.0) - mu * lnJ + 0.5 * lam * lnJ * lnJ)
+    return vol * _psi_invariants(mu, lam, I1, lnJ)
 
 
 @njit(cache=True)
@@ -210,7 +216,7 @@ def _fem_gradient(x, tets, dN, vol, mu, lam, grad):
             for k in range(3):
                 I1 += F[i, k] * F[i, k]
                 P[i, k] = v * (m * F[i, k] + c1 * P[i, k])
-        total += v * (0.5 * m * (I1 - 3.0) - m * lnJ + 0.5 * lm * lnJ * lnJ)
+        total += v * _psi_invariants(m, lm, I1, lnJ)
         for a in range(4):
             n = tet[a]
             for i in range(3):
@@ -239,7 +245,7 @@ def _fem_assemble_exact(x, tets, dN, vol, mu, lam, grad, hdata, hmap):
             n = tet[a]
             for i in range(3):
                 grad[3 * n + i] += v * (m * FN[a, i] + c1 * q[a, i])
-        total += v * (0.5 * m * (I1 - 3.0) - m * lnJ + 0.5 * lm * lnJ * lnJ)
+        total += v * _psi_invariants(m, lm, I1, lnJ)
         c2 = m - lm * lnJ
         hm = hmap[e]
         for a in range(4):
