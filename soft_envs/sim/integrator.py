@@ -186,7 +186,7 @@ class NewtonSolver:
                 fallbacks += nf
                 fresh = True
             g = grad[free]
-            dx = -self.solver.solve(g)
+            dx = -self._direction(g, x, x_prev, u)
             if not np.isfinite(dx).all():
                 raise SimulationError("non-finite Newton step", k)
             norm = np.abs(dx).max()
@@ -196,7 +196,7 @@ class NewtonSolver:
                 n_fact += 1
                 fallbacks += nf
                 fresh = True
-                dx = -self.solver.solve(g)
+                dx = -self._direction(g, x, x_prev, u)
                 norm = np.abs(dx).max()
             kind = ("newton" if exact else None) if fresh else "chord"
             if self._converged(norm, prev_norm, kind, prev_kind):
@@ -259,6 +259,12 @@ class NewtonSolver:
             fresh, prev_norm = False, alpha * norm
         raise SimulationError(f"Newton did not converge in {opt.max_iter} iterations "
                               f"(last |dx| = {norm:.3e} m)", k)
+
+    def _direction(self, g, x, x_prev, u) -> np.ndarray:
+        """The model Hessian's inverse applied to the free gradient ``g`` at ``x``: the held
+        factorisation's solve (a hook for studies of other models, e.g.
+        benchmarks/study_lowrank_chord.py)."""
+        return self.solver.solve(g)
 
     def _initial_guess(self, xt, x_prev, x_prev2, x_prev3, u, fixed_src):
         """``x~`` or, with ``x_{k-3}`` and ``extrapolation=2``, the constant-acceleration guess if
