@@ -236,6 +236,41 @@ def test_symmetric_keyframes_respect_both_mirror_ranges():
     assert all(np.all(z <= hi + 1e-15) for z in p.seeds(3))
 
 
+def test_prep_eases_from_the_rest_contraction_when_u_min_is_positive():
+    """A motor whose range excludes 0 (pre-tensioned cable) starts its prep at u_min, not at 0:
+    every control of every step stays in range, and the controls stay affine with the same
+    exact dudz (the offset is the z-independent part)."""
+    bounds = np.array([[0.004, 0.012], [0.004, 0.012], [-0.002, 0.01]])
+    p = GaitParameterization(bounds, np.array([1, 0, 2]), n_prep=6, n_cycle=8)
+    assert np.allclose(p.u_start, [0.004, 0.004, 0.0])
+    lo, hi = p.bounds()
+    rng = np.random.default_rng(3)
+    for z in [lo, hi, *p.seeds(4, rng), lo + rng.uniform(size=p.nz) * (hi - lo)]:
+        u = p.controls(z)
+        assert (u >= bounds[:, 0] - 1e-15).all() and (u <= bounds[:, 1] + 1e-15).all()
+        assert np.allclose(u, p.offset() + p.dudz() @ z, atol=1e-15)
+    u = p.controls(hi)
+    ease0 = float(1 - (1 / 6) ** 2 * (3 - 2 / 6))           # weight of u_start at prep step 0
+    assert np.allclose(u[0, :2], ease0 * 0.004 + (1 - ease0) * 0.012)
+    assert np.allclose(p.offset()[p.n_prep:], 0.0) and np.allclose(p.offset()[:, 2], 0.0)
+
+
+def test_simulator_hooks_start_at_the_rest_contraction():
+    """The bare-simulator hooks start where the environments do: at rest with u = u_start."""
+    import dataclasses
+
+    from soft_envs.sim import load_robot
+    from trajopt.hooks import SimulatorHooks
+
+    robot = load_robot("tripod")
+    motors = tuple(dataclasses.replace(m, u_min=0.002) for m in robot.motors)
+    hooks = SimulatorHooks(dataclasses.replace(robot, motors=motors))
+    assert np.allclose(hooks.u_start, 0.002)
+    x0, _ = hooks.reset_state()
+    assert np.allclose(x0, hooks.simulator.rest_state(hooks.u_start))
+    assert not np.allclose(x0, hooks.simulator.rest_state())
+
+
 def test_gauss_newton_resume_keeps_the_rejection_count():
     """A run interrupted inside a streak of rejected steps resumes that streak: with
     max_rejections = 3 and 2 rejections already made, one more rejection stops it."""

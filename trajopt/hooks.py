@@ -18,7 +18,8 @@ __all__ = ["SimulatorHooks", "as_hooks", "make_hooks"]
 
 
 class SimulatorHooks:
-    """Gradient hooks on a bare simulator: rollouts start at rest (``rest_state``)."""
+    """Gradient hooks on a bare simulator: rollouts start at rest (``rest_state`` with every
+    motor at 0 clipped into its range, as the environments start)."""
 
     def __init__(self, robot: Robot, dt: float = 0.033, incline_deg: float = 0.0,
                  heading_deg: float = 0.0, control: str = "length"):
@@ -42,7 +43,7 @@ class SimulatorHooks:
 
     def reset_state(self) -> tuple[np.ndarray, np.ndarray]:
         if self._x0 is None:
-            self._x0 = self._sim.rest_state()
+            self._x0 = self._sim.rest_state(self.u_start)
         return self._x0.copy(), self._x0.copy()
 
     def rollout(self, u: np.ndarray, dudz: np.ndarray | None = None, *, store_dxdz: bool = False) -> Trajectory:
@@ -56,11 +57,17 @@ class SimulatorHooks:
     def set_state(self, state: dict[str, Any]) -> None:
         self._x0 = np.array(state["x"])
 
+    @property
+    def u_start(self) -> np.ndarray:
+        """(n_motors,) contractions of the rest state: 0 clipped into each motor's range."""
+        b = self.robot.u_bounds
+        return np.clip(0.0, b[:, 0], b[:, 1])
+
     def com(self) -> np.ndarray:
         return self.robot.com(self.reset_state()[0])
 
     def cable_deformation(self) -> np.ndarray:
-        return self._sim.cable_deformation(self.reset_state()[0], np.zeros(self.robot.n_motors))
+        return self._sim.cable_deformation(self.reset_state()[0], self.u_start)
 
 
 def as_hooks(env_or_robot: Any, *, incline_deg: float = 0.0, heading_deg: float = 0.0):

@@ -48,12 +48,17 @@ class GaitProblem:
         self.target = target
         self.weights = weights
         self.dudz = param.dudz(2)
+        self.u_offset = param.offset(2)
         self.sim_steps = 0
         self.rollouts = 0
         self.last_traj = None
 
+    def controls(self, z: np.ndarray) -> np.ndarray:
+        """Controls (K, n_motors) of the two-cycle problem for parameters z."""
+        return self.u_offset + self.dudz @ z
+
     def __call__(self, z: np.ndarray, need_jac: bool = True):
-        u = self.dudz @ z
+        u = self.controls(z)
         traj = self.hooks.rollout(u, dudz=self.dudz if need_jac else None)
         self.sim_steps += len(u)
         self.rollouts += 1
@@ -172,7 +177,7 @@ def optimize_gait(env: Any, task: str = "walk", *, speed_bl_per_min: float | Non
     t_start = time.perf_counter()
 
     def make_result(z, status, hist) -> Result:
-        u = problem.dudz @ z
+        u = problem.controls(z)
         return Result(robot=name, task=task, motor_names=robot.motor_names, dt=hooks.dt, z=z, u=u,
                       u_post=u.copy(), target=tgt, com=np.zeros((K + 1, 3)),
                       settings={**settings, "keyframes": param.keyframes(z).tolist()},
@@ -191,7 +196,7 @@ def optimize_gait(env: Any, task: str = "walk", *, speed_bl_per_min: float | Non
     gn = gauss_newton(problem, z_start, lo, hi, options, callback=on_iteration, lam=lam,
                       first_iteration=first, rejections=rejections)
     z = gn.z
-    traj = problem.last_traj if problem.last_traj is not None else hooks.rollout(problem.dudz @ z)
+    traj = problem.last_traj if problem.last_traj is not None else hooks.rollout(problem.controls(z))
     result = make_result(z, gn.status, history)
     result.com = traj.com
     result.u_post = zero_slack_controls(result.u, traj.cable_deformation, robot.tendon_motor, robot.u_bounds)

@@ -1,16 +1,20 @@
 """Control trajectories from a few keyframes (paper III-B, eq. 12).
 
 ``u = (u_prep, u_cycle, u_cycle)``: each motor's cycle is a periodic zero-tangent cubic Hermite
-spline through ``n_keyframes`` equally spaced keyframes; the preparatory phase eases from rest
-(u = 0) into the cycle's first value. With zero tangents the spline never leaves the range of
-its keyframes, so bounds on the keyframes z are bounds on u.
+spline through ``n_keyframes`` equally spaced keyframes; the preparatory phase eases from the
+rest contraction ``u_start`` (0 clipped into each motor's range, where the environments and
+:class:`trajopt.hooks.SimulatorHooks` start) into the cycle's first value. With zero tangents
+the spline never leaves the range of its keyframes, and the prep blends two in-range values, so
+bounds on the keyframes z are bounds on u.
 
 Tendon pairs share a motor (that is what a motor is in :class:`soft_envs.sim.Robot`).
 Bilateral symmetry: a motor's mirror motor plays the same signal shifted by half a period,
 which for an even number of keyframes is a rotation of its keyframes by ``n_keyframes / 2``;
 only one motor of each mirror pair then carries parameters.
 
-Everything here is linear in z: ``u = dudz . z``, and ``dudz`` is exact and constant.
+Everything here is affine in z: ``u = u_offset + dudz . z`` (:meth:`GaitParameterization.offset`
+is zero except in the prep phase of a motor whose range excludes 0), and ``dudz`` is exact and
+constant.
 """
 from __future__ import annotations
 
@@ -114,6 +118,11 @@ class GaitParameterization:
     def n_steps(self, n_cycles: int = 2) -> int:
         return self.n_prep + n_cycles * self.n_cycle
 
+    @property
+    def u_start(self) -> np.ndarray:
+        """(n_motors,) contraction at rest: 0 clipped into each motor's range [u_min, u_max]."""
+        return np.clip(0.0, self.u_bounds[:, 0], self.u_bounds[:, 1])
+
     # ------------------------------------------------------------------ maps
     def keyframes(self, z: np.ndarray) -> np.ndarray:
         """(n_motors, n_keyframes) keyframes of every motor."""
@@ -128,15 +137,22 @@ class GaitParameterization:
         P = self._P.reshape(self.n_motors, self.n_keyframes, self.nz)
         return np.einsum("kj,mjz->kmz", steps, P)
 
+    def offset(self, n_cycles: int = 2) -> np.ndarray:
+        """(K, n_motors) part of the controls that does not depend on z: the prep phase's
+        ``(1 - ease) u_start`` (zero for motors whose range contains 0), zero in the cycles."""
+        out = np.zeros((self.n_steps(n_cycles), self.n_motors))
+        out[: self.n_prep] = (1.0 - prep_ease(self.n_prep))[:, None] * self.u_start[None, :]
+        return out
+
     def controls(self, z: np.ndarray, n_cycles: int = 2) -> np.ndarray:
-        """(n_prep + n_cycles n_cycle, n_motors) controls for parameters z."""
-        return self.dudz(n_cycles) @ self._check_z(z)
+        """(n_prep + n_cycles n_cycle, n_motors) controls ``offset + dudz . z`` for parameters z."""
+        return self.offset(n_cycles) + self.dudz(n_cycles) @ self._check_z(z)
 
     # ------------------------------------------------------------------ bounds and starts
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds on z (= bounds on u in the cycles thanks to the zero tangents; with symmetry,
-        the intersection of a motor's and its mirror's ranges). The prep phase eases from
-        u = 0, so it respects the bounds when u_min <= 0 (true of the shipped robots)."""
+        the intersection of a motor's and its mirror's ranges). The prep phase blends
+        ``u_start`` and the cycle's first value, both in range, so it respects them too."""
         lo = np.repeat(self._zbounds[:, 0], self.n_keyframes)
         hi = np.repeat(self._zbounds[:, 1], self.n_keyframes)
         return lo, hi
