@@ -28,7 +28,7 @@ from gymnasium import spaces
 from ..sim import Robot, SimulationError, Simulator, Trajectory, incline_gravity, load_robot
 from .domain import parse_domain_randomization, randomized_robot, sample_factors
 from ..sim.kinematics import BodyFrame, heading_vector, tilt_deg_of, wrap_angle, yaw_of
-from .viewer import EnvViewer, cable_polylines
+from .viewer import EnvViewer, RenderingMixin
 
 __all__ = ["SoftRobotEnv", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM"]
 
@@ -37,7 +37,7 @@ MOTOR_NO_LOAD_RPM = 100.0           # Pololu 298:1 micro metal gearmotor, no-loa
 _TRAIL_LENGTH = 3000                # COM trail points kept for rendering
 
 
-class SoftRobotEnv(gym.Env[np.ndarray, np.ndarray]):
+class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
     """A cable-driven soft robot on the ground plane (see the module docstring and the
     per-robot subclasses for the specification)."""
 
@@ -380,33 +380,6 @@ class SoftRobotEnv(gym.Env[np.ndarray, np.ndarray]):
     def cable_deformation(self) -> np.ndarray:
         """Current cable deformation Gamma (T,) [m] per tendon (> 0: stretched, < 0: slack)."""
         return self._sim.cable_deformation(self._x, self._u)
-
-    # ------------------------------------------------------------------ rendering
-    def render(self) -> np.ndarray | None:
-        if self.render_mode is None:
-            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' "
-                            "or 'human' to gymnasium.make")
-            return None
-        frame = self._render_frame()
-        if self.render_mode == "rgb_array":
-            return frame
-        self._viewer.show(frame)
-        return None
-
-    def _render_frame(self) -> np.ndarray:
-        if self._viewer is None:
-            self._viewer = EnvViewer(self._base_robot.mesh.surface, width=self._width, height=self._height,
-                                     body_length=self._body_length, fps=self.metadata["render_fps"],
-                                     camera_config=self._camera_config)
-        cables = cable_polylines(self.robot, self._x, self._sim.cable_tension(self._x, self._u))
-        return self._viewer.frame(self._x, cables=cables, com_trail=np.array(self._trail),
-                                  gravity=self._gravity,
-                                  title=f"{self.robot.name}  t = {self._n_sub * self._timestep:.2f} s")
-
-    def close(self) -> None:
-        if self._viewer is not None:
-            self._viewer.close()
-        self._viewer = None
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..sim import Robot
 
-__all__ = ["EnvViewer", "cable_polylines"]
+__all__ = ["EnvViewer", "RenderingMixin", "cable_polylines"]
 
 _NON_INTERACTIVE = {"agg", "pdf", "ps", "svg", "pgf", "cairo", "template"}
 _warned_headless = False
@@ -78,3 +78,38 @@ class EnvViewer:
             import matplotlib.pyplot as plt
             plt.close(self._window[0])
             self._window = None
+
+
+class RenderingMixin:
+    """``render`` and ``close`` of :class:`soft_envs.envs.base.SoftRobotEnv` (Gymnasium API).
+
+    Uses the environment's ``render_mode``, ``metadata``, ``robot``, ``_viewer`` (None until
+    the first frame), ``_base_robot``, ``_width``, ``_height``, ``_body_length``,
+    ``_camera_config``, ``_sim``, ``_x``, ``_u``, ``_trail``, ``_gravity``, ``_n_sub`` and
+    ``_timestep``."""
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' "
+                            "or 'human' to gymnasium.make")
+            return None
+        frame = self._render_frame()
+        if self.render_mode == "rgb_array":
+            return frame
+        self._viewer.show(frame)
+        return None
+
+    def _render_frame(self) -> np.ndarray:
+        if self._viewer is None:
+            self._viewer = EnvViewer(self._base_robot.mesh.surface, width=self._width, height=self._height,
+                                     body_length=self._body_length, fps=self.metadata["render_fps"],
+                                     camera_config=self._camera_config)
+        cables = cable_polylines(self.robot, self._x, self._sim.cable_tension(self._x, self._u))
+        return self._viewer.frame(self._x, cables=cables, com_trail=np.array(self._trail),
+                                  gravity=self._gravity,
+                                  title=f"{self.robot.name}  t = {self._n_sub * self._timestep:.2f} s")
+
+    def close(self) -> None:
+        if self._viewer is not None:
+            self._viewer.close()
+        self._viewer = None
