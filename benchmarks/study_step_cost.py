@@ -4,7 +4,8 @@ The issue's target is a step of at most 2.5 factorisations' worth of time. For t
 of bench_sim.py and for speed-limited random controls, this script prints
   1. where a step's time goes, each part in units of one numeric factorisation of that robot's
      Hessian: factorisations, Hessian assemblies, gradient evaluations, solves, and the rest
-     (Python, the initial guess, line-search bookkeeping). It also prints the cost of an
+     (Python, line-search bookkeeping; the energies of the initial guesses are a column of
+     their own; failed Cholesky attempts count as factorisations). It also prints the cost of an
      ideal step, one factorisation with its Hessian plus three gradients and three solves (a
      Newton step from a perfect prediction, as a linear problem would need), with this
      machine's kernels;
@@ -14,8 +15,8 @@ of bench_sim.py and for speed-limited random controls, this script prints
   3. a sweep of the blend widths (cables, contact): Newton iterations and factorisations per
      step, and the distance the gait moves the body (the physics changes with the blend).
 Measured (2026-11-22): on the gait a step costs 8.3-9.4 (Tripod) and 6.5-7.0 (Puppy)
-factorisations, of which the 2.4-2.8 factorisations themselves are 2.5-3.0; with random
-controls 16-19. The ideal step costs 2.2-2.5: the target leaves no room for a second
+factorisations, of which the 2.4-2.8 factorisations themselves are 2.5-3.7; with random
+controls 16-22. The ideal step costs 2.2-2.7: the target leaves no room for a second
 factorisation or for the line search. 62-98 % of the taut cable steps and 83-100 % of the
 contacts are in the blend. Blend widths from 0.1x to 5x give 1.8-3.0 factorisations per step.
 Run: python benchmarks/study_step_cost.py
@@ -59,7 +60,7 @@ def timed_parts(sim: Simulator, u: np.ndarray) -> dict:
     wrap(newton.solver, "solve", lambda a, k: "solve")
     wrap(newton, "phi_assemble",
          lambda a, k: "hessian" if k.get("want_hess", True) else "gradient")
-    wrap(newton, "phi", lambda a, k: "gradient")     # energies of the initial guesses
+    wrap(newton, "phi", lambda a, k: "energy")       # energies of the initial guesses
     t0 = time.perf_counter()
     sim.rollout(u, x0=sim.rest_state())
     wall = time.perf_counter() - t0
@@ -86,12 +87,13 @@ def cost_rows(name: str, kind: str, sim: Simulator, u: np.ndarray) -> dict:
     tf = factorize_time(sim)
     unit = {k: v[0] / tf for k, v in p.items()}
     per_call = {k: v[0] / max(v[1], 1e-12) / tf for k, v in p.items()}
-    known = sum(unit.get(k, 0.0) for k in ("factorize", "hessian", "gradient", "solve"))
+    known = sum(unit.get(k, 0.0) for k in ("factorize", "hessian", "gradient", "energy", "solve"))
     ideal = 1.0 + per_call.get("hessian", 0.0) + 3 * per_call.get("gradient", 0.0) + 3 * per_call.get("solve", 0.0)
     return {"robot": name, "controls": kind, "step": unit["step"],
             "factorize": unit.get("factorize", 0.0), "hessian": unit.get("hessian", 0.0),
-            "gradient": unit.get("gradient", 0.0), "solve": unit.get("solve", 0.0),
-            "rest": unit["step"] - known, "factorizations_per_step": p.get("factorize", (0, 0))[1],
+            "gradient": unit.get("gradient", 0.0), "energy": unit.get("energy", 0.0),
+            "solve": unit.get("solve", 0.0), "rest": unit["step"] - known,
+            "factorize_calls_per_step": p.get("factorize", (0, 0))[1],      # failed ones included
             "ideal_step": ideal, "factorize_ms": 1e3 * tf}
 
 

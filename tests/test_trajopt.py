@@ -269,6 +269,10 @@ def test_simulator_hooks_start_at_the_rest_contraction():
     x0, _ = hooks.reset_state()
     assert np.allclose(x0, hooks.simulator.rest_state(hooks.u_start))
     assert not np.allclose(x0, hooks.simulator.rest_state())
+    from soft_envs.envs.base import SoftRobotEnv
+    env = SoftRobotEnv(hooks.robot, reset_noise_scale=0.0)
+    env.reset(seed=0)
+    assert np.allclose(env.get_state()["x"], x0, atol=1e-12)
 
 
 def test_gauss_newton_resume_keeps_the_rejection_count():

@@ -55,7 +55,10 @@ class LUSolver:
 
 
 class CholmodSolver:
-    """CHOLMOD Cholesky with the symbolic analysis of the pattern done once."""
+    """CHOLMOD Cholesky with the symbolic analysis of the pattern done once.
+
+    Not thread-safe: values and 1-D right-hand sides pass through buffers owned by the solver
+    (use one solver per thread; the environments' vector modes use processes)."""
 
     def __init__(self, pattern: Pattern):
         self.pattern = pattern
@@ -76,6 +79,8 @@ class CholmodSolver:
         self._b_view = np.asarray(self._b)[:, 0]
 
     def factorize(self, data: np.ndarray) -> bool:
+        if len(data) < self.pattern.nnz:
+            raise ValueError(f"need {self.pattern.nnz} Hessian values, got {len(data)}")
         self._V_view[:] = data[: self.pattern.nnz]
         self._A.V = self._V          # copies the values into the sparse matrix
         try:
@@ -86,7 +91,11 @@ class CholmodSolver:
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^{-1} b`` for a vector ``(n,)`` or a block of columns ``(n, k)``; a new array."""
+        if np.iscomplexobj(b):
+            raise TypeError("CholmodSolver.solve needs a real right-hand side")
         if np.ndim(b) == 1:
+            if len(b) != self.pattern.n:
+                raise ValueError(f"right-hand side must have length {self.pattern.n}, got {len(b)}")
             self._b_view[:] = b
             _cholmod.solve(self._F, self._b)
             return self._b_view.copy()
