@@ -172,3 +172,19 @@ def test_newton_options_extrapolation_is_validated():
         NewtonOptions(extrapolation=3)
     with pytest.raises(ValueError, match="refactor_ratio"):
         NewtonOptions(refactor_ratio=1.5)
+
+
+def test_slow_chord_settings_still_stop():
+    """With refactor_ratio > 1/2 a chord step below tol can contract by more than 1/2 (too
+    slowly for the stopping rule to certify it): the solver must refresh, not loop until
+    max_iter (it did at step 6 of this gait with refactor_ratio 0.85, max_chord 16). The
+    states stay within the tolerance of the default solver's."""
+    from soft_envs.sim import load_robot
+    robot = load_robot("tripod")
+    sim = Simulator(robot)
+    slow = Simulator(robot, newton=NewtonOptions(refactor_ratio=0.85, max_chord=16.0))
+    x0 = sim.rest_state()
+    t = np.arange(30) * 0.033
+    u = 0.5 * robot.u_bounds[:, 1] * (1 - np.cos(2 * np.pi * t[:, None] / 2.4 + np.pi * np.arange(robot.n_motors)))
+    a, b = sim.rollout(u, x0=x0), slow.rollout(u, x0=x0)
+    assert np.abs(a.x - b.x).max() < 1e-6

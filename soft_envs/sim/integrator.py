@@ -307,13 +307,17 @@ class NewtonSolver:
         """Refresh the factorisation when a chord step contracts by less than
         ``refactor_ratio``, or when the contraction it does achieve would still need more than
         ``max_chord`` further steps to reach the tolerance (a fresh Newton step converges
-        quadratically: about two more)."""
+        quadratically: about two more). A step already below ``tol`` that contracts by 1/2 or
+        less (possible when ``refactor_ratio > 1/2``) also refreshes: :meth:`_converged` could
+        never accept it."""
         if not np.isfinite(prev_norm) or prev_norm <= 0.0:
             return False
         rho = norm / prev_norm
         if rho > self.options.refactor_ratio:
             return True
-        if rho <= 1e-3 or norm <= self.options.tol:
+        if norm <= self.options.tol:
+            return rho >= 0.5       # the stopping rule cannot certify such a contraction
+        if rho <= 1e-3:
             return False
         return np.log(self.options.tol / norm) / np.log(rho) > self.options.max_chord
 
