@@ -9,7 +9,9 @@ Prints for each shipped robot (coarse and fine meshes):
     slow spell of the shared machine does not skew the ratio,
   * what a step is made of: factorisations, Hessian assemblies (with the projected fallbacks)
     and gradient evaluations per step, counted,
-  * the same factorisation with SuperLU (tuned options) and dense Cholesky for reference.
+  * the same factorisation with SuperLU (tuned options) and dense Cholesky for reference, and
+    the step in SuperLU factorisations (the unit DESIGN.md's performance notes start from).
+Why the CHOLMOD ratio stays far above 2.5: benchmarks/study_step_cost.py.
 Run: python benchmarks/bench_sim.py
 """
 from __future__ import annotations
@@ -72,7 +74,7 @@ def bench(name: str, path) -> dict:
             "factorizations_per_step": work["factorize"], "hessians_per_step": work["hessian"],
             "gradients_per_step": work["gradient"],
             "factorize_ms": 1e3 * t_fact, "step_over_factorize": t_step / t_fact,
-            "splu_ms": 1e3 * t_lu, "dense_chol_ms": 1e3 * t_dense}
+            "splu_ms": 1e3 * t_lu, "step_over_splu": t_step / t_lu, "dense_chol_ms": 1e3 * t_dense}
 
 
 def main() -> None:
