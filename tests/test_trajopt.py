@@ -273,6 +273,8 @@ def test_simulator_hooks_start_at_the_rest_contraction():
     env = SoftRobotEnv(hooks.robot, reset_noise_scale=0.0)
     env.reset(seed=0)
     assert np.allclose(env.get_state()["x"], x0, atol=1e-12)
+    traj = hooks.rollout(np.full((3, robot.n_motors), 0.002))
+    assert np.allclose(traj.cable_deformation[0], hooks.cable_deformation())
 
 
 def test_gauss_newton_resume_keeps_the_rejection_count():

@@ -60,8 +60,7 @@ class SimulatorHooks:
     @property
     def u_start(self) -> np.ndarray:
         """(n_motors,) contractions of the rest state: 0 clipped into each motor's range."""
-        b = self.robot.u_bounds
-        return np.clip(0.0, b[:, 0], b[:, 1])
+        return self._sim.rest_controls()
 
     def com(self) -> np.ndarray:
         return self.robot.com(self.reset_state()[0])
