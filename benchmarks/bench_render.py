@@ -7,29 +7,17 @@ Run: python benchmarks/bench_render.py
 """
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
 from common import best_of, report
 from soft_envs.render import Renderer, surface_triangles
+from soft_envs.sim.meshgen import graded, voxel_tet_mesh
 
 
 def block(nx: int = 12, ny: int = 3, nz: int = 4, size=(0.12, 0.03, 0.04)) -> tuple[np.ndarray, np.ndarray]:
     """Points and (6 per cube) tets of a block resting on y = 0."""
-    xs, ys = np.linspace(0, size[0], nx + 1), np.linspace(0, size[1], ny + 1)
-    zs = np.linspace(-size[2] / 2, size[2] / 2, nz + 1)
-    pts = np.stack([a.ravel() for a in np.meshgrid(xs, ys, zs, indexing="ij")], axis=1)
-    idx = np.arange(len(pts)).reshape(nx + 1, ny + 1, nz + 1)
-    tets = []
-    for i, j, k in itertools.product(range(nx), range(ny), range(nz)):
-        for perm in itertools.permutations(range(3)):
-            cur, path = [0, 0, 0], [idx[i, j, k]]
-            for ax in perm:
-                cur[ax] = 1
-                path.append(idx[i + cur[0], j + cur[1], k + cur[2]])
-            tets.append(path)
-    return pts, np.array(tets)
+    return voxel_tet_mesh(graded(0, size[0], nx), graded(0, size[1], ny), graded(-size[2] / 2, size[2] / 2, nz),
+                          np.ones((nx, ny, nz), dtype=bool))
 
 
 def frames_per_second(tris: np.ndarray, states: list[np.ndarray], body_length: float, extras: bool) -> float:

@@ -4,8 +4,8 @@ The issue's target is a step of at most 2.5 factorisations' worth of time. For t
 of bench_sim.py and for speed-limited random controls, this script prints
   1. where a step's time goes, each part in units of one numeric factorisation of that robot's
      Hessian: factorisations, Hessian assemblies, gradient evaluations, solves, and the rest
-     (Python, line-search bookkeeping; the energies of the initial guesses are a column of
-     their own; failed Cholesky attempts count as factorisations). It also prints the cost of an
+     (Python, line-search bookkeeping; "energy" counts energy-only evaluations, which the
+     solver needs only rarely; failed Cholesky attempts count as factorisations). It also prints the cost of an
      ideal step, one factorisation with its Hessian plus three gradients and three solves (a
      Newton step from a perfect prediction, as a linear problem would need), with this
      machine's kernels;
@@ -60,7 +60,7 @@ def timed_parts(sim: Simulator, u: np.ndarray) -> dict:
     wrap(newton.solver, "solve", lambda a, k: "solve")
     wrap(newton, "phi_assemble",
          lambda a, k: "hessian" if k.get("want_hess", True) else "gradient")
-    wrap(newton, "phi", lambda a, k: "energy")       # energies of the initial guesses
+    wrap(newton, "phi", lambda a, k: "energy")       # energy-only evaluations
     t0 = time.perf_counter()
     sim.rollout(u, x0=sim.rest_state())
     wall = time.perf_counter() - t0

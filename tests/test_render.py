@@ -9,30 +9,15 @@ import pytest
 from PIL import Image
 
 from soft_envs.render import Renderer, surface_triangles, write_animation
+from soft_envs.sim.meshgen import graded, voxel_tet_mesh
 
 W, H = 240, 180
 
 
 def box_mesh(nx: int = 4, ny: int = 2, nz: int = 2, size=(0.1, 0.03, 0.05)) -> tuple[np.ndarray, np.ndarray]:
     """A block of nx*ny*nz cubes, each split into 6 positively oriented tets (Kuhn), resting on y = 0."""
-    xs, ys = np.linspace(0, size[0], nx + 1), np.linspace(0, size[1], ny + 1)
-    zs = np.linspace(-size[2] / 2, size[2] / 2, nz + 1)
-    pts = np.stack([a.ravel() for a in np.meshgrid(xs, ys, zs, indexing="ij")], axis=1)
-    idx = np.arange(len(pts)).reshape(nx + 1, ny + 1, nz + 1)
-    tets = []
-    for i, j, k in itertools.product(range(nx), range(ny), range(nz)):
-        for perm in itertools.permutations(range(3)):
-            cur = [0, 0, 0]
-            path = [idx[i, j, k]]
-            for ax in perm:
-                cur[ax] = 1
-                path.append(idx[i + cur[0], j + cur[1], k + cur[2]])
-            tets.append(path)
-    tets = np.array(tets)
-    a, b, c, d = (pts[tets[:, n]] for n in range(4))
-    neg = np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) < 0
-    tets[neg] = tets[neg][:, [0, 2, 1, 3]]
-    return pts, tets
+    return voxel_tet_mesh(graded(0, size[0], nx), graded(0, size[1], ny), graded(-size[2] / 2, size[2] / 2, nz),
+                          np.ones((nx, ny, nz), dtype=bool))
 
 
 def outward(points: np.ndarray, faces: np.ndarray, centre: np.ndarray) -> np.ndarray:

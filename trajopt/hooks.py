@@ -59,8 +59,8 @@ class SimulatorHooks:
 
     @property
     def u_start(self) -> np.ndarray:
-        """(n_motors,) contractions of the rest state: 0 clipped into each motor's range."""
-        return self._sim.rest_controls()
+        """(n_motors,) contractions of the rest state: ``robot.u_rest``."""
+        return self.robot.u_rest
 
     def com(self) -> np.ndarray:
         return self.robot.com(self.reset_state()[0])

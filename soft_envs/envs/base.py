@@ -118,7 +118,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         r = self._base_robot
         self._lo, self._hi = r.u_bounds[:, 0].copy(), r.u_bounds[:, 1].copy()
         self._range = self._hi - self._lo
-        self._u_start = np.clip(0.0, self._lo, self._hi)
+        self._u_start = r.u_rest
         radius = np.array([m.spool_radius for m in r.motors])
         rpm = math.inf if motor_speed_rpm is None else float(motor_speed_rpm)
         self.motor_speed = rpm * 2.0 * math.pi / 60.0 * radius            # (M,) [m/s]

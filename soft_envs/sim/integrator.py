@@ -163,8 +163,7 @@ class NewtonSolver:
         free = sys.free if len(sys.free) < sys.n_dof else slice(None)    # views when nothing is fixed
         xt = 2.0 * x_prev - x_prev2
         fixed_src = x_prev if x_fixed is None else x_fixed
-        x = self._initial_guess(xt, x_prev, x_prev2, x_prev3, u, fixed_src)
-        phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
+        x, phi_x, grad = self._initial_guess(xt, x_prev, x_prev2, x_prev3, u, fixed_src)
         if not np.isfinite(phi_x):
             x = x_prev.copy()
             if len(sys.free) < sys.n_dof:
@@ -267,20 +266,24 @@ class NewtonSolver:
         return self.solver.solve(g)
 
     def _initial_guess(self, xt, x_prev, x_prev2, x_prev3, u, fixed_src):
-        """``x~`` or, with ``x_{k-3}`` and ``extrapolation=2``, the constant-acceleration guess if
-        its Phi is lower (after abrupt control changes x~ is often the better one)."""
+        """``(x, Phi, dPhi/dx)`` of ``x~`` or, with ``x_{k-3}`` and ``extrapolation=2``, of the
+        constant-acceleration guess if its Phi is lower (after abrupt control changes x~ is
+        often the better one). Each candidate's Phi comes with its gradient, so the chosen one
+        is not evaluated again."""
         sys = self.system
         x = xt.copy()
         fixed = len(sys.free) < sys.n_dof
         if fixed:
             x.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
+        phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
         if x_prev3 is not None and self.options.extrapolation == 2:
             x2 = np.ascontiguousarray(3.0 * (x_prev - x_prev2) + x_prev3)   # C order: reshape is a view
             if fixed:
                 x2.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
-            if self.phi(x2, xt, x_prev, u) < self.phi(x, xt, x_prev, u):
-                return x2
-        return x
+            phi_2, grad_2, _ = self.phi_assemble(x2, xt, x_prev, u, want_hess=False)
+            if phi_2 < phi_x:
+                return x2, phi_2, grad_2
+        return x, phi_x, grad
 
     def _converged(self, norm: float, prev_norm: float, kind, prev_kind) -> bool:
         """Whether taking the step of size ``norm`` ends the iteration (module docstring).

@@ -18,9 +18,9 @@ small strains reproduce linear elasticity with Young's modulus E and Poisson rat
 
 All kernels are numba ``@njit(cache=True)``; the small per-element helpers are inlined at
 numba's level (``inline="always"``: the gradient and energy kernels run 20-40 % faster, as
-LLVM then sees that F and friends cannot alias the inputs); ``fem_assemble`` adds each element's gradient
-into a dense vector and its Hessian into the values of a fixed sparse pattern through a
-precomputed scatter map (see :mod:`soft_envs.sim.system`).
+LLVM then sees that F and friends cannot alias the inputs); ``fem_assemble`` adds each
+element's gradient into a dense vector and its Hessian into the values of a fixed sparse
+pattern through a precomputed scatter map (see :mod:`soft_envs.sim.system`).
 """
 from __future__ import annotations
 

@@ -37,7 +37,7 @@ def boundary_faces(tets: np.ndarray, points: np.ndarray | None = None) -> np.nda
     # For a positively oriented tet (0,1,2,3) these faces have outward normals.
     local = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
     faces = tets[:, local].reshape(-1, 3)
-    opposite = tets[:, [0, 1, 2, 3]].reshape(-1)
+    opposite = tets.reshape(-1)                  # face i of a tet is opposite its vertex i
     if len(faces) == 0:
         return np.zeros((0, 3), dtype=np.int64)
     _, first, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)

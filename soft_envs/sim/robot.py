@@ -261,6 +261,13 @@ class Robot:
         """(n_motors, 2) lower and upper contraction bounds [m]."""
         return np.array([[m.u_min, m.u_max] for m in self.motors], dtype=np.float64).reshape(-1, 2)
 
+    @property
+    def u_rest(self) -> np.ndarray:
+        """(n_motors,) contractions at rest [m]: 0 clipped into each motor's [u_min, u_max]
+        (where the environments, trajopt's hooks and its prep phase start)."""
+        b = self.u_bounds
+        return np.clip(0.0, b[:, 0], b[:, 1])
+
     @cached_property
     def node_masses(self) -> np.ndarray:
         """Lumped masses [kg]: density * volume / 4 per tet node plus the payload spread evenly

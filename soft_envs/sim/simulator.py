@@ -28,9 +28,9 @@ class Trajectory:
     """Result of :meth:`Simulator.rollout` (K steps, K+1 states; index 0 is the initial state).
 
     ``x`` (K+1, n, 3) positions; ``com`` (K+1, 3); ``cable_deformation`` (K+1, T) Gamma per
-    tendon (entry 0 with the motors at :meth:`Simulator.rest_controls`); ``u`` (K, n_motors) the controls; ``newton_iterations`` (K,). With ``dudz``:
-    ``dcomdz`` (K+1, 3, nz), ``dgammadz`` (K+1, T, nz) and, when requested, ``dxdz``
-    (K+1, 3n, nz)."""
+    tendon (entry 0 with the motors at ``robot.u_rest``); ``u`` (K, n_motors) the controls;
+    ``newton_iterations`` (K,). With ``dudz``: ``dcomdz`` (K+1, 3, nz), ``dgammadz``
+    (K+1, T, nz) and, when requested, ``dxdz`` (K+1, 3n, nz)."""
 
     x: np.ndarray
     com: np.ndarray
@@ -87,12 +87,6 @@ class Simulator:
     @property
     def n_nodes(self) -> int:
         return self.robot.mesh.n_nodes
-
-    def rest_controls(self) -> np.ndarray:
-        """(n_motors,) contractions at rest: 0 clipped into each motor's [u_min, u_max] (where
-        the environments and trajopt's hooks start)."""
-        b = self.robot.u_bounds
-        return np.clip(0.0, b[:, 0], b[:, 1])
 
     # ------------------------------------------------------------------ validation
     def _check_u(self, u, K: int | None = None) -> np.ndarray:
@@ -191,7 +185,7 @@ class Simulator:
         xs = np.empty((K + 1, self.n_nodes, 3))
         xs[0] = x0
         gam = np.empty((K + 1, len(sysm.alpha0)))
-        gam[0] = sysm.cable_deformation(x0, self.rest_controls())      # before the first control
+        gam[0] = sysm.cable_deformation(x0, self.robot.u_rest)      # before the first control
         iters = np.zeros(K, dtype=np.int64)
         sens = dudz is not None
         if sens:
