@@ -18,6 +18,17 @@ def gait_controls(robot, K: int = 168, dt: float = 0.033, period_steps: int = 72
     return u
 
 
+def random_controls(robot, K: int, seed: int = 0, rate: float = 0.15) -> np.ndarray:
+    """Random targets within the motor ranges, approached at ``rate`` times the range per step
+    (a speed limit, like the environments' motors)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = robot.u_bounds[:, 0], robot.u_bounds[:, 1]
+    u = [lo.copy()]
+    for _ in range(K - 1):
+        u.append(u[-1] + np.clip(rng.uniform(lo, hi) - u[-1], -rate * (hi - lo), rate * (hi - lo)))
+    return np.array(u)
+
+
 def best_of(f, repeat: int = 5, number: int = 1) -> float:
     """Minimum over ``repeat`` runs of the mean time of ``number`` calls (seconds)."""
     f()

@@ -30,9 +30,8 @@ import numpy as np
 
 import soft_envs.sim.integrator as integrator
 import soft_envs.sim.linsolve as linsolve
-from common import best_of, gait_controls, report
+from common import best_of, gait_controls, random_controls, report
 from soft_envs.sim import Simulator, load_robot
-from study_lowrank_chord import random_controls
 
 
 def timed_parts(sim: Simulator, u: np.ndarray) -> dict:
@@ -98,17 +97,17 @@ def cost_rows(name: str, kind: str, sim: Simulator, u: np.ndarray) -> dict:
 
 
 def regime_row(name: str, sim: Simulator, u: np.ndarray) -> dict:
-    s = sim.system
+    cables, contact = sim.system.cables, sim.system.contact
     traj = sim.rollout(u, x0=sim.rest_state())
     gam = traj.cable_deformation[1:]
     taut = gam > 0
-    pen = -traj.x[1:, s.contact_nodes, 1]
+    pen = -traj.x[1:, contact.nodes, 1]
     touching = pen > 0
     return {"robot": name, "taut_cable_steps": float(taut.mean()),
-            "taut_in_blend": float((taut & (gam < s.eps_cable)).sum() / max(taut.sum(), 1)),
+            "taut_in_blend": float((taut & (gam < cables.blend)).sum() / max(taut.sum(), 1)),
             "contacts_per_step": float(touching.sum(1).mean()),
-            "contacts_in_blend": float((touching & (pen < s.eps_n)).sum() / max(touching.sum(), 1)),
-            "cable_blend_mm": 1e3 * s.eps_cable, "contact_blend_mm": 1e3 * s.eps_n}
+            "contacts_in_blend": float((touching & (pen < contact.eps_n)).sum() / max(touching.sum(), 1)),
+            "cable_blend_mm": 1e3 * cables.blend, "contact_blend_mm": 1e3 * contact.eps_n}
 
 
 def blend_rows(name: str, u: np.ndarray) -> list[dict]:

@@ -97,11 +97,13 @@ def test_inverted_element_has_infinite_energy():
     assert element_energy(x, np.arange(4), dNe, 1 / 6, mu, lam) == np.inf
 
 
-@pytest.mark.parametrize("case", ["taut_cable_contact_friction", "cable_in_blend", "slack_cable",
-                                  "contact_in_blend", "tension_control", "fixed_nodes", "incline"])
-def test_total_energy_gradient_and_hessian(case):
-    """Gradient and Hessian of the whole potential E(x; u, x_prev) for each term and regime."""
-    rng = np.random.default_rng(abs(hash(case)) % 2**32)
+CASES = ["taut_cable_contact_friction", "cable_in_blend", "slack_cable", "contact_in_blend",
+         "tension_control", "fixed_nodes", "incline"]
+
+
+def perturbed_state(case: str):
+    """``(sim, x, x_prev, u, rng)`` for one regime of the energy terms (see CASES)."""
+    rng = np.random.default_rng(CASES.index(case))
     kw, control, gravity = {}, "length", (0.0, -9.81, 0.0)
     if case == "fixed_nodes":
         kw["fixed_nodes"] = np.arange(3)
@@ -114,8 +116,8 @@ def test_total_energy_gradient_and_hessian(case):
     X = robot.mesh.points
     x = X + rng.normal(scale=5e-4, size=X.shape)
     x_prev = X + rng.normal(scale=5e-4, size=X.shape)
-    L0 = sim.system.alpha0[0]
-    L = sim.system.cable_lengths(x)[0]
+    L0 = sim.system.cables.alpha0[0]
+    L = sim.system.cables.lengths(x)[0]
     u = {"taut_cable_contact_friction": np.array([L0 - L + 2e-3]),   # Gamma = 2 mm
          "cable_in_blend": np.array([L0 - L + 1e-4]),                 # inside the C2 blend
          "slack_cable": np.array([L0 - L - 1e-3]),
@@ -124,6 +126,68 @@ def test_total_energy_gradient_and_hessian(case):
     depth = 2e-4 if case == "contact_in_blend" else 8e-4
     x[:, 1] -= depth
     x_prev[:, 1] -= depth * rng.uniform(0.2, 2.0, size=len(x))
+    return sim, x, x_prev, u, rng
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_every_term_derivatives_match_finite_differences(case):
+    """Each energy term on its own (the list in EnergySystem.terms, so a new term is checked
+    without a new test): gradient vs central differences of its energy, Hessian vs differences
+    of its gradient, the control Jacobian d(grad)/du vs differences in u, and the lagged
+    product d(grad)/dx_prev @ S (and its transpose) vs differences in x_prev. Relative error
+    <= RTOL = 1e-5 with h = 1e-7 (m or the control's unit)."""
+    sim, x, x_prev, u, rng = perturbed_state(case)
+    system = sim.system
+    n3 = system.n_dof
+    pat = system.pattern
+    free = system.free
+
+    def term_grad(term, y, yp=x_prev, uu=u):
+        g = np.zeros(n3)
+        h = np.zeros(pat.nnz + 1)
+        term.assemble(y, yp, uu, g, h, True)
+        return g, h
+
+    for term in system.terms:
+        g, h = term_grad(term, x)
+        E = lambda y: term.energy(y, x_prev, u)                               # noqa: E731
+        assert np.isclose(term.assemble(x, x_prev, u, np.zeros(n3), np.zeros(pat.nnz + 1), False),
+                          E(x), rtol=1e-13, atol=1e-300), term.name
+        assert fd_check(E, g.reshape(x.shape), x, rng) < RTOL, term.name
+        Hm = pat.full(h)                                                       # free dofs only
+        for _ in range(3):
+            d = np.zeros(x.shape)
+            d.reshape(-1)[free] = rng.normal(size=len(free))
+            d /= np.linalg.norm(d)
+            fd = (term_grad(term, x + H * d)[0] - term_grad(term, x - H * d)[0])[free] / (2 * H)
+            an = Hm @ d.reshape(-1)[free]
+            scale = max(np.linalg.norm(fd), 1e-12 * np.abs(h).max() + 1e-300)
+            assert np.linalg.norm(fd - an) / scale < RTOL, f"{term.name}: Hessian"
+        G = np.zeros((n3, len(u)))
+        term.add_control_jacobian(x, x_prev, u, G)
+        du = 1e-7 if sim.control == "length" else 1e-4
+        fd = (term_grad(term, x, uu=u + du)[0] - term_grad(term, x, uu=u - du)[0]) / (2 * du)
+        assert np.linalg.norm(fd - G[:, 0]) <= RTOL * max(np.linalg.norm(fd), 1e-300) + 1e-9, \
+            f"{term.name}: control Jacobian"
+        S = rng.normal(size=(n3, 2))
+        out = np.zeros_like(S)
+        term.add_prev_product(x, x_prev, u, S, out)
+        for j in range(2):
+            d = S[:, j].reshape(x.shape)
+            fd = (term_grad(term, x, yp=x_prev + H * d)[0] - term_grad(term, x, yp=x_prev - H * d)[0]) / (2 * H)
+            assert np.linalg.norm(fd - out[:, j]) <= RTOL * max(np.linalg.norm(fd), 1e-300) + 1e-9, \
+                f"{term.name}: d(grad)/dx_prev"
+        lam = rng.normal(size=n3)
+        outT = np.zeros(n3)
+        term.add_prev_product_T(x, x_prev, u, lam, outT)
+        assert np.isclose(lam @ out[:, 0], outT @ S[:, 0], rtol=1e-12, atol=1e-300), f"{term.name}: transpose"
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_total_energy_gradient_and_hessian(case):
+    """Gradient and Hessian of the whole potential E(x; u, x_prev) for each term and regime."""
+    sim, x, x_prev, u, rng = perturbed_state(case)
+    robot = sim.robot
     E = lambda y: sim.energy(y, x_prev, u)            # noqa: E731
     G = lambda y: sim.gradient(y, x_prev, u)          # noqa: E731
     g = G(x)
@@ -154,7 +218,6 @@ def test_total_energy_gradient_and_hessian(case):
 def test_friction_cross_derivative_matches_fd():
     """d(grad E)/d x_prev (the friction term's dependence on the previous state, through the
     displacement and through the normal force N_{k-1}) against central differences."""
-    from soft_envs.sim.contact import friction_cross, friction_cross_T
     rng = np.random.default_rng(7)
     robot = small_robot()
     sim = Simulator(robot)
@@ -166,8 +229,7 @@ def test_friction_cross_derivative_matches_fd():
     x_prev[:, 1] -= rng.uniform(0, 1e-3, size=len(X))      # some in the blend, some beyond
     u = np.zeros(1)
     S = rng.normal(size=(s.n_dof, 3))
-    out = np.zeros_like(S)
-    friction_cross(x, x_prev, s.contact_nodes, s.k_n, s.eps_n, s.mu_f, S, out)
+    out = s.prev_product(x, x_prev, u, S)
     for j in range(3):
         d = S[:, j].reshape(-1, 3)
         fd = (sim.gradient(x, x_prev + H * d, u) - sim.gradient(x, x_prev - H * d, u)).ravel() / (2 * H)
@@ -175,7 +237,7 @@ def test_friction_cross_derivative_matches_fd():
     # the transpose product is the adjoint of the forward product
     lam = rng.normal(size=s.n_dof)
     outT = np.zeros(s.n_dof)
-    friction_cross_T(x, x_prev, s.contact_nodes, s.k_n, s.eps_n, s.mu_f, lam, outT)
+    s.prev_product_T(x, x_prev, u, lam, outT)
     assert np.allclose(lam @ out, outT @ S, rtol=1e-12)
 
 

@@ -25,7 +25,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..sim import Robot, SimulationError, Simulator, Trajectory, incline_gravity, load_robot
+from ..sim import FactorCache, Robot, SimulationError, Simulator, Trajectory, incline_gravity, load_robot
 from .domain import parse_domain_randomization, randomized_robot, sample_factors
 from ..sim.kinematics import BodyFrame, heading_vector, tilt_deg_of, wrap_angle, yaw_of
 from .viewer import EnvViewer, RenderingMixin
@@ -183,11 +183,6 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         self._frame = BodyFrame(x_rest, robot.node_masses)
         self._rest_com_height = float(self._frame.com(x_rest)[1])
 
-    def _forget_factorization(self) -> None:
-        # The solver's chord iterations may reuse a factorisation from an earlier step; start
-        # every step/rollout without one so that results depend on the inputs only.
-        self._sim.reset_solver()
-
     # ------------------------------------------------------------------ actions
     def _check_action(self, action: Any) -> np.ndarray:
         a = np.asarray(action)
@@ -233,12 +228,13 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         u_cmd = self._lo + 0.5 * (a + 1.0) * self._range
         x, xp, xp2, u = self._x, self._x_prev, self._x_prev2, self._u
         u_sub = np.empty((self.frame_skip, len(u)))
-        self._forget_factorization()
+        cache = FactorCache()         # the sub-steps of this step share factorisations, no others
         try:
             for i in range(self.frame_skip):
                 d = u_cmd - u
                 u = np.where(np.abs(d) <= self._du_max, u_cmd, u + np.clip(d, -self._du_max, self._du_max))
-                xp2, xp, x = xp, x, self._sim.step(x, xp, u, k=self._n_sub + i, x_prev3=xp2)
+                xp2, xp, x = xp, x, self._sim.step(x, xp, u, k=self._n_sub + i, x_prev3=xp2,
+                                                   factor_cache=cache)
                 u_sub[i] = u
         except SimulationError as err:     # keep the state of before the step
             info = self._get_info()
@@ -337,7 +333,6 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         """Simulate contractions ``u`` (K, M) [m] from the reset state, with sensitivities when
         ``dudz`` (K, M, nz) is given (see :meth:`Simulator.rollout`). ``u`` is applied as given:
         no action clipping and no motor speed limit. The environment's state is not touched."""
-        self._forget_factorization()
         return self._sim.rollout(u, x0=self._x0_reset, dudz=dudz, x_prev0=self._xm1_reset,
                                  store_dxdz=store_dxdz)
 

@@ -1,16 +1,52 @@
-"""Physics of cable-driven soft robots (no Gymnasium import here).
+"""Physics of cable-driven soft robots (Bern et al., RSS 2019, section II and III-A).
 
-Public names: :class:`Robot`, :func:`load_robot`, :class:`Simulator`, :class:`Trajectory`,
-:class:`SimulationError`, :class:`TetMesh`, :func:`load_mesh`, :func:`incline_gravity`.
+This layer imports numpy, scipy, numba, meshio and cvxopt only: no Gymnasium, nothing from
+``soft_envs.envs`` or ``trajopt`` (``tests/`` check it at import time). Public names:
+:class:`Robot`, :func:`load_robot`, :class:`Simulator`, :class:`Trajectory`,
+:class:`SimulationError`, :class:`NewtonOptions`, :class:`FactorCache`, :class:`TetMesh`,
+:func:`load_mesh`, :func:`incline_gravity`.
+
+Structure: a :class:`Robot` is static data (mesh, material, payload, cables, motors, contact);
+the potential energy is a list of :class:`~.terms.EnergyTerm` objects over explicit inputs
+(positions ``x``, previous positions ``x_prev``, controls ``u``) in
+:class:`~.system.EnergySystem`; :class:`~.integrator.NewtonSolver` takes implicit-Euler steps;
+:mod:`.sensitivity` differentiates whole rollouts; :class:`Simulator` strings them together.
+
+Where each equation of the paper lives (one function each):
+
+=====================================  ==========================================================
+paper                                  implementation
+=====================================  ==========================================================
+eq. 1, neo-Hookean energy density      :func:`.materials.psi`; element gradient and Hessian
+                                       :func:`.materials.element_gradient_hessian`; the term
+                                       :class:`.elastic.Elastic`
+II-A, lumped mass + payload            :attr:`.robot.Robot.node_masses`
+eq. 2, cable deformation Gamma         :meth:`.cables.Cables.deformation`
+eq. 3, rest length alpha(u)            :meth:`.cables.Cables.rest_lengths`; the cable energy
+                                       Q(Gamma) is the term :class:`.cables.Cables`
+II-B, one-sided quadratic Q            :func:`.cables.Q` (:func:`.cables.one_sided_quadratic`)
+II-C, contact energy (lagged friction) :func:`.contact.contact_assemble`; the term
+                                       :class:`.contact.GroundContact`
+II-D, gravity; IV-B, incline           :class:`.gravity.Gravity`, :func:`.gravity.incline_gravity`
+eq. 4, implicit Euler by Newton        :meth:`.integrator.NewtonSolver.step` (minimises Phi,
+                                       :meth:`.integrator.NewtonSolver.phi_assemble`)
+eqs. 6-9, the whole-rollout system     :mod:`.sensitivity` (module docstring)
+eqs. 10-11, forward recurrence         :meth:`.sensitivity.ForwardSensitivities.step`
+adjoint of eq. 10                      :func:`.sensitivity.adjoint_pass`
+appendix A, tension control            :class:`.cables.CableTensions`
+=====================================  ==========================================================
+
+The optimisation side (eqs. 5, 12, 13 and the zero-slack post-processing) is in ``trajopt``.
 """
-from .contact import incline_gravity
+from .gravity import incline_gravity
 from .integrator import NewtonOptions, SimulationError
+from .linsolve import FactorCache
 from .mesh import TetMesh, load_mesh
 from .robot import ContactParams, Motor, Robot, Tendon
 from .simulator import Simulator, Trajectory
 
 __all__ = ["Robot", "Tendon", "Motor", "ContactParams", "Simulator", "Trajectory", "SimulationError",
-           "NewtonOptions", "TetMesh", "load_mesh", "incline_gravity", "load_robot"]
+           "NewtonOptions", "FactorCache", "TetMesh", "load_mesh", "incline_gravity", "load_robot"]
 
 
 def load_robot(name_or_path, **overrides):

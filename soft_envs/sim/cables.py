@@ -1,4 +1,6 @@
-r"""Cables: polylines through points bound to the mesh by barycentric coordinates (paper II-B).
+r"""Cables: polylines through points bound to the mesh by barycentric coordinates (paper II-B,
+eqs. 2-3), and the two cable energy terms: :class:`Cables` (length control) and
+:class:`CableTensions` (tension control, paper appendix A).
 
 A cable point ``p_s = sum_a w_{s,a} x_{n(s,a)}`` follows the tet it was bound to at rest. The
 cable length is ``L(x) = sum_s |p_{s+1} - p_s|`` and its deformation (eq. 2, 3)
@@ -21,8 +23,11 @@ import math
 import numpy as np
 from numba import njit
 
+from .terms import EnergyTerm
+
 __all__ = ["one_sided_quadratic", "Q", "dQ", "d2Q", "cable_lengths", "cable_length_gradients",
-           "cable_energy", "cable_assemble", "LENGTH_CONTROL", "TENSION_CONTROL"]
+           "cable_energy", "cable_assemble", "LENGTH_CONTROL", "TENSION_CONTROL",
+           "tendon_motor_matrix", "Cables", "CableTensions"]
 
 LENGTH_CONTROL = 0
 TENSION_CONTROL = 1
@@ -219,3 +224,122 @@ def cable_assemble(x, pt_nodes, pt_w, ptr, rest, k, eps, mode, tension, grad, hd
                                     h += c1 * wa * wb * Hp[3 * s + i, 3 * s2 + j]
                                 hdata[slot] += h
     return total
+
+
+# ---------------------------------------------------------------------- energy terms
+def tendon_motor_matrix(tendon_motor: np.ndarray, n_motors: int) -> np.ndarray:
+    """The motor-to-tendon map as a (T, n_motors) 0/1 matrix: a motor drives all its tendons
+    (a tendon pair) with the same control; passive tendons (``tendon_motor == -1``) get none.
+    Per-tendon values of per-motor ones are ``A @ u``."""
+    tm = np.asarray(tendon_motor, dtype=np.int64)
+    A = np.zeros((len(tm), n_motors))
+    has = tm >= 0
+    A[np.flatnonzero(has), tm[has]] = 1.0
+    A.setflags(write=False)
+    return A
+
+
+class Cables(EnergyTerm):
+    r"""Cables in length control (paper eqs. 2-3): ``E = sum_t Q(Gamma_t)`` with the deformation
+    ``Gamma_t = L_t(x) - alpha_t(u)`` and the rest length ``alpha_t = alpha0_t - u_m(t)``, ``u``
+    the contraction [m] of the motor driving tendon t. ``d(dE/dx)/du = Q''(Gamma) dL/dx`` per
+    tendon, summed per motor."""
+
+    name = "cables"
+    mode = LENGTH_CONTROL
+
+    def __init__(self, robot):
+        cab = robot.cable_data
+        self.pt_nodes, self.pt_w, self.ptr = cab.pt_nodes, cab.pt_w, cab.ptr
+        self.alpha0, self.stiffness, self.blend = cab.rest_length, cab.stiffness, robot.cable_blend
+        self.tendon_motor = cab.tendon_motor
+        self.motor_matrix = tendon_motor_matrix(cab.tendon_motor, robot.n_motors)   # (T, M)
+        self.n_dof = 3 * robot.mesh.n_nodes
+        self._zeros = np.zeros(len(self.alpha0))
+
+    @property
+    def n_tendons(self) -> int:
+        return len(self.alpha0)
+
+    # ------------------------------------------------------------------ controls (eq. 3)
+    def rest_lengths(self, u: np.ndarray) -> np.ndarray:
+        """alpha(u) = alpha0 - u per tendon (eq. 3)."""
+        return self.alpha0 - self.motor_matrix @ u
+
+    def _tensions(self, u: np.ndarray) -> np.ndarray:
+        return self._zeros
+
+    def deformation(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Gamma = L(x) - alpha(u) per tendon (eq. 2): > 0 stretched, < 0 slack [m]."""
+        return self.lengths(x) - self.rest_lengths(u)
+
+    def deformation_jacobian(self, dL: np.ndarray, S: np.ndarray, U: np.ndarray) -> np.ndarray:
+        """dGamma/dz = dL/dx S + dGamma/du U (T, nz), for ``S = dx/dz`` and ``U = du/dz``."""
+        return dL @ S + self.motor_matrix @ U
+
+    def tension(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Q'(Gamma) per tendon [N]."""
+        return one_sided_quadratic(self.deformation(x, u), self.stiffness, self.blend)[1]
+
+    # ------------------------------------------------------------------ geometry
+    def lengths(self, x: np.ndarray) -> np.ndarray:
+        return cable_lengths(x, self.pt_nodes, self.pt_w, self.ptr)
+
+    def length_gradients(self, x: np.ndarray) -> np.ndarray:
+        """Dense (T, 3n) dL/dx."""
+        return cable_length_gradients(x, self.pt_nodes, self.pt_w, self.ptr, self.n_dof)
+
+    # ------------------------------------------------------------------ energy term
+    def hessian_blocks(self) -> list[np.ndarray]:
+        blocks = []
+        for t in range(self.n_tendons):
+            nodes = self.pt_nodes[self.ptr[t]:self.ptr[t + 1]].ravel()
+            blocks.append((3 * nodes[:, None] + np.arange(3)).reshape(1, -1))
+        return blocks
+
+    def bind(self, slots, diag_slots) -> None:
+        super().bind(slots, diag_slots)
+        sizes = [s.size for s in slots]
+        self.hptr = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self.hmap = (np.ascontiguousarray(np.concatenate([s.ravel() for s in slots]))
+                     if slots else np.zeros(0, dtype=np.int64))
+
+    def energy(self, x, x_prev, u) -> float:
+        return cable_energy(x, self.pt_nodes, self.pt_w, self.ptr, self.rest_lengths(u), self.stiffness,
+                            self.blend, self.mode, self._tensions(u))
+
+    def assemble(self, x, x_prev, u, grad, hdata, want_hess) -> float:
+        return cable_assemble(x, self.pt_nodes, self.pt_w, self.ptr, self.rest_lengths(u), self.stiffness,
+                              self.blend, self.mode, self._tensions(u), grad, hdata, self.hmap, self.hptr,
+                              want_hess)
+
+    def _control_stiffness(self, x, u) -> np.ndarray:
+        """d(tension)/du per tendon: Q''(Gamma)."""
+        return one_sided_quadratic(self.deformation(x, u), self.stiffness, self.blend)[2]
+
+    def add_control_jacobian(self, x, x_prev, u, G) -> None:
+        c = self._control_stiffness(x, u)
+        G += self.length_gradients(x).T @ (c[:, None] * self.motor_matrix)
+
+
+class CableTensions(Cables):
+    r"""Cables in tension control (paper appendix A): ``E = sum_t tau_t L_t(x)`` with the
+    tension ``tau_t = u_m(t) >= 0`` [N] of the motor driving tendon t; the rest lengths stay
+    alpha0 (Gamma = L - alpha0 is still reported). ``d(dE/dx)/du = dL/dx`` per tendon."""
+
+    mode = TENSION_CONTROL
+
+    def rest_lengths(self, u: np.ndarray) -> np.ndarray:
+        return self.alpha0
+
+    def _tensions(self, u: np.ndarray) -> np.ndarray:
+        return self.motor_matrix @ u
+
+    def deformation_jacobian(self, dL, S, U) -> np.ndarray:
+        return dL @ S
+
+    def tension(self, x, u) -> np.ndarray:
+        return self._tensions(u)
+
+    def _control_stiffness(self, x, u) -> np.ndarray:
+        return np.ones(self.n_tendons)

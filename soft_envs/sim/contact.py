@@ -1,44 +1,28 @@
-r"""Ground contact, lagged friction and gravity (paper II-C, IV-B).
+r"""Ground contact with lagged friction (paper II-C): the :class:`GroundContact` energy term.
 
-The ground is the plane ``y = 0``. Per contact node ``i`` (the boundary nodes):
+The ground is the plane ``y = 0``. Per contact node ``i`` (the boundary nodes that are not
+fixed), the paper's law:
 
 .. math::
     E_i^{contact} = Q_n(-y_i) + \mu_f N_{k-1,i}\,\big((x_i - x_{k-1,i})^2 + (z_i - z_{k-1,i})^2\big),
     \qquad N_{k-1,i} = Q_n'(-y_{k-1,i})
 
-(paper eq. in II-C): a one-sided quadratic penalty of stiffness ``k_n`` [N/m] against
-penetration, and a friction energy that resists tangential motion in proportion to the normal
-force of the previous step. ``mu_f`` [1/m] is the paper's tunable roughness weight: the
+(the contact energy of paper II-C): a one-sided quadratic penalty of stiffness ``k_n`` [N/m]
+against penetration, and a friction energy that resists tangential motion in proportion to the
+normal force of the previous step. ``mu_f`` [1/m] is the paper's tunable roughness weight: the
 tangential force is ``2 mu_f N dx_t``, so a node sliding ``1/(2 mu_f)`` metres in one step
-feels a tangential force equal to its normal force.
-
-Gravity: ``E = -sum_i m_i g . x_i`` for any vector ``g``; an incline rotates ``g``, not the
-ground (paper IV-B), see :func:`incline_gravity`.
+feels a tangential force equal to its normal force. The previous state enters twice: through
+the displacement and through ``N_{k-1}`` (both in the sensitivities).
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 from numba import njit
 
 from .cables import Q, d2Q, dQ
+from .terms import EnergyTerm
 
-__all__ = ["contact_energy", "contact_assemble", "friction_cross", "friction_cross_T",
-           "normal_forces", "incline_gravity"]
-
-
-def incline_gravity(angle_deg: float, g: float = 9.81, uphill: tuple[float, float] = (1.0, 0.0)) -> np.ndarray:
-    """Gravity vector equivalent to standing on a slope of ``angle_deg`` that rises along the
-    horizontal direction ``uphill`` (x, z). A robot walking uphill along +x feels gravity tilted
-    towards -x: ``g = 9.81 (-sin a, -cos a, 0)``."""
-    a = math.radians(float(angle_deg))
-    d = np.array([uphill[0], 0.0, uphill[1]], dtype=np.float64)
-    n = np.linalg.norm(d)
-    if n == 0:
-        raise ValueError("uphill direction must be non-zero")
-    d /= n
-    return -g * (math.sin(a) * d + np.array([0.0, math.cos(a), 0.0]))
+__all__ = ["GroundContact", "contact_assemble", "friction_cross", "friction_cross_T", "normal_forces"]
 
 
 @njit(cache=True)
@@ -51,29 +35,18 @@ def normal_forces(x, nodes, k_n, eps_n):
 
 
 @njit(cache=True)
-def contact_energy(x, x_prev, nodes, k_n, eps_n, mu_f):
-    total = 0.0
-    for c in range(nodes.shape[0]):
-        n = nodes[c]
-        total += Q(-x[n, 1], k_n, eps_n)
-        N = dQ(-x_prev[n, 1], k_n, eps_n)
-        if N > 0.0:
-            dx = x[n, 0] - x_prev[n, 0]
-            dz = x[n, 2] - x_prev[n, 2]
-            total += mu_f * N * (dx * dx + dz * dz)
-    return total
-
-
-@njit(cache=True)
-def contact_assemble(x, x_prev, nodes, k_n, eps_n, mu_f, grad, hdata, diag_map, want_hess=True):
-    """Add gradient and (diagonal) Hessian; ``diag_map (c, 3)`` gives the Hessian slots of the
-    x, y, z diagonal entries of each contact node. Returns the energy."""
+def contact_assemble(x, x_prev, nodes, k_n, eps_n, mu_f, grad, hdata, diag_map, want_grad=True,
+                     want_hess=True):
+    """The contact energy of paper II-C; adds its gradient (``want_grad``) and its (diagonal)
+    Hessian (``want_hess``; ``diag_map (c, 3)`` gives the Hessian slots of the x, y, z diagonal
+    entries of each contact node). Returns the energy."""
     total = 0.0
     for c in range(nodes.shape[0]):
         n = nodes[c]
         s = -x[n, 1]
         total += Q(s, k_n, eps_n)
-        grad[3 * n + 1] -= dQ(s, k_n, eps_n)
+        if want_grad:
+            grad[3 * n + 1] -= dQ(s, k_n, eps_n)
         if want_hess:
             hdata[diag_map[c, 1]] += d2Q(s, k_n, eps_n)
         N = dQ(-x_prev[n, 1], k_n, eps_n)
@@ -81,8 +54,9 @@ def contact_assemble(x, x_prev, nodes, k_n, eps_n, mu_f, grad, hdata, diag_map, 
             dx = x[n, 0] - x_prev[n, 0]
             dz = x[n, 2] - x_prev[n, 2]
             total += mu_f * N * (dx * dx + dz * dz)
-            grad[3 * n] += 2.0 * mu_f * N * dx
-            grad[3 * n + 2] += 2.0 * mu_f * N * dz
+            if want_grad:
+                grad[3 * n] += 2.0 * mu_f * N * dx
+                grad[3 * n + 2] += 2.0 * mu_f * N * dz
             if want_hess:
                 hdata[diag_map[c, 0]] += 2.0 * mu_f * N
                 hdata[diag_map[c, 2]] += 2.0 * mu_f * N
@@ -125,3 +99,39 @@ def friction_cross_T(x, x_prev, nodes, k_n, eps_n, mu_f, lam, out):
             d = x[n, t] - x_prev[n, t]
             out[3 * n + t] += -2.0 * mu_f * N * lam[3 * n + t]
             out[3 * n + 1] += 2.0 * mu_f * d * dN * lam[3 * n + t]
+
+
+class GroundContact(EnergyTerm):
+    """Penalty contact with the ground plane and the paper's lagged friction (module docstring)
+    at every boundary node that is not fixed. Parameters from ``robot.contact``:
+    ``stiffness`` k_n [N/m], ``blend`` eps_n [m], ``friction`` mu_f [1/m]."""
+
+    name = "contact"
+
+    def __init__(self, robot):
+        c = robot.contact
+        self.k_n, self.eps_n, self.mu_f = c.stiffness, c.blend, c.friction
+        self.nodes = np.setdiff1d(robot.mesh.boundary_nodes, robot.fixed_nodes).astype(np.int64)
+        self._scratch = np.zeros(3 * robot.mesh.n_nodes)
+
+    def bind(self, slots, diag_slots) -> None:
+        super().bind(slots, diag_slots)
+        self.diag_map = np.ascontiguousarray(diag_slots.reshape(-1, 3)[self.nodes])
+
+    def normal_forces(self, x: np.ndarray) -> np.ndarray:
+        """N_i = Q_n'(-y_i) at every contact node [N]."""
+        return normal_forces(x, self.nodes, self.k_n, self.eps_n)
+
+    def energy(self, x, x_prev, u) -> float:
+        return contact_assemble(x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f, self._scratch,
+                                self._scratch, self.diag_map, False, False)
+
+    def assemble(self, x, x_prev, u, grad, hdata, want_hess) -> float:
+        return contact_assemble(x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f, grad, hdata,
+                                self.diag_map, True, want_hess)
+
+    def add_prev_product(self, x, x_prev, u, S, out) -> None:
+        friction_cross(x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f, S, out)
+
+    def add_prev_product_T(self, x, x_prev, u, lam, out) -> None:
+        friction_cross_T(x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f, lam, out)

@@ -25,6 +25,10 @@ Newton's method with
     small error (contacts and cables switch): at 1e-4, errors up to 20 tol were measured.
     With ``need_exact`` (sensitivities) the solver ends holding the exact Hessian factorised
     at ``x_k`` or at most ``tol`` away from it.
+  * factorisation reuse across steps is explicit: a :class:`FactorCache`, owned by whoever
+    strings steps together (a rollout, an environment step with frame skip), says which
+    factorisation of the solver it may reuse; a step given no cache starts afresh, so its
+    result depends on its inputs only.
 Failure (no descent, too many iterations, non-finite values) raises :class:`SimulationError`.
 """
 from __future__ import annotations
@@ -33,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linsolve import make_solver
+from .linsolve import FactorCache, make_solver
 from .system import EnergySystem
 
 __all__ = ["SimulationError", "NewtonOptions", "StepInfo", "NewtonSolver"]
@@ -100,6 +104,21 @@ class StepInfo:
     solver: object = None     # with need_exact: holds the exact Hessian's factorisation at x_k
 
 
+@dataclass
+class _Iterate:
+    """The state of one step's Newton iteration."""
+
+    x: np.ndarray
+    phi: float
+    grad: np.ndarray
+    fresh: bool = False          # the held factorisation was computed at x
+    prev_norm: float = np.inf    # size of the last full step taken
+    prev_kind: str | None = None  # its kind: "newton", "chord" or None (fallback or damped)
+    iterations: int = 0
+    factorizations: int = 0
+    fallbacks: int = 0
+
+
 class NewtonSolver:
     """Solves steps of one :class:`EnergySystem` with time step ``dt``."""
 
@@ -110,11 +129,9 @@ class NewtonSolver:
         self.dt = float(dt)
         self.options = options
         self.inertia = system.mass / self.dt**2           # (3n,) diagonal M / h^2
-        p = system.pattern
         self._diag_inertia = self.inertia[system.free]
-        self.solver = make_solver(p, options.solver)
+        self.solver = make_solver(system.pattern, options.solver)
         self._fallback = None
-        self._have_factor = False
 
     # ------------------------------------------------------------------ Phi and its derivatives
     def phi(self, x, xt, x_prev, u) -> float:
@@ -152,17 +169,66 @@ class NewtonSolver:
     # ------------------------------------------------------------------ one step
     def step(self, x_prev: np.ndarray, x_prev2: np.ndarray, u: np.ndarray, k: int | None = None,
              x_fixed: np.ndarray | None = None, need_exact: bool = False,
-             x_prev3: np.ndarray | None = None) -> tuple[np.ndarray, StepInfo]:
-        """Solve for ``x_k`` given ``x_{k-1}``, ``x_{k-2}`` and controls ``u``. Inputs are not
-        modified. Fixed nodes keep their positions in ``x_prev`` (or ``x_fixed``). With
-        ``need_exact`` the solver ends holding the exact Hessian's factorisation at ``x_k``
-        (for sensitivities). ``x_prev3`` (``x_{k-3}``, optional) only improves the initial
-        guess."""
+             x_prev3: np.ndarray | None = None, cache: FactorCache | None = None
+             ) -> tuple[np.ndarray, StepInfo]:
+        """Solve for ``x_k`` given ``x_{k-1}``, ``x_{k-2}`` and controls ``u`` (module
+        docstring): initial guess, then Newton directions, the stopping test and a line search
+        until the test holds. Inputs are not modified. Fixed nodes keep their positions in
+        ``x_prev`` (or ``x_fixed``). ``cache`` (optional) is the factorisation this step may
+        reuse and leaves for the next. With ``need_exact`` the returned :class:`StepInfo`
+        holds the exact Hessian's factorisation at ``x_k`` (for sensitivities). ``x_prev3``
+        (``x_{k-3}``, optional) only improves the initial guess."""
         opt = self.options
-        sys = self.system
-        free = sys.free if len(sys.free) < sys.n_dof else slice(None)    # views when nothing is fixed
+        cache = FactorCache() if cache is None else cache
         xt = 2.0 * x_prev - x_prev2
-        fixed_src = x_prev if x_fixed is None else x_fixed
+        it = self._start(xt, x_prev, x_prev2, x_prev3, u, x_prev if x_fixed is None else x_fixed, k)
+        while it.iterations < opt.max_iter:
+            it.iterations += 1
+            g, dx, norm, kind = self._direction(it, cache, xt, x_prev, u, k)
+            if self._converged(norm, it.prev_norm, kind, it.prev_kind):
+                self._move(it.x, dx)
+                exact_here = kind == "newton" and norm <= opt.tol
+                return it.x, self._info(it, need_exact and not exact_here, need_exact, cache,
+                                        it.x, x_prev, x_prev2, u)
+            slope = float(g @ dx)
+            if norm <= opt.tol or (slope < 0 and -slope <= 1e-12 * (abs(it.phi) + 1e-30)):
+                # a step this small needs no line search (or the predicted decrease is at the
+                # round-off level of Phi and Newton is in its quadratic regime): take it
+                self._move(it.x, dx)
+                it.phi, it.grad, _ = self.phi_assemble(it.x, xt, x_prev, u, want_hess=False)
+                it.fresh, it.prev_norm, it.prev_kind = False, norm, kind
+                continue
+            if slope >= 0:
+                if not it.fresh:
+                    cache.drop()          # a stale factorisation: refresh it here
+                    continue
+                raise SimulationError(f"Newton direction is not a descent direction (slope {slope:.3e})", k)
+            found = self._line_search(it, dx, slope, xt, x_prev, u)
+            if found is None and not it.fresh:
+                cache.drop()              # a reused factorisation overshoots: refresh, not damp
+                continue
+            if found is None:
+                xn = it.x.copy()
+                self._move(xn, dx)
+                if norm <= 1e3 * opt.tol and self.phi(xn, xt, x_prev, u) <= it.phi:
+                    # round-off stalls the line search this close to the solution
+                    return xn, self._info(it, need_exact, need_exact, cache, xn, x_prev, x_prev2, u)
+                raise SimulationError(f"line search failed (|dx| = {norm:.3e} m)", k)
+            it.x, it.phi, it.grad, alpha = found
+            it.prev_kind = kind if alpha == 1.0 else None
+            it.fresh, it.prev_norm = False, alpha * norm
+        raise SimulationError(f"Newton did not converge in {opt.max_iter} iterations "
+                              f"(last |dx| = {norm:.3e} m)", k)
+
+    def _move(self, x: np.ndarray, dx: np.ndarray) -> None:
+        """``x[free dofs] += dx`` in place."""
+        sys = self.system
+        x.reshape(-1)[sys.free if len(sys.free) < sys.n_dof else slice(None)] += dx
+
+    def _start(self, xt, x_prev, x_prev2, x_prev3, u, fixed_src, k) -> _Iterate:
+        """The first iterate: :meth:`_initial_guess`, or ``x_{k-1}`` if the guesses invert an
+        element."""
+        sys = self.system
         x, phi_x, grad = self._initial_guess(xt, x_prev, x_prev2, x_prev3, u, fixed_src)
         if not np.isfinite(phi_x):
             x = x_prev.copy()
@@ -171,99 +237,58 @@ class NewtonSolver:
             phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
             if not np.isfinite(phi_x):
                 raise SimulationError("the previous state is inverted or non-finite", k)
-        n_fact = fallbacks = 0
-        fresh = False            # the factorisation was computed at the current x
-        exact = False
-        prev_norm = np.inf
-        prev_kind = None         # the full step of size prev_norm: "newton", "chord" or None
-        it = 0
-        while it < opt.max_iter:
-            it += 1
-            if not (opt.reuse_factor and self._have_factor):
-                exact, nf = self._refactor(x, xt, x_prev, u)
-                n_fact += 1
-                fallbacks += nf
-                fresh = True
-            g = grad[free]
-            dx = -self._direction(g, x, x_prev, u)
-            if not np.isfinite(dx).all():
-                raise SimulationError("non-finite Newton step", k)
-            norm = np.abs(dx).max()
-            if not fresh and self._chord_too_slow(norm, prev_norm):
-                # the reused factorisation no longer contracts fast enough: refresh it here
-                exact, nf = self._refactor(x, xt, x_prev, u)
-                n_fact += 1
-                fallbacks += nf
-                fresh = True
-                dx = -self._direction(g, x, x_prev, u)
-                norm = np.abs(dx).max()
-            kind = ("newton" if exact else None) if fresh else "chord"
-            if self._converged(norm, prev_norm, kind, prev_kind):
-                x.reshape(-1)[free] += dx
-                solver = None
-                if need_exact:
-                    if fresh and exact and norm <= opt.tol:
-                        solver = self.solver        # exact Hessian at most tol away from x_k
-                    else:
-                        solver = self.factorize_exact_at(x, x_prev, x_prev2, u)
-                        n_fact += 1
-                return x, StepInfo(it, n_fact, fallbacks, solver)
-            if norm <= opt.tol:
-                # a step this small needs no line search; take it and measure one more
-                x.reshape(-1)[free] += dx
-                phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
-                fresh, prev_norm, prev_kind = False, norm, kind
-                continue
-            slope = float(g @ dx)
-            if slope >= 0:
-                if not fresh:
-                    self._have_factor = False
-                    continue
-                raise SimulationError(f"Newton direction is not a descent direction (slope {slope:.3e})", k)
-            if -slope <= 1e-12 * (abs(phi_x) + 1e-30):
-                # The predicted decrease is at round-off level of Phi: the line search cannot
-                # tell descent from noise, and Newton is in its quadratic regime. Full step.
-                x.reshape(-1)[free] += dx
-                phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
-                fresh, prev_norm, prev_kind = False, norm, kind
-                continue
-            alpha, accepted = 1.0, False
-            for _ in range(opt.max_backtracks):
-                xn = x.copy()
-                xn.reshape(-1)[free] += alpha * dx
-                phi_n, grad_n, _ = self.phi_assemble(xn, xt, x_prev, u, want_hess=False)
-                if phi_n <= phi_x + opt.armijo * alpha * slope:
-                    accepted = True
-                    break
-                if not fresh:
-                    break
-                alpha *= 0.5
-            if not accepted and not fresh:
-                # a reused factorisation overshoots: refresh it at this point rather than damp
-                self._have_factor = False
-                continue
-            if not accepted:
-                xn = x.copy()
-                xn.reshape(-1)[free] += dx
-                if norm <= 1e3 * opt.tol and self.phi(xn, xt, x_prev, u) <= phi_x:
-                    # round-off stalls the line search this close to the solution
-                    solver = None
-                    if need_exact:
-                        solver = self.factorize_exact_at(xn, x_prev, x_prev2, u)
-                        n_fact += 1
-                    return xn, StepInfo(it, n_fact, fallbacks, solver)
-                raise SimulationError(f"line search failed (|dx| = {norm:.3e} m)", k)
-            x, phi_x, grad = xn, phi_n, grad_n
-            prev_kind = kind if alpha == 1.0 else None
-            fresh, prev_norm = False, alpha * norm
-        raise SimulationError(f"Newton did not converge in {opt.max_iter} iterations "
-                              f"(last |dx| = {norm:.3e} m)", k)
+        return _Iterate(x, phi_x, grad)
 
-    def _direction(self, g, x, x_prev, u) -> np.ndarray:
+    def _direction(self, it: _Iterate, cache: FactorCache, xt, x_prev, u, k):
+        """``(g, dx, |dx|_max, kind)``: the Newton step ``-H^{-1} g`` on the free dofs with the
+        held factorisation, refreshed first when there is none to reuse or when the chord
+        step it gives contracts too slowly (:meth:`_chord_too_slow`)."""
+        if not (self.options.reuse_factor and cache.holds(self.solver)):
+            self._refactor(it, cache, xt, x_prev, u)
+        sys = self.system
+        g = it.grad[sys.free] if len(sys.free) < sys.n_dof else it.grad
+        dx = -self._solve_model(g, it.x, x_prev, u)
+        norm = np.abs(dx).max()
+        if not it.fresh and self._chord_too_slow(norm, it.prev_norm):
+            self._refactor(it, cache, xt, x_prev, u)
+            dx = -self._solve_model(g, it.x, x_prev, u)
+            norm = np.abs(dx).max()
+        if not np.isfinite(dx).all():
+            raise SimulationError("non-finite Newton step", k)
+        kind = ("newton" if cache.exact else None) if it.fresh else "chord"
+        return g, dx, norm, kind
+
+    def _solve_model(self, g, x, x_prev, u) -> np.ndarray:
         """The model Hessian's inverse applied to the free gradient ``g`` at ``x``: the held
-        factorisation's solve (a hook for studies of other models, e.g.
-        benchmarks/study_lowrank_chord.py)."""
+        factorisation's solve (a hook for studies of other models)."""
         return self.solver.solve(g)
+
+    def _line_search(self, it: _Iterate, dx, slope: float, xt, x_prev, u):
+        """Backtracking (Armijo) from the full step; a chord step (reused factorisation) only
+        tries the full step. ``(x, Phi, grad, alpha)`` of the accepted point, or None."""
+        opt = self.options
+        alpha = 1.0
+        for _ in range(opt.max_backtracks):
+            xn = it.x.copy()
+            self._move(xn, alpha * dx)
+            phi_n, grad_n, _ = self.phi_assemble(xn, xt, x_prev, u, want_hess=False)
+            if phi_n <= it.phi + opt.armijo * alpha * slope:
+                return xn, phi_n, grad_n, alpha
+            if not it.fresh:
+                return None
+            alpha *= 0.5
+        return None
+
+    def _info(self, it: _Iterate, refactor: bool, need_exact: bool, cache, x, x_prev, x_prev2, u) -> StepInfo:
+        """The :class:`StepInfo` of a finished step; with ``need_exact`` it holds the exact
+        Hessian's factorisation at x (the held one when ``refactor`` is False)."""
+        solver = None
+        if need_exact:
+            solver = self.solver
+            if refactor:
+                solver = self.factorize_exact_at(x, x_prev, x_prev2, u, cache)
+                it.factorizations += 1
+        return StepInfo(it.iterations, it.factorizations, it.fallbacks, solver)
 
     def _initial_guess(self, xt, x_prev, x_prev2, x_prev3, u, fixed_src):
         """``(x, Phi, dPhi/dx)`` of ``x~`` or, with ``x_{k-3}`` and ``extrapolation=2``, of the
@@ -324,26 +349,30 @@ class NewtonSolver:
             return False
         return np.log(self.options.tol / norm) / np.log(rho) > self.options.max_chord
 
-    def _refactor(self, x, xt, x_prev, u) -> tuple[bool, int]:
-        self._have_factor = False          # until this factorisation has succeeded
-        _, _, hdata = self.phi_assemble(x, xt, x_prev, u)
-        exact, nf = self.factorize(hdata, x, xt, x_prev, u)
-        self._have_factor = True
-        return exact, nf
+    def _refactor(self, it: _Iterate, cache: FactorCache, xt, x_prev, u) -> None:
+        """Assemble and factorise the Hessian at the current iterate; the cache keeps it."""
+        cache.drop()                       # until this factorisation has succeeded
+        _, _, hdata = self.phi_assemble(it.x, xt, x_prev, u)
+        exact, nf = self.factorize(hdata, it.x, xt, x_prev, u)
+        cache.keep(self.solver, exact)
+        it.fresh = True
+        it.factorizations += 1
+        it.fallbacks += nf
 
-    def factorize_exact_at(self, x, x_prev, x_prev2, u):
+    def factorize_exact_at(self, x, x_prev, x_prev2, u, cache: FactorCache | None = None):
         """Factorise the exact Hessian of Phi at ``x`` (Cholesky, or LU if indefinite) and return
-        the solver object that holds it."""
+        the solver object that holds it; ``cache`` (optional) then holds it for reuse."""
         xt = 2.0 * x_prev - x_prev2
         _, _, hdata = self.phi_assemble(x, xt, x_prev, u)
-        self._have_factor = False
+        if cache is not None:
+            cache.drop()
         if self.solver.factorize(hdata):
-            self._have_factor = True
-        else:
-            from .linsolve import LUSolver
-            if self._fallback is None:
-                self._fallback = LUSolver(self.system.pattern)
-            if not self._fallback.factorize(hdata, require_pd=False):
-                raise SimulationError("the Hessian at the converged state is singular")
-            return self._fallback
-        return self.solver
+            if cache is not None:
+                cache.keep(self.solver, True)
+            return self.solver
+        from .linsolve import LUSolver
+        if self._fallback is None:
+            self._fallback = LUSolver(self.system.pattern)
+        if not self._fallback.factorize(hdata, require_pd=False):
+            raise SimulationError("the Hessian at the converged state is singular")
+        return self._fallback

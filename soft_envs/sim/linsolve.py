@@ -6,6 +6,10 @@ positive definite matrix: :meth:`factorize` returns False otherwise, and the cal
 :class:`LUSolver` (SuperLU through scipy, with the symmetric-mode options that were fastest on
 these matrices) works for any non-singular matrix; it is the fallback and the default when
 cvxopt is not installed.
+
+Both count their factorisations (``generation``, incremented by every :meth:`factorize` call,
+successful or not), so that a caller that wants to reuse a factorisation later can tell
+whether it is still the one it made (:class:`FactorCache`).
 """
 from __future__ import annotations
 
@@ -22,7 +26,7 @@ try:  # pragma: no cover - exercised implicitly
 except ImportError:  # pragma: no cover
     HAVE_CHOLMOD = False
 
-__all__ = ["CholmodSolver", "LUSolver", "make_solver", "HAVE_CHOLMOD"]
+__all__ = ["CholmodSolver", "LUSolver", "FactorCache", "make_solver", "HAVE_CHOLMOD"]
 
 
 class LUSolver:
@@ -35,9 +39,11 @@ class LUSolver:
 
     def __init__(self, pattern: Pattern):
         self.pattern = pattern
+        self.generation = 0
         self._lu = None
 
     def factorize(self, data: np.ndarray, require_pd: bool = True) -> bool:
+        self.generation += 1
         try:
             lu = sla.splu(self.pattern.full(data), permc_spec="MMD_AT_PLUS_A",
                           diag_pivot_thresh=0.0, options={"SymmetricMode": True})
@@ -62,6 +68,7 @@ class CholmodSolver:
 
     def __init__(self, pattern: Pattern):
         self.pattern = pattern
+        self.generation = 0
         n = pattern.n
         # cvxopt keeps CSC entries sorted by column then row: the same order as the pattern.
         self._A = _cvx_spmatrix(np.arange(1, pattern.nnz + 1, dtype=np.float64).tolist(),
@@ -81,6 +88,7 @@ class CholmodSolver:
     def factorize(self, data: np.ndarray) -> bool:
         if len(data) < self.pattern.nnz:
             raise ValueError(f"need {self.pattern.nnz} Hessian values, got {len(data)}")
+        self.generation += 1
         self._V_view[:] = data[: self.pattern.nnz]
         self._A.V = self._V          # copies the values into the sparse matrix
         try:
@@ -115,3 +123,26 @@ def make_solver(pattern: Pattern, kind: str = "auto"):
     if kind == "lu":
         return LUSolver(pattern)
     raise ValueError(f"solver must be 'auto', 'cholmod' or 'lu', got {kind!r}")
+
+
+class FactorCache:
+    """Which factorisation of a :class:`NewtonSolver` a sequence of steps may reuse (chord
+    iterations). Owned by the caller that strings steps together: a rollout makes one, an
+    environment step with frame skip makes one for its sub-steps. It trusts the solver's
+    factorisation only while the solver has not factorised anything else since (generation
+    counter), so interleaved users can never reuse each other's factors."""
+
+    __slots__ = ("generation", "exact")
+
+    def __init__(self):
+        self.generation = -1
+        self.exact = False
+
+    def holds(self, solver) -> bool:
+        return self.generation == solver.generation
+
+    def keep(self, solver, exact: bool) -> None:
+        self.generation, self.exact = solver.generation, exact
+
+    def drop(self) -> None:
+        self.generation = -1

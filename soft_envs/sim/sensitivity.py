@@ -1,16 +1,19 @@
 r"""Sensitivity analysis of whole rollouts (paper III-A, eqs. 8-11).
 
-Every step satisfies ``R_k = dPhi_k/dx_k (x_k, x_{k-1}, x_{k-2}, u_k) = 0``. Differentiating
-(eq. 10) gives the block lower-triangular recurrence for ``S_k = dx_k/dz``:
+Every step satisfies ``R_k = dPhi_k/dx_k (x_k, x_{k-1}, x_{k-2}, u_k) = 0`` (eq. 4 as the
+gradient of the incremental potential). Differentiating all of them with respect to the
+parameters z (eqs. 8-9) gives a block lower-triangular system whose block rows are the
+recurrence of eq. 10 for ``S_k = dx_k/dz``:
 
 .. math::
     H_k S_k = -\big(A_k S_{k-1} + C S_{k-2} + G_k U_k\big),
 
 with ``H_k = d^2 Phi_k / dx_k^2`` at the converged state, ``A_k = dR_k/dx_{k-1} = -2M/h^2 +
-d^2E/(dx_k dx_{k-1})`` (the friction term depends on ``x_{k-1}`` through the displacement and
-through the normal force ``N_{k-1}``), ``C = M/h^2`` and ``G_k = dR_k/du_k``: per tendon
-``Q''(Gamma) dL/dx`` in length control, ``dL/dx`` in tension control, summed per motor.
-``U_k = du_k/dz``. One multi-right-hand-side solve per step reuses the Newton factorisation.
+d^2E/(dx_k dx_{k-1})`` (lagged terms: the friction law depends on ``x_{k-1}`` through the
+displacement and through the normal force ``N_{k-1}``), ``C = M/h^2``, ``G_k = dR_k/du_k`` (the
+energy terms' control Jacobians) and ``U_k = du_k/dz``. Eq. 11 is the first block (``S_{k-1} =
+S_{k-2} = 0`` for a rollout that starts at rest). One multi-right-hand-side solve per step
+reuses the Newton factorisation of ``H_k``.
 
 The adjoint (reverse) form gives ``dO/du`` of a scalar ``O = sum_k o_k(x_k)`` at the cost of one
 backward pass, whatever the number of parameters:
@@ -23,41 +26,48 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cables import cable_length_gradients, d2Q
-from .contact import friction_cross, friction_cross_T
-
-__all__ = ["control_jacobian", "sensitivity_step", "adjoint_pass"]
+__all__ = ["ForwardSensitivities", "adjoint_pass"]
 
 
-def control_jacobian(system, x: np.ndarray, u: np.ndarray):
-    """``(G, dL)``: ``G (3n, n_motors)`` = dR/du and ``dL (T, 3n)`` the cable length gradients."""
-    dL = cable_length_gradients(x, system.pt_nodes, system.pt_w, system.ptr, system.n_dof)
-    if system.mode == 0:
-        gamma = system.cable_deformation(x, u)
-        c = np.array([d2Q(g, k, system.eps_cable) for g, k in zip(gamma, system.k_cable)])
-    else:
-        c = np.ones(len(dL))
-    G = np.zeros((system.n_dof, len(u)))
-    for t, m in enumerate(system.tendon_motor):
-        if m >= 0 and c[t] != 0.0:
-            G[:, m] += c[t] * dL[t]
-    return G, dL
+class ForwardSensitivities:
+    """The forward recurrence (eqs. 10-11) alongside a rollout of K steps from rest.
 
+    ``newton`` is the rollout's :class:`~soft_envs.sim.integrator.NewtonSolver`, ``dudz``
+    (K, n_motors, nz) the control Jacobian. After :meth:`step` has been called for every
+    step, ``dcomdz`` (K+1, 3, nz), ``dgammadz`` (K+1, T, nz) and, with ``store_dxdz``,
+    ``dxdz`` (K+1, 3n, nz) hold the Jacobians of the centre of mass, the cable deformations
+    and the states (entry 0, the given initial state, is zero)."""
 
-def sensitivity_step(solver, newton, x, x_prev, u, S1, S2, U):
-    """``S_k`` (3n, nz) from ``S_{k-1}``, ``S_{k-2}`` and ``U_k`` (n_motors, nz); ``solver``
-    holds the factorisation of ``H_k`` of ``newton`` (a :class:`NewtonSolver`). Also returns
-    the cable length gradients at x_k."""
-    system = newton.system
-    rhs = newton.inertia[:, None] * (2.0 * S1 - S2)
-    cross = np.zeros_like(S1)
-    friction_cross(x, x_prev, system.contact_nodes, system.k_n, system.eps_n, system.mu_f, S1, cross)
-    rhs -= cross
-    G, dL = control_jacobian(system, x, u)
-    rhs -= G @ U
-    S = np.zeros_like(S1)
-    S[system.free] = solver.solve(np.ascontiguousarray(rhs[system.free]))
-    return S, dL
+    def __init__(self, newton, masses: np.ndarray, dudz: np.ndarray, store_dxdz: bool = False):
+        self.newton = newton
+        system = newton.system
+        K, _, nz = dudz.shape
+        self.dudz = dudz
+        self.masses = np.asarray(masses)
+        self.total_mass = self.masses.sum()
+        self.S1 = np.zeros((system.n_dof, nz))       # S_{k-1}
+        self.S2 = np.zeros((system.n_dof, nz))       # S_{k-2}
+        self.dcomdz = np.zeros((K + 1, 3, nz))
+        self.dgammadz = np.zeros((K + 1, system.cables.n_tendons, nz))
+        self.dxdz = np.zeros((K + 1, system.n_dof, nz)) if store_dxdz else None
+
+    def step(self, k: int, solver, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray) -> None:
+        """Advance the recurrence by the step that took ``x_prev`` to ``x`` = state k+1 under
+        controls ``u = u_k``; ``solver`` holds the factorisation of the exact ``H`` at ``x``."""
+        system = self.newton.system
+        U = self.dudz[k]
+        rhs = self.newton.inertia[:, None] * (2.0 * self.S1 - self.S2)
+        rhs -= system.prev_product(x, x_prev, u, self.S1)
+        rhs -= system.control_jacobian(x, x_prev, u) @ U
+        S = np.zeros_like(self.S1)
+        S[system.free] = solver.solve(np.ascontiguousarray(rhs[system.free]))
+        nz = S.shape[1]
+        self.dcomdz[k + 1] = (self.masses @ S.reshape(-1, 3 * nz)).reshape(3, nz) / self.total_mass
+        cables = system.cables
+        self.dgammadz[k + 1] = cables.deformation_jacobian(cables.length_gradients(x), S, U)
+        if self.dxdz is not None:
+            self.dxdz[k + 1] = S
+        self.S2, self.S1 = self.S1, S
 
 
 def adjoint_pass(newton, xs: np.ndarray, us: np.ndarray, dobj_dx: np.ndarray) -> np.ndarray:
@@ -78,16 +88,14 @@ def adjoint_pass(newton, xs: np.ndarray, us: np.ndarray, dobj_dx: np.ndarray) ->
         xjm2 = xs[j - 2] if j >= 2 else xs[0]
         rhs = dobj_dx[j].reshape(-1).copy()
         if j < K:
-            # A_{j+1}^T lambda_{j+1} with A = -2M/h^2 + friction cross term of step j+1
+            # A_{j+1}^T lambda_{j+1} with A = -2M/h^2 + the lagged terms' cross derivative
             rhs += -2.0 * inertia * lam_next
-            friction_cross_T(xs[j + 1], xj, system.contact_nodes, system.k_n, system.eps_n,
-                             system.mu_f, lam_next, rhs)
+            system.prev_product_T(xs[j + 1], xj, us[j], lam_next, rhs)
         if j + 1 < K:
             rhs += inertia * lam_next2
         solver = newton.factorize_exact_at(xj, xjm1, xjm2, us[j - 1])
         lam = np.zeros(n_dof)
         lam[free] = -solver.solve(np.ascontiguousarray(rhs[free]))
-        G, _ = control_jacobian(system, xj, us[j - 1])
-        out[j - 1] = lam @ G
+        out[j - 1] = lam @ system.control_jacobian(xj, xjm1, us[j - 1])
         lam_next2, lam_next = lam_next, lam
     return out

@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .integrator import NewtonOptions, NewtonSolver, SimulationError
+from .integrator import FactorCache, NewtonOptions, NewtonSolver, SimulationError
 from .robot import Robot
-from .sensitivity import adjoint_pass, sensitivity_step
+from .sensitivity import ForwardSensitivities, adjoint_pass
 from .system import EnergySystem
 
 __all__ = ["Simulator", "Trajectory"]
@@ -89,7 +89,7 @@ class Simulator:
         return self.robot.mesh.n_nodes
 
     # ------------------------------------------------------------------ validation
-    def _check_u(self, u, K: int | None = None) -> np.ndarray:
+    def _check_u(self, u, K: int | None = None, check_bounds: bool = False) -> np.ndarray:
         arr = np.array(u, dtype=np.float64)          # a copy: trajectories keep their own
         shape = (self.n_motors,) if K is None else None
         if K is None and arr.shape != shape:
@@ -101,7 +101,22 @@ class Simulator:
             raise ValueError(f"controls u contain NaN or inf at {np.argwhere(bad)[:5].tolist()}")
         if self.control == "tension" and (arr < 0).any():
             raise ValueError("tension controls must be >= 0 (cables can only pull)")
+        if check_bounds and self.control == "length" and self.n_motors:
+            self._check_bounds(arr.reshape(-1, self.n_motors))
         return arr
+
+    def _check_bounds(self, u: np.ndarray) -> None:
+        """Contractions outside a motor's [u_min, u_max] are a ValueError naming the first one
+        (a unit slip, mm for m, is the usual cause)."""
+        lo, hi = self.robot.u_bounds[:, 0], self.robot.u_bounds[:, 1]
+        slack = 1e-12 * np.maximum(hi - lo, 1.0)
+        bad = (u < lo - slack) | (u > hi + slack)
+        if bad.any():
+            k, m = np.argwhere(bad)[0]
+            raise ValueError(f"controls u[{k}, {m}] = {float(u[k, m])!r} m lie outside motor "
+                             f"{self.robot.motors[m].name!r}'s range [{float(lo[m])!r}, {float(hi[m])!r}] m "
+                             f"({int(bad.sum())} entries out of range; pass check_bounds=False "
+                             "to simulate them anyway)")
 
     def _check_x(self, x, name: str) -> np.ndarray:
         arr = np.asarray(x, dtype=np.float64)
@@ -139,89 +154,86 @@ class Simulator:
         relax = NewtonSolver(system, 1.0, NewtonOptions(tol=min(tol, 1e-10), max_iter=100,
                                                         solver=self.newton.options.solver))
         x = self.initial_placement()
+        cache = FactorCache()
         for _ in range(max_iter):
-            xn, _ = relax.step(x, x, u)
+            try:
+                xn, _ = relax.step(x, x, u, cache=cache)
+            except SimulationError as err:
+                raise SimulationError(f"rest_state of robot {self.robot.name!r} failed (u = {u.tolist()}, "
+                                      f"gravity = {normal_g.tolist()}): {err.reason}") from err
             moved = np.abs(xn - x).max()
             x = xn
             if moved <= tol:
                 break
         else:
-            raise SimulationError(f"rest_state did not settle in {max_iter} relaxation steps "
-                                  f"(last motion {moved:.2e} m)")
+            raise SimulationError(f"rest_state of robot {self.robot.name!r} did not settle in {max_iter} "
+                                  f"relaxation steps (last motion {moved:.2e} m; u = {u.tolist()}, "
+                                  f"gravity = {normal_g.tolist()}, tol = {tol})")
         self._rest_cache[key] = x.copy()
         return x
 
-    def step(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None) -> np.ndarray:
+    def step(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None,
+             factor_cache: FactorCache | None = None) -> np.ndarray:
         """One implicit-Euler step: ``x_k`` from ``x_{k-1}``, ``x_{k-2}`` and ``u_k``. ``x_{k-3}``
         (optional) gives the Newton solver a better initial guess; the result is the same to
-        within the Newton tolerance. Raises :class:`SimulationError` on failure; the inputs are
-        never modified."""
+        within the Newton tolerance. ``factor_cache`` (a :class:`FactorCache` shared by
+        consecutive steps) lets a step reuse the factorisation of the step before; without
+        it the step starts afresh and its result depends on its inputs only. Raises
+        :class:`SimulationError` on failure; the inputs are never modified."""
         u = self._check_u(u)
         x3 = None if x_prev3 is None else self._check_x(x_prev3, "x_prev3")
         x, _ = self.newton.step(self._check_x(x_prev, "x_prev"), self._check_x(x_prev2, "x_prev2"), u, k,
-                                x_prev3=x3)
+                                x_prev3=x3, cache=factor_cache)
         return x
 
-    def reset_solver(self) -> None:
-        """Forget the factorisation kept for reuse, so the next step starts afresh. Results then
-        depend only on the inputs, not on what the solver did before (determinism)."""
-        self.newton._have_factor = False
-
     # ------------------------------------------------------------------ rollouts
-    def rollout(self, u, x0=None, dudz=None, *, x_prev0=None, store_dxdz: bool = False) -> Trajectory:
+    def rollout(self, u, x0=None, dudz=None, *, x_prev0=None, store_dxdz: bool = False,
+                check_bounds: bool = True) -> Trajectory:
         """Simulate controls ``u`` (K, n_motors) from ``x0`` (default :meth:`rest_state`) with
         zero initial velocity (or ``x_{-1} = x_prev0``).
 
-        With ``dudz`` (K, n_motors, nz) the forward sensitivities of paper eq. 10 are computed
-        alongside: ``dcomdz`` and ``dgammadz`` always, ``dxdz`` if ``store_dxdz``.
+        With ``dudz`` (K, n_motors, nz) the forward sensitivities of paper eqs. 10-11 are
+        computed alongside (:class:`~.sensitivity.ForwardSensitivities`): ``dcomdz`` and
+        ``dgammadz`` always, ``dxdz`` if ``store_dxdz``. In length control, contractions
+        outside a motor's range raise a ValueError unless ``check_bounds=False`` (finite
+        differences at a bound). The rollout owns the factorisation its steps reuse, so its
+        result depends on its inputs only.
         """
-        u = self._check_u(u, K=len(np.asarray(u)))
+        u = self._check_u(u, K=len(np.asarray(u)), check_bounds=check_bounds)
         K = len(u)
         x0 = self.rest_state() if x0 is None else self._check_x(x0, "x0")
         xm1 = x0 if x_prev0 is None else self._check_x(x_prev0, "x_prev0")
-        sysm = self.system
-        masses = self.robot.node_masses
-        mtot = masses.sum()
-        xs = np.empty((K + 1, self.n_nodes, 3))
-        xs[0] = x0
-        gam = np.empty((K + 1, len(sysm.alpha0)))
-        gam[0] = sysm.cable_deformation(x0, self.robot.u_rest)      # before the first control
-        iters = np.zeros(K, dtype=np.int64)
-        sens = dudz is not None
-        if sens:
+        sens = None
+        if dudz is not None:
             dudz = np.asarray(dudz, dtype=np.float64)
             if dudz.ndim != 3 or dudz.shape[:2] != (K, self.n_motors):
                 raise ValueError(f"dudz must have shape ({K}, {self.n_motors}, nz), got {dudz.shape}")
-            nz = dudz.shape[2]
-            S1 = np.zeros((sysm.n_dof, nz))
-            S2 = np.zeros((sysm.n_dof, nz))
-            dcom = np.zeros((K + 1, 3, nz))
-            dgam = np.zeros((K + 1, len(sysm.alpha0), nz))
-            dxdz = np.zeros((K + 1, sysm.n_dof, nz)) if store_dxdz else None
-            tm = sysm.tendon_motor
+            if not np.isfinite(dudz).all():
+                raise ValueError(f"dudz contains NaN or inf at {np.argwhere(~np.isfinite(dudz))[:5].tolist()}")
+            sens = ForwardSensitivities(self.newton, self.robot.node_masses, dudz, store_dxdz)
+        cables = self.system.cables
+        xs = np.empty((K + 1, self.n_nodes, 3))
+        xs[0] = x0
+        gam = np.empty((K + 1, cables.n_tendons))
+        gam[0] = cables.deformation(x0, self.robot.u_rest)      # before the first control
+        iters = np.zeros(K, dtype=np.int64)
+        cache = FactorCache()
         prev, prev2 = x0, xm1
         prev3 = x0 if x_prev0 is None else None      # at rest: x_{-2} = x_{-1} = x_0
-        self.reset_solver()           # a rollout depends on its inputs only
         for k in range(K):
-            x, info = self.newton.step(prev, prev2, u[k], k, need_exact=sens, x_prev3=prev3)
+            x, info = self.newton.step(prev, prev2, u[k], k, need_exact=sens is not None, x_prev3=prev3,
+                                       cache=cache)
             xs[k + 1] = x
             iters[k] = info.iterations
-            gam[k + 1] = sysm.cable_deformation(x, u[k])
-            if sens:
-                S, dL = sensitivity_step(info.solver, self.newton, x, prev, u[k], S1, S2, dudz[k])
-                dcom[k + 1] = (masses @ S.reshape(self.n_nodes, 3 * nz)).reshape(3, nz) / mtot
-                dgam[k + 1] = dL @ S
-                if sysm.mode == 0:
-                    has = tm >= 0
-                    dgam[k + 1][has] += dudz[k][tm[has]]
-                if store_dxdz:
-                    dxdz[k + 1] = S
-                S2, S1 = S1, S
+            gam[k + 1] = cables.deformation(x, u[k])
+            if sens is not None:
+                sens.step(k, info.solver, x, prev, u[k])
             prev3, prev2, prev = prev2, prev, x
-        com = np.einsum("kni,n->ki", xs, masses) / mtot
+        masses = self.robot.node_masses
+        com = np.einsum("kni,n->ki", xs, masses) / masses.sum()
         traj = Trajectory(x=xs, com=com, cable_deformation=gam, u=u, newton_iterations=iters)
-        if sens:
-            traj.dcomdz, traj.dgammadz, traj.dxdz = dcom, dgam, dxdz
+        if sens is not None:
+            traj.dcomdz, traj.dgammadz, traj.dxdz = sens.dcomdz, sens.dgammadz, sens.dxdz
         return traj
 
     def rollout_gradient(self, u, dobj_dx, x0=None, dudz=None, traj: Trajectory | None = None):
@@ -232,7 +244,7 @@ class Simulator:
         rollout to skip re-simulating it."""
         u = self._check_u(u, K=len(np.asarray(u)))
         if traj is None:
-            traj = self.rollout(u, x0=x0)
+            traj = self.rollout(u, x0=x0, check_bounds=False)
         dobj_dx = np.asarray(dobj_dx, dtype=np.float64)
         if dobj_dx.shape != traj.x.shape:
             raise ValueError(f"dobj_dx must have shape {traj.x.shape}, got {dobj_dx.shape}")
@@ -267,10 +279,4 @@ class Simulator:
 
     def cable_tension(self, x, u) -> np.ndarray:
         """Tension per tendon [N]: Q'(Gamma) in length control, u of its motor in tension control."""
-        from .cables import one_sided_quadratic
-        x = self._check_x(x, "x")
-        u = self._check_u(u)
-        if self.control == "tension":
-            return self.system.tendon_controls(u)[1].copy()
-        gam = self.system.cable_deformation(x, u)
-        return one_sided_quadratic(gam, self.system.k_cable, self.system.eps_cable)[1]
+        return self.system.cables.tension(self._check_x(x, "x"), self._check_u(u))

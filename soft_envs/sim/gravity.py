@@ -1,0 +1,40 @@
+"""Gravity (paper II-D) and inclines (paper IV-B: an incline rotates gravity, not the ground)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .terms import EnergyTerm
+
+__all__ = ["Gravity", "incline_gravity"]
+
+
+def incline_gravity(angle_deg: float, g: float = 9.81, uphill: tuple[float, float] = (1.0, 0.0)) -> np.ndarray:
+    """Gravity vector equivalent to standing on a slope of ``angle_deg`` that rises along the
+    horizontal direction ``uphill`` (x, z). A robot walking uphill along +x feels gravity tilted
+    towards -x: ``g = 9.81 (-sin a, -cos a, 0)``."""
+    a = math.radians(float(angle_deg))
+    d = np.array([uphill[0], 0.0, uphill[1]], dtype=np.float64)
+    n = np.linalg.norm(d)
+    if n == 0:
+        raise ValueError("uphill direction must be non-zero")
+    d /= n
+    return -g * (math.sin(a) * d + np.array([0.0, math.cos(a), 0.0]))
+
+
+class Gravity(EnergyTerm):
+    r"""Gravitational potential ``E = -sum_i m_i g . x_i`` for any vector ``g`` [m/s^2] (an
+    incline rotates ``g``, paper IV-B; see :func:`incline_gravity`)."""
+
+    name = "gravity"
+
+    def __init__(self, node_masses: np.ndarray, g: np.ndarray):
+        self.force = (np.asarray(node_masses)[:, None] * np.asarray(g)[None, :]).ravel()   # (3n,)
+
+    def energy(self, x, x_prev, u) -> float:
+        return -float(self.force @ x.ravel())
+
+    def assemble(self, x, x_prev, u, grad, hdata, want_hess) -> float:
+        grad -= self.force
+        return -float(self.force @ x.ravel())

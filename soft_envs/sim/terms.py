@@ -1,0 +1,67 @@
+r"""The potential energy as a list of terms (paper II-D): ``E(x; u, x_prev) = sum_terms E_t``.
+
+Every term sees the same explicit inputs of a step: positions ``x`` (n, 3), the previous
+step's positions ``x_prev`` (lagged quantities such as the normal force of the friction law)
+and the motor controls ``u`` (n_motors,). Static data (mesh, material, cables, contact
+parameters) is bound when the term is built; nothing changes between calls. A term gives
+
+* ``assemble(x, x_prev, u, grad, hdata, want_hess)``: adds dE_t/dx into ``grad`` (3n,) and
+  d2E_t/dx2 into ``hdata`` (the values of the shared lower-triangular sparsity pattern, through
+  the slots it was given by :meth:`EnergyTerm.bind`), returns E_t;
+* ``energy(x, x_prev, u)``: E_t alone (``inf`` outside the energy's domain);
+* the products the sensitivities need (paper III-A, eqs. 9-11):
+  ``add_control_jacobian`` adds ``d(dE_t/dx)/du`` (3n, n_motors) and ``add_prev_product`` /
+  ``add_prev_product_T`` add ``d(dE_t/dx)/dx_prev @ S`` and its transpose product.
+
+The pattern is built once from every term's :meth:`hessian_blocks` (dense blocks of dofs
+that a term couples) plus the full diagonal. A new physical effect (another contact law, a
+spring, an external load) is one new subclass added to the list in
+:class:`soft_envs.sim.system.EnergySystem`; its derivatives are checked against central
+finite differences by ``tests/test_energy_derivatives.py`` for every term in the list.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["EnergyTerm"]
+
+
+class EnergyTerm:
+    """Interface of an energy term (defaults: no Hessian blocks, no dependence on u or x_prev)."""
+
+    #: short name used in messages and tests
+    name = "term"
+
+    def hessian_blocks(self) -> list[np.ndarray]:
+        """Arrays ``(k, p)`` of dof indices: each row is a dense block of ``p`` dofs whose
+        ``p x p`` Hessian entries the term writes. Diagonal-only terms return ``[]`` and use
+        :attr:`diag_slots` after :meth:`bind`."""
+        return []
+
+    def bind(self, slots: list[np.ndarray], diag_slots: np.ndarray) -> None:
+        """Receive the scatter maps: ``slots[i]`` (k, p*p) gives, row-major, the position in
+        the Hessian values of every entry of block array i (``nnz`` for entries that are not
+        stored: upper triangle or fixed dofs); ``diag_slots`` (3n,) the slot of each diagonal
+        entry (``nnz`` for fixed dofs)."""
+        self.diag_slots = diag_slots
+
+    def energy(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray) -> float:
+        raise NotImplementedError
+
+    def assemble(self, x, x_prev, u, grad: np.ndarray, hdata: np.ndarray, want_hess: bool) -> float:
+        raise NotImplementedError
+
+    def assemble_projected(self, x, x_prev, u, grad, hdata) -> float:
+        """Like :meth:`assemble` with the Hessian replaced by a positive semi-definite one
+        (the Newton solver's fallback when the exact Hessian is not positive definite).
+        Default: the exact Hessian, right for terms that are convex in x."""
+        return self.assemble(x, x_prev, u, grad, hdata, True)
+
+    def add_control_jacobian(self, x, x_prev, u, G: np.ndarray) -> None:
+        """``G (3n, n_motors) += d(dE_t/dx)/du``."""
+
+    def add_prev_product(self, x, x_prev, u, S: np.ndarray, out: np.ndarray) -> None:
+        """``out (3n, nz) += d(dE_t/dx)/dx_prev @ S``."""
+
+    def add_prev_product_T(self, x, x_prev, u, lam: np.ndarray, out: np.ndarray) -> None:
+        """``out (3n,) += (d(dE_t/dx)/dx_prev)^T @ lam``."""
