@@ -279,8 +279,8 @@ def tetrahedralize(surface: Surface, edge_length: float, remesh: bool = True) ->
         node_tags, coords, _ = gmsh.model.mesh.getNodes()
         _, tet_nodes = gmsh.model.mesh.getElementsByType(4)
     except Exception as exc:       # gmsh raises plain Exceptions with its last error message
-        log = [m for m in gmsh.logger.get() if m.startswith("Error")]
-        raise SurfaceError(f"{surface.source}: gmsh could not mesh the volume: {exc}"
+        log = [m for m in gmsh.logger.get() if m.startswith("Error") and str(exc).strip() not in m]
+        raise SurfaceError(f"{surface.source}: gmsh could not mesh the volume: {str(exc).strip()}"
                            + (f" ({'; '.join(log[-3:])})" if log else "")
                            + "; check the surface for self-intersections") from exc
     finally:

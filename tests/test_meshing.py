@@ -122,6 +122,49 @@ def test_bad_surfaces_are_refused_by_name(tmp_path, name):
     assert str(path) in str(info.value)
 
 
+def icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+    """A unit sphere: an icosahedron, each triangle split in four ``subdivisions`` times."""
+    t = (1 + 5**0.5) / 2
+    p = [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t],
+         [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]]
+    f = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
+         [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11],
+         [6, 2, 10], [8, 6, 7], [9, 8, 1]]
+    p = [np.array(q) / np.linalg.norm(q) for q in p]
+    for _ in range(subdivisions):
+        mids: dict = {}
+
+        def mid(a, b):
+            if (min(a, b), max(a, b)) not in mids:
+                m = p[a] + p[b]
+                p.append(m / np.linalg.norm(m))
+                mids[min(a, b), max(a, b)] = len(p) - 1
+            return mids[min(a, b), max(a, b)]
+        f = [q for a, b, c in f for q in ([a, mid(a, b), mid(c, a)], [b, mid(b, c), mid(a, b)],
+                                          [c, mid(c, a), mid(b, c)], [mid(a, b), mid(b, c), mid(c, a)])]
+    return np.array(p), np.array(f)
+
+
+def test_a_fine_surface_is_coarsened_to_the_edge_length(tmp_path):
+    pytest.importorskip("gmsh")
+    p, t = icosphere(3)                                     # 642 vertices, 1280 triangles
+    path = write_surface(tmp_path / "ball.stl", 50.0 * p, t)
+    r = mesh_surface(path, scale=1e-3, edge_length=0.02)
+    assert len(r.points) < 200 and (TetMesh(r.points, r.tets).volumes > 0).all()
+    assert r.quality.min_dihedral_deg > 10
+    keep = mesh_surface(path, scale=1e-3, edge_length=0.02, remesh=False)
+    assert len(keep.points) >= 642 and np.isclose(keep.volume, keep.surface.volume)
+
+
+def test_a_self_intersecting_surface_is_refused(tmp_path):
+    pytest.importorskip("gmsh")
+    p, t = box()
+    p[7] = [-20, -10, -10]                                  # a corner pushed through the opposite faces
+    path = write_surface(tmp_path / "knot.obj", p, t)
+    with pytest.raises(SurfaceError, match=r"knot.obj: gmsh could not mesh the volume.*self-intersections"):
+        mesh_surface(path, scale=1e-3, edge_length=0.01)
+
+
 def test_unreadable_inputs(tmp_path):
     with pytest.raises(SurfaceError, match="not found"):
         read_surface(tmp_path / "missing.stl")
