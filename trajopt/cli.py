@@ -9,6 +9,8 @@
     trajopt plot results/tripod_walk.npz --out plots/
     trajopt play results/tripod_walk.npz --hardware hw.toml [--dry-run]
     trajopt rl train tripod --algo ppo --timesteps 20000 --out runs/
+    trajopt mesh body.stl --scale 0.001 --up +z --out my_robot/
+    trajopt check my_robot/robot.toml
 """
 from __future__ import annotations
 
@@ -72,11 +74,41 @@ def _add_result_commands(sub) -> None:
     p.set_defaults(func=_cmd_plot)
 
 
+def _add_robot_commands(sub) -> None:
+    p = sub.add_parser("mesh", help="tet-mesh a closed surface (STL/OBJ/PLY...) and write a robot.toml skeleton")
+    p.add_argument("surface", type=Path, help="closed surface, any format meshio reads")
+    p.add_argument("--out", type=Path, required=True, help="output directory (<name>.vtu, robot.toml)")
+    p.add_argument("--name", default=None, help="robot name (default: the surface file's stem)")
+    p.add_argument("--scale", type=float, default=1.0, help="surface units -> metres (0.001 for mm)")
+    axes = ["+x", "-x", "+y", "-y", "+z", "-z"]
+    p.add_argument("--forward", default="+x", choices=axes, metavar="AXIS",
+                   help="surface axis pointing forward: +x -x +y -y +z -z (negative: --forward=-y)")
+    p.add_argument("--up", default="+y", choices=axes, metavar="AXIS",
+                   help="surface axis pointing up (default +y; Z-up CAD: --up +z)")
+    p.add_argument("--edge-length", type=float, default=None,
+                   help="target tet edge length [m, after --scale] (default: body length / 6)")
+    p.add_argument("--keep-surface", action="store_true", help="keep the surface triangles (no re-meshing)")
+    p.add_argument("--tendons", choices=["example", "legs"], default="example",
+                   help="one example tendon pair, or a pair on the front and back of every leg")
+    p.add_argument("--density", type=float, default=None, help="[kg/m^3] (default 220)")
+    p.add_argument("--youngs-modulus", type=float, default=None, help="[Pa] (default 1e5)")
+    p.add_argument("--payload-mass", type=float, default=None, help="[kg] (default 1.5 x body mass)")
+    p.add_argument("--force", action="store_true", help="replace an existing robot.toml")
+    p.set_defaults(func=_cmd_mesh)
+    p = sub.add_parser("check", help="validate a robot, print its summary and draw it")
+    p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
+    p.add_argument("--picture", type=Path, default=None,
+                   help="PNG to write (default: <robot name>.png beside the robot.toml, or here)")
+    p.add_argument("--no-picture", action="store_true", help="do not draw")
+    p.set_defaults(func=_cmd_check)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="trajopt", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     _add_optimize(sub)
     _add_result_commands(sub)
+    _add_robot_commands(sub)
     try:
         from .hardware.cli import add_play_parser
         add_play_parser(sub)
@@ -123,6 +155,16 @@ def _cmd_export(args) -> int:
 def _cmd_plot(args) -> int:
     from .commands import run_plot
     return run_plot(args)
+
+
+def _cmd_mesh(args) -> int:
+    from .robot_commands import run_mesh
+    return run_mesh(args)
+
+
+def _cmd_check(args) -> int:
+    from .robot_commands import run_check
+    return run_check(args)
 
 
 if __name__ == "__main__":  # pragma: no cover
