@@ -8,7 +8,11 @@ robot you would skip the emulator and keep the port from the TOML file
 
     trajopt play result.npz --hardware trajopt/hardware/example_tripod.toml
 
-Run:  python examples/play_on_emulator.py      (takes ~2 s)
+The second run shows a fault: the 'front' cable is snagged (the emulated
+motor cannot move), so its tracking error grows; playback aborts, stops every
+motor, and says which stops it confirmed by reading the encoders back.
+
+Run:  python examples/play_on_emulator.py      (plays for ~3 s)
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ try:
 except ImportError:  # running from a source checkout without `pip install -e .`
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from trajopt.hardware import EXAMPLE_TRIPOD, RoboClawEmulator, load_hardware_config, play_trajectory
+from trajopt.hardware import EXAMPLE_TRIPOD, RoboClawEmulator, TrackingError, load_hardware_config, play_trajectory
 
 
 def main() -> None:
@@ -52,8 +56,20 @@ def main() -> None:
                                   port_override=emulator.port, log_path=log_path)
 
     # 4. What happened: steps sent, worst tracking error (includes ~1 step of lag),
-    #    how far the schedule drifted (in steps), and where the CSV log is.
+    #    how far the schedule drifted (in steps), where the CSV log is, and which
+    #    motors were confirmed stopped (duty 0 acknowledged, encoder read back at rest).
     print(summary)
+
+    # 5. A fault: the 'front' cable snags.  When a motor stays further than
+    #    settings.max_tracking_error (beyond the lag its speed/accel limits explain)
+    #    for settings.max_tracking_error_time, playback aborts and stops every motor.
+    with RoboClawEmulator(addresses=(0x80,)) as emulator:
+        emulator.jam(1)  # channel M1 = 'front'
+        try:
+            play_trajectory(u_post, dt, ["front", "back"], config, port_override=emulator.port, log_path=log_path)
+        except TrackingError as exc:
+            print(f"aborted: {exc}")
+            print(exc.stop_report)  # type: ignore[attr-defined]
 
 
 if __name__ == "__main__":

@@ -48,6 +48,7 @@ def test_defaults(tmp_path: Path) -> None:
     m = cfg.motors["left"]
     assert m.counts_per_rev == DEFAULT_COUNTS_PER_REV and m.direction == 1 and m.u_min is None
     assert (cfg.baudrate, cfg.timeout, cfg.retries, cfg.min_battery_voltage) == (115200, 0.1, 2, 0.0)
+    assert (cfg.max_tracking_error, cfg.max_tracking_error_time, cfg.allow_untested_firmware) == (0.002, 0.3, False)
 
 
 def test_conversion() -> None:
@@ -82,6 +83,10 @@ BAD = [
     ("[settings]\nbaud = 9600\n" + GOOD_MOTOR, "settings.baud"),
     ("[settings]\nmin_battery_voltage = -1\n" + GOOD_MOTOR, "settings.min_battery_voltage"),
     ("[settings]\nretries = 1.5\n" + GOOD_MOTOR, "settings.retries"),
+    ("[settings]\nmax_tracking_error = 0\n" + GOOD_MOTOR, "settings.max_tracking_error"),
+    ("[settings]\nmax_tracking_error = inf\n" + GOOD_MOTOR, "settings.max_tracking_error"),
+    ("[settings]\nmax_tracking_error_time = -0.1\n" + GOOD_MOTOR, "settings.max_tracking_error_time"),
+    ("[settings]\nallow_untested_firmware = 1\n" + GOOD_MOTOR, "settings.allow_untested_firmware"),
     ("speed = 3\n" + GOOD_MOTOR, "speed"),
     ("robot = 'x'\n", "motors"),
     ("motors = 5\n", "motors"),

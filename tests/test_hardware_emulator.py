@@ -134,19 +134,55 @@ def test_partial_packet_dropped_after_silence(emu: RoboClawEmulator, rc: RoboCla
 # --------------------------------------------------------------------------- faults
 def test_dropped_replies_are_retried(emu: RoboClawEmulator, rc: RoboClaw) -> None:
     emu.inject_no_reply(2)
-    assert rc.read_encoder(1).count == 0  # third attempt answered
-    assert [p.answered for p in emu.received] == [False, False, True]
+    assert rc.read_encoder(1).count == 0
+    # lost request; lost probe (the read is then not re-sent: a late reply could pass for it);
+    # a probe with a command owed by neither; the read
+    assert [(p.command, p.answered) for p in emu.received] == [(16, False), (24, False), (17, True), (16, True)]
+    assert rc.line.in_sync()
 
 
 def test_no_reply_forever_raises_timeout(emu: RoboClawEmulator, rc: RoboClaw) -> None:
-    emu.inject_no_reply(None)
+    emu.hang()
     with pytest.raises(RoboClawTimeout) as info:
         rc.duty(1, 0)
     assert info.value.attempts == 3 and info.value.address == 0x80 and info.value.command == 32
-    assert len(emu.received) == 3
+    # a write goes out on every attempt, each retry after a (failed) probe of the line
+    assert emu.commands() == [32, 24, 32, 16, 32]
+    assert not any(p.executed for p in emu.received)
     emu.clear_faults()
-    rc.serial.reset_input_buffer()
     rc.duty(1, 0)
+    assert rc.line.in_sync()
+
+
+def test_lost_late_and_partial_replies_are_retried(emu: RoboClawEmulator, rc: RoboClaw) -> None:
+    emu.inject_lost_reply(1, command=P.Cmd.READ_MAIN_BATTERY)
+    assert rc.read_main_battery_voltage() == pytest.approx(12.0)
+    emu.inject_partial_reply(3, command=P.Cmd.READ_ENCODER_M1)
+    rc.set_encoder(1, 42)
+    assert rc.read_encoder(1).count == 42
+    emu.inject_late_reply(3 * TIMEOUT, command=P.Cmd.DUTY_M2)
+    rc.duty(2, 0)  # late ACK of attempt 1 arrives during the probe: drained, then a clean retry
+    assert rc.read_encoder(2).count == 0
+    assert rc.line.in_sync()
+    assert [p.executed for p in emu.received].count(False) == 0  # these faults lose replies, not requests
+
+
+def test_late_reply_keeps_reply_order(emu: RoboClawEmulator) -> None:
+    ser = __import__("serial").Serial(emu.port, timeout=0.5)
+    emu.inject_late_reply(0.05, command=P.Cmd.READ_MAIN_BATTERY)
+    ser.write(P.read_frame(0x80, P.Cmd.READ_MAIN_BATTERY) + P.duty_frame(0x80, 1, 0))
+    assert ser.read(5) == bytes.fromhex("00 78") + P.reply_crc(0x80, 24, bytes.fromhex("00 78")) + b"\xff"
+    ser.close()
+
+
+def test_jammed_channel_does_not_move(emu: RoboClawEmulator, rc: RoboClaw) -> None:
+    emu.jam(1, 0x80)
+    rc.speed_accel_decel_position(1, 50000, 5000, 50000, 500, buffer=False)
+    rc.speed_accel_decel_position(2, 50000, 5000, 50000, 500, buffer=False)
+    assert wait_for(lambda: emu.counts(0x80)[1] == 500)
+    assert emu.counts(0x80)[0] == 0 and emu.snapshot(0x80).jammed == (True, False)
+    emu.jam(1, 0x80, jammed=False)
+    assert wait_for(lambda: emu.counts(0x80)[0] == 500)
 
 
 def test_bad_crc_reply(emu: RoboClawEmulator, rc: RoboClaw) -> None:

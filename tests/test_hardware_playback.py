@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import io
 import sys
 import types
@@ -35,9 +36,17 @@ def smooth_u(k: int = 60, amplitude: float = 0.01) -> np.ndarray:
     return amplitude * np.stack([np.sin(np.pi * s) ** 2, 0.5 * (1 - np.cos(2 * np.pi * s))], axis=1)
 
 
-def tripod_config(timeout: float = 0.05, retries: int = 1) -> HardwareConfig:
+def tripod_config(timeout: float = 0.05, retries: int = 1, **settings: object) -> HardwareConfig:
     cfg = load_hardware_config(EXAMPLE_TRIPOD)
-    return HardwareConfig(cfg.motors, cfg.min_battery_voltage, cfg.baudrate, timeout, retries, cfg.robot, cfg.path)
+    return dataclasses.replace(cfg, timeout=timeout, retries=retries, **settings)
+
+
+def stopped_after_last_move(emu: RoboClawEmulator, address: int = 0x80) -> bool:
+    """Duty 0 reached both channels after the last move, and both are idle now."""
+    commands = emu.commands(address)
+    last_move = max((i for i, c in enumerate(commands) if c in MOVES), default=-1)
+    after = set(commands[last_move + 1:])
+    return {P.Cmd.DUTY_M1, P.Cmd.DUTY_M2} <= after and emu.snapshot(address).modes == ("idle", "idle")
 
 
 def read_log(path: Path) -> tuple[list[str], np.ndarray]:
@@ -98,14 +107,16 @@ def test_play_tripod_end_to_end(emu: RoboClawEmulator, tmp_path: Path) -> None:
                                                                      cfg.with_port_override(emu.port)))
                if c.frame[1] in MOVES]
     assert [bytes((0x80, p.command)) + p.data for p in sent] == [f[:-2] for f in planned]
-    assert emu.commands()[-2:] == [P.Cmd.DUTY_M1, P.Cmd.DUTY_M2]
-    assert emu.snapshot().modes == ("idle", "idle")
+    assert stopped_after_last_move(emu)
+    assert summary.stop is not None and summary.stop.all_confirmed and summary.stop.confirmed == ("front", "back")
+    assert "motors confirmed stopped: front, back" in str(summary)
 
 
 def test_drift_free_schedule_with_fake_clock(emu: RoboClawEmulator) -> None:
     """Sleeps overshoot by 0.4 steps each time; deadlines are absolute, so lateness never accumulates."""
     fake = FakeTime(DT)
-    summary = play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port,
+    cfg = tripod_config(max_tracking_error=1.0)  # fake time runs ahead of the emulated motors
+    summary = play_trajectory(smooth_u(), DT, ["front", "back"], cfg, port_override=emu.port,
                               clock=fake.clock, sleep=fake.sleep)
     assert summary.steps_sent == 60
     assert 0.3 < summary.max_lateness_steps < 1.0  # a naive sleep(dt) loop would end ~24 steps late
@@ -123,16 +134,28 @@ def test_preroll_and_loops(emu: RoboClawEmulator) -> None:
     assert len(moves) == 1 + 24
 
 
-def test_dry_run_prints_stream_without_port() -> None:
+def test_dry_run_verbose_prints_stream_without_port() -> None:
     out = io.StringIO()
     cfg = tripod_config()  # port /dev/ttyACM0 does not exist here: nothing may be opened
-    summary = play_trajectory(smooth_u(5, 0.0002), DT, ["front", "back"], cfg, dry_run=True, out=out)
-    text = out.getvalue()
+    summary = play_trajectory(smooth_u(5, 0.0002), DT, ["front", "back"], cfg, dry_run=True, out=out, verbose=True)
+    lines = out.getvalue().strip().splitlines()
     assert summary.dry_run and summary.steps_sent == 0 and summary.steps_planned == 5
-    assert "read firmware" in text and "80 15 59 0c" in text
-    assert "front M1 move to" in text and "80 41" in text
-    assert text.strip().splitlines()[-1].endswith("80 21 00 00 6c ce")  # final stop of M2
-    assert len(text.strip().splitlines()) == 5 + 5 * 4 + 2
+    packets = [line for line in lines if " | " in line]
+    assert "read firmware" in packets[0] and packets[0].endswith("80 15 59 0c")
+    assert any("front M1 move to" in line and "| 80 41" in line for line in packets)
+    assert packets[-1].endswith("80 21 00 00 6c ce")  # final stop of M2
+    assert len(packets) == 5 + 5 * 4 + 2
+    assert lines[-1] == "27 packets would be sent"
+
+
+def test_dry_run_prints_a_summary_not_packets() -> None:
+    out = io.StringIO()
+    play_trajectory(smooth_u(600, 0.01), DT / 2, ["front", "back"], tripod_config(), dry_run=True, out=out)
+    lines = out.getvalue().strip().splitlines()
+    assert len(lines) == 4 and not any(" | " in line for line in lines)
+    assert lines[0] == "600 steps (600 samples x 1 loop) of 0.0165 s = 9.90 s on /dev/ttyACM0 0x80"
+    assert lines[1].startswith("  front (0x80 M1): counts 0..1138 (u 0.00..10.00 mm), peak speed ")
+    assert lines[-1] == "2407 packets would be sent (--verbose lists them)"
 
 
 # --------------------------------------------------------------------------- refusals
@@ -162,11 +185,36 @@ def test_accel_limit_and_bounds_refused(emu: RoboClawEmulator) -> None:
     assert emu.received == []
 
 
-def test_low_battery_refused_before_motion(emu: RoboClawEmulator) -> None:
+def test_existing_or_unwritable_log_refused_before_any_port(emu: RoboClawEmulator, tmp_path: Path) -> None:
+    log = tmp_path / "earlier_run.csv"
+    log.write_text("keep me")
+    with pytest.raises(ValueError, match="earlier_run.csv already exists"):
+        play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port, log_path=log)
+    with pytest.raises(ValueError, match="cannot write the playback log .*missing"):
+        play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port,
+                        log_path=tmp_path / "missing" / "run.csv")
+    assert log.read_text() == "keep me" and emu.received == []
+
+
+def test_low_battery_refused_before_motion(emu: RoboClawEmulator, tmp_path: Path) -> None:
     emu.set_battery_voltage(9.8)
-    with pytest.raises(PlaybackError, match=r"9\.8 V is below min_battery_voltage = 10\.5"):
-        play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port)
+    log = tmp_path / "never.csv"
+    with pytest.raises(PlaybackError, match=r"9\.8 V is below min_battery_voltage = 10\.5") as info:
+        play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port, log_path=log)
     assert not MOVES & set(emu.commands())
+    assert not log.exists()  # no step was played: no log left behind
+    assert info.value.stop_report.confirmed == ("front", "back")  # type: ignore[attr-defined]
+
+
+def test_port_that_cannot_be_opened(tmp_path: Path) -> None:
+    with RoboClawEmulator() as emu_a:
+        cfg = load_hardware_config(two_port_config(tmp_path, emu_a.port, "/dev/zz-does-not-exist"))
+        with pytest.raises(RoboClawConnectionError, match="zz-does-not-exist") as info:
+            play_trajectory(smooth_u(), DT, ["front", "back"], cfg)
+        report = info.value.stop_report  # type: ignore[attr-defined]
+        assert report.confirmed == ("front", f"{emu_a.port} 0x80 M2 (unused)") and report.all_confirmed
+        assert report.unreached == ("back (/dev/zz-does-not-exist not opened)",)
+        assert not MOVES & set(emu_a.commands())
 
 
 # --------------------------------------------------------------------------- faults mid-playback
@@ -190,8 +238,11 @@ def test_disconnect_mid_playback_stops_reachable_motors(tmp_path: Path) -> None:
         assert info.value.address == 0x80
         assert any("log kept" in note for note in getattr(info.value, "__notes__", []))
         assert not emu_a.connected
-        assert emu_b.commands()[-2:] == [P.Cmd.DUTY_M1, P.Cmd.DUTY_M2]
-        assert emu_b.snapshot().modes == ("idle", "idle")
+        assert stopped_after_last_move(emu_b)
+        report = info.value.stop_report  # type: ignore[attr-defined]
+        assert report.confirmed == ("back", f"{emu_b.port} 0x80 M2 (unused)")
+        assert [c.label for c in report.unconfirmed] == ["front", f"{emu_a.port} 0x80 M2 (unused)"]
+        assert "duty 0 not acknowledged" in report.unconfirmed[0].detail
         header, rows = read_log(log)
         assert len(header) == 6 and rows.shape == (10, 6)
 
@@ -206,19 +257,22 @@ def test_keyboard_interrupt_stops_motors(emu: RoboClawEmulator) -> None:
             raise KeyboardInterrupt
         __import__("time").sleep(seconds)
 
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(KeyboardInterrupt) as info:
         play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port, sleep=sleep)
-    assert emu.commands()[-2:] == [P.Cmd.DUTY_M1, P.Cmd.DUTY_M2]
-    assert emu.snapshot().modes == ("idle", "idle")
+    assert stopped_after_last_move(emu)
+    assert info.value.stop_report.all_confirmed  # type: ignore[attr-defined]
 
 
 def test_unresponsive_controller_raises_timeout(emu: RoboClawEmulator) -> None:
-    emu.inject_no_reply(None)
-    with pytest.raises(RoboClawTimeout, match="no complete reply.*after 2 attempts"):
+    emu.hang()
+    with pytest.raises(RoboClawTimeout, match="READ_FIRMWARE.*no complete reply.*after 2 attempts") as info:
         play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port)
-    # firmware read (2 attempts), then the stop attempt on the way out (duty M1, 2 attempts, then M2)
-    assert emu.commands()[:3] == [P.Cmd.READ_FIRMWARE] * 2 + [P.Cmd.DUTY_M1]
+    # firmware read, a probe of the line (failed: the read is not re-sent), then the stop on the way out
+    assert emu.commands()[:3] == [P.Cmd.READ_FIRMWARE, P.Cmd.READ_MAIN_BATTERY, P.Cmd.READ_ENCODER_M1]
+    assert {P.Cmd.DUTY_M1, P.Cmd.DUTY_M2} <= set(emu.commands())
     assert not MOVES & set(emu.commands())
+    report = info.value.stop_report  # type: ignore[attr-defined]
+    assert report.confirmed == () and [c.label for c in report.unconfirmed] == ["front", "back"]
 
 
 # --------------------------------------------------------------------------- CLI hook
@@ -261,6 +315,10 @@ def test_cli_plays_and_dry_runs(fake_results: dict, emu: RoboClawEmulator, tmp_p
                                 capsys: pytest.CaptureFixture[str]) -> None:
     args = parse(["play", "res.npz", "--hardware", str(EXAMPLE_TRIPOD), "--dry-run"])
     assert args.func(args) == 0
+    out = capsys.readouterr().out
+    assert "move to" not in out and out.strip().splitlines()[-1] == "dry run: 60 steps planned, nothing sent"
+    args = parse(["play", "res.npz", "--hardware", str(EXAMPLE_TRIPOD), "--dry-run", "--verbose"])
+    assert args.func(args) == 0
     assert "move to" in capsys.readouterr().out
     fake_results["short.npz"] = types.SimpleNamespace(u_post=smooth_u(10, 0.0005), dt=0.03,
                                                       motor_names=["front", "back"])
@@ -268,7 +326,10 @@ def test_cli_plays_and_dry_runs(fake_results: dict, emu: RoboClawEmulator, tmp_p
     args = parse(["play", "short.npz", "--hardware", str(EXAMPLE_TRIPOD), "--port-override", emu.port,
                   "--log", str(log)])
     assert args.func(args) == 0
-    assert "10/10 steps sent" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "10/10 steps sent" in captured.out and "motors confirmed stopped: front, back" in captured.out
+    progress = [line for line in captured.err.splitlines() if " step " in line]
+    assert progress[-1].startswith("trajopt play: step 10/10 (100 %)") and "\r" not in captured.err
     assert len(log.read_text().splitlines()) == 11
 
 
@@ -279,10 +340,11 @@ def test_cli_hardware_error_exits_nonzero_and_keeps_log(fake_results: dict, tmp_
         emu_a.disconnect_after(5 + 2 * 5 + 1)
         log = tmp_path / "cli.csv"
         args = parse(["play", "res.npz", "--hardware", str(hw), "--log", str(log)])
-        assert args.func(args) == 1
-        assert emu_b.commands()[-2:] == [P.Cmd.DUTY_M1, P.Cmd.DUTY_M2]
+        assert args.func(args) == 3  # port A vanished: its motor's stop cannot be confirmed
+        assert stopped_after_last_move(emu_b)
     err = capsys.readouterr().err
     assert "hardware error" in err and "RoboClawConnectionError" in err and str(log) in err
+    assert "motors confirmed stopped: back" in err and "NOT confirmed stopped (cut their power): front" in err
     assert len(log.read_text().splitlines()) == 1 + 5
 
 

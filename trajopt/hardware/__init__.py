@@ -2,7 +2,9 @@
 
 * :class:`RoboClaw` -- packet-serial driver (pyserial, imported only when a port is opened);
 * :func:`load_hardware_config` -- TOML hardware description (motors, spools, limits);
-* :func:`play_trajectory` -- pre-flight checks, timed streaming, CSV log, safe stop;
+* :func:`play_trajectory` -- pre-flight checks, timed streaming, CSV log, tracking-error abort;
+* :func:`stop_motors` -- stop every channel whatever happens meanwhile; :class:`StopReport` says
+  which stops were confirmed (read back) and which were not;
 * :class:`RoboClawEmulator` -- pty-based emulated controllers for tests and demos (POSIX);
 * :func:`add_play_parser` / :func:`run_play` -- the ``trajopt play`` sub-command.
 
@@ -32,18 +34,29 @@ from .errors import (
     RoboClawError,
     RoboClawNoAck,
     RoboClawTimeout,
+    RoboClawUnmatchedReply,
+    TrackingError,
 )
-from .playback import PlaybackSummary, play_trajectory, stop_all_reachable
-from .protocol import Cmd, EncoderReading, PositionPID, crc16
-from .trajectory import PlannedCommand, TrajectoryLimitError, TrajectoryPlan, iter_command_stream, plan_trajectory
+from .playback import PlaybackSummary, play_trajectory
+from .protocol import Cmd, EncoderReading, PositionPID, crc16, parse_firmware_version
+from .stop import ChannelStop, StopReport, stop_all_reachable, stop_motors
+from .trajectory import (
+    PlannedCommand,
+    TrajectoryLimitError,
+    TrajectoryPlan,
+    describe_plan,
+    iter_command_stream,
+    plan_trajectory,
+)
 
 __all__ = [
-    "Cmd", "DEFAULT_COUNTS_PER_REV", "EXAMPLE_PUPPY", "EXAMPLE_TRIPOD", "EncoderReading", "HardwareConfig",
-    "MotorConfig", "PlannedCommand", "PlaybackError", "PlaybackSummary", "PositionPID", "RoboClaw",
+    "ChannelStop", "Cmd", "DEFAULT_COUNTS_PER_REV", "EXAMPLE_PUPPY", "EXAMPLE_TRIPOD", "EncoderReading",
+    "HardwareConfig", "MotorConfig", "PlannedCommand", "PlaybackError", "PlaybackSummary", "PositionPID", "RoboClaw",
     "RoboClawCRCError", "RoboClawConnectionError", "RoboClawEmulator", "RoboClawError", "RoboClawNoAck",
-    "RoboClawTimeout", "TrajectoryLimitError", "TrajectoryPlan", "add_play_parser", "crc16",
-    "iter_command_stream", "load_hardware_config", "open_serial", "parse_hardware_config", "plan_trajectory",
-    "play_trajectory", "run_play", "stop_all_reachable",
+    "RoboClawTimeout", "RoboClawUnmatchedReply", "StopReport", "TrackingError", "TrajectoryLimitError",
+    "TrajectoryPlan", "add_play_parser", "crc16", "describe_plan", "iter_command_stream", "load_hardware_config",
+    "open_serial", "parse_firmware_version", "parse_hardware_config", "plan_trajectory", "play_trajectory",
+    "run_play", "stop_all_reachable", "stop_motors",
 ]
 
 

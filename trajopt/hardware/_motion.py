@@ -12,6 +12,9 @@ The encoder position is a float integrated with small fixed sub-steps:
   (speeding up) or ``decel`` (slowing down) per second.  An acceleration / deceleration of 0 means
   "unlimited"; a speed of 0 holds the motor still.  Queued moves (buffer flag
   0) start when the current move has arrived; flag 1 clears the queue.
+
+A *jammed* channel (a snagged cable, a stalled motor) does not move whatever
+it is commanded: its encoder count stays put.
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ class ChannelModel:
     move: Move | None = None
     queue: deque[Move] = field(default_factory=deque)
     pid: tuple[int, int, int, int, int, int, int] = (0, 0, 0, 0, 0, 0, 0)  # raw P, I, D, MaxI, DZ, Min, Max
+    jammed: bool = False
 
     @property
     def count(self) -> int:
@@ -81,6 +85,9 @@ class ChannelModel:
 
     def advance(self, h: float) -> None:
         """Integrate the model over ``h`` seconds (call with small ``h``)."""
+        if self.jammed:
+            self.vel = 0.0
+            return
         if self.mode == "duty":
             self.vel = self.duty / 32767.0 * self.no_load_speed
         elif self.mode == "speed":

@@ -8,9 +8,17 @@ Hook into an argparse-based CLI::
     args = parser.parse_args()
     sys.exit(args.func(args))
 
-Exit codes of :func:`run_play`: 0 success, 1 hardware / communication /
-pre-flight error (the CSV log is kept), 2 invalid input (result file, hardware
-TOML, trajectory limits), 130 interrupted (motors stopped).
+Exit codes of :func:`run_play`:
+
+* 0 -- played, every motor confirmed stopped;
+* 1 -- hardware / communication / pre-flight / tracking error, every motor confirmed stopped
+  (the CSV log is kept);
+* 2 -- invalid input (result file, hardware TOML, trajectory limits): nothing was sent;
+* 3 -- some motor was NOT confirmed stopped (whatever else happened): the message names it;
+* 130 -- interrupted (Ctrl-C), every motor confirmed stopped.
+
+Progress and pre-flight lines go to stderr, the summary to stdout; all are
+plain lines (readable in a log file).
 """
 
 from __future__ import annotations
@@ -21,7 +29,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-EXIT_OK, EXIT_HARDWARE, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_HARDWARE, EXIT_INPUT, EXIT_NOT_STOPPED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
 def _positive_int(text: str) -> int:
@@ -32,15 +40,21 @@ def _positive_int(text: str) -> int:
 
 
 def add_play_parser(subparsers: Any) -> argparse.ArgumentParser:
-    """Register ``play RESULT --hardware HW.toml [--dry-run] [--loops N] [--log CSV] [--port-override PORT]``."""
+    """Register ``play RESULT --hardware HW.toml [--dry-run] [--verbose] [--loops N] [--log CSV]
+    [--port-override PORT]``."""
     parser: argparse.ArgumentParser = subparsers.add_parser(
         "play", help="play an optimised trajectory on the robot's RoboClaw motor controllers",
         description="Stream the optimised cable trajectory u_post of RESULT to the motors described in "
                     "the hardware TOML. The robot must rest at its assembly pose (u = 0): encoders are "
-                    "zeroed before playing.")
+                    "zeroed before playing.",
+        epilog="exit codes: 0 played, every motor confirmed stopped; 1 error, every motor confirmed stopped; "
+               "2 bad input, nothing sent; 3 some motor NOT confirmed stopped (cut its power); "
+               "130 interrupted, every motor confirmed stopped")
     parser.add_argument("result", metavar="RESULT", help="trajectory-optimisation result (trajopt.results.Result)")
     parser.add_argument("--hardware", required=True, metavar="HW.toml", help="hardware description (TOML)")
-    parser.add_argument("--dry-run", action="store_true", help="print the command stream, open no port")
+    parser.add_argument("--dry-run", action="store_true", help="check and describe the plan, open no port")
+    parser.add_argument("--verbose", action="store_true",
+                        help="dry run: list every packet (hex); playback: a progress line per step")
     parser.add_argument("--loops", type=_positive_int, default=1, metavar="N", help="play N times (default 1)")
     parser.add_argument("--log", metavar="CSV", default=None,
                         help="CSV log of commanded vs measured counts (default: play_<RESULT>_<time>.csv)")
@@ -50,9 +64,14 @@ def add_play_parser(subparsers: Any) -> argparse.ArgumentParser:
     return parser
 
 
-def _describe(exc: BaseException) -> str:
-    notes = getattr(exc, "__notes__", None) or []
-    return "; ".join([f"{type(exc).__name__}: {exc}", *notes])
+def _report_stop(exc: BaseException, code: int) -> int:
+    """Print what the stop sequence confirmed; the exit code is EXIT_NOT_STOPPED if it did not confirm all."""
+    report = getattr(exc, "stop_report", None)
+    if report is not None:
+        print(f"trajopt play: {report}", file=sys.stderr)
+        if not report.all_confirmed:
+            return EXIT_NOT_STOPPED
+    return code
 
 
 def run_play(args: argparse.Namespace) -> int:
@@ -62,29 +81,38 @@ def run_play(args: argparse.Namespace) -> int:
     from .playback import play_trajectory
 
     try:
-        from trajopt.results import Result  # written separately; imported lazily on purpose
+        from trajopt.results import Result  # numpy-only module, imported lazily on purpose
 
         res = Result.load(args.result)
         config = load_hardware_config(args.hardware)
     except (ValueError, OSError, ImportError) as exc:
-        print(f"trajopt play: cannot load inputs: {_describe(exc)}", file=sys.stderr)
+        print(f"trajopt play: cannot load inputs: {type(exc).__name__}: {exc}", file=sys.stderr)
         return EXIT_INPUT
     log_path = args.log
     if log_path is None and not args.dry_run:
         log_path = f"play_{Path(args.result).stem}_{time.strftime('%Y%m%d-%H%M%S')}.csv"
+    kept = f"trajopt play: log kept at {log_path}"
     try:
         summary = play_trajectory(res.u_post, float(res.dt), list(res.motor_names), config, loops=args.loops,
-                                  log_path=log_path, dry_run=args.dry_run, port_override=args.port_override)
-    except KeyboardInterrupt:
-        print(f"trajopt play: interrupted, motors stopped; log: {log_path}", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except (RoboClawError, PlaybackError, OSError, ImportError) as exc:
-        print(f"trajopt play: hardware error: {_describe(exc)}", file=sys.stderr)
+                                  log_path=log_path, dry_run=args.dry_run, port_override=args.port_override,
+                                  verbose=getattr(args, "verbose", False), progress=sys.stderr)
+    except KeyboardInterrupt as exc:
+        print("trajopt play: interrupted", file=sys.stderr)
+        code = _report_stop(exc, EXIT_INTERRUPTED)
         if log_path is not None and Path(log_path).exists():
-            print(f"trajopt play: log kept at {log_path}", file=sys.stderr)
-        return EXIT_HARDWARE
+            print(kept, file=sys.stderr)
+        return code
+    except (RoboClawError, PlaybackError, OSError, ImportError) as exc:
+        print(f"trajopt play: hardware error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        code = _report_stop(exc, EXIT_HARDWARE)
+        if log_path is not None and Path(log_path).exists():
+            print(kept, file=sys.stderr)
+        return code
     except ValueError as exc:
-        print(f"trajopt play: refused: {_describe(exc)}", file=sys.stderr)
+        print(f"trajopt play: refused: {type(exc).__name__}: {exc}", file=sys.stderr)
         return EXIT_INPUT
     print(summary)
+    if summary.stop is not None and not summary.stop.all_confirmed:
+        print(f"trajopt play: {summary.stop}", file=sys.stderr)
+        return EXIT_NOT_STOPPED
     return EXIT_OK

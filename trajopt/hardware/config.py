@@ -7,6 +7,9 @@ File layout (see ``example_hardware.toml`` and ``example_tripod.toml`` beside th
     baudrate = 115200              # ignored by USB RoboClaws
     timeout = 0.1                  # s, reply timeout
     retries = 2                    # extra attempts on timeout / CRC error
+    max_tracking_error = 0.002     # m of cable, beyond the lag the speed/accel limits explain
+    max_tracking_error_time = 0.3  # s; playback aborts (and stops) after this long above the bound
+    allow_untested_firmware = false  # true: play on firmware other than 4.x with a warning
 
     [motors.left]                  # one table per motor, keyed by motor name
     port = "/dev/ttyACM0"          # device path or pyserial URL
@@ -92,6 +95,12 @@ class HardwareConfig:
     retries: int = 2
     robot: str = ""
     path: str = "<memory>"
+    #: Tracking-error bound [m of cable] beyond the lag explained by the speed / acceleration limits.
+    max_tracking_error: float = 0.002
+    #: Playback aborts when a motor stays above ``max_tracking_error`` this long [s].
+    max_tracking_error_time: float = 0.3
+    #: Play on firmware other than :data:`~.protocol.SUPPORTED_FIRMWARE_MAJOR` (with a warning).
+    allow_untested_firmware: bool = False
 
     def controllers(self, names: list[str] | None = None) -> list[tuple[str, int]]:
         """Sorted distinct ``(port, address)`` pairs of the given (default: all) motors."""
@@ -134,7 +143,8 @@ def _integer(path: str, where: str, value: Any, lo: int, hi: int) -> int:
 
 _MOTOR_REQUIRED = ("port", "address", "channel", "spool_radius", "max_speed", "max_accel")
 _MOTOR_OPTIONAL = ("counts_per_rev", "direction", "u_min", "u_max")
-_SETTINGS = ("min_battery_voltage", "baudrate", "timeout", "retries")
+_SETTINGS = ("min_battery_voltage", "baudrate", "timeout", "retries", "max_tracking_error",
+             "max_tracking_error_time", "allow_untested_firmware")
 
 
 def _parse_motor(path: str, name: str, table: Any) -> MotorConfig:
@@ -209,6 +219,10 @@ def parse_hardware_config(data: dict[str, Any], path: str = "<memory>") -> Hardw
         raise _err(path, "motors", "expected a non-empty table of motor tables")
     motors = {name: _parse_motor(path, name, table) for name, table in motors_table.items()}
     _check_unique_wiring(path, motors)
+    defaults = HardwareConfig  # class attributes hold the field defaults
+    allow = settings.get("allow_untested_firmware", False)
+    if not isinstance(allow, bool):
+        raise _err(path, "settings.allow_untested_firmware", f"expected true or false, got {allow!r}")
     return HardwareConfig(
         motors=motors,
         min_battery_voltage=_number(path, "settings.min_battery_voltage", settings.get("min_battery_voltage", 0.0),
@@ -218,6 +232,12 @@ def parse_hardware_config(data: dict[str, Any], path: str = "<memory>") -> Hardw
         retries=_integer(path, "settings.retries", settings.get("retries", 2), 0, 100),
         robot=robot,
         path=path,
+        max_tracking_error=_number(path, "settings.max_tracking_error",
+                                   settings.get("max_tracking_error", defaults.max_tracking_error), positive=True),
+        max_tracking_error_time=_number(path, "settings.max_tracking_error_time",
+                                        settings.get("max_tracking_error_time", defaults.max_tracking_error_time),
+                                        nonneg=True),
+        allow_untested_firmware=allow,
     )
 
 

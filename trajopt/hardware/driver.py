@@ -12,21 +12,47 @@ Several controllers on one port (one RS-232/USB bus, addresses 0x80..0x87)
 share one serial object: open it once and derive siblings with
 :meth:`RoboClaw.at_address`.
 
-Retries: a timeout, a CRC mismatch or a wrong ACK byte is retried
-``retries`` times (the input buffer is flushed before each retry); every
-request used here is idempotent, so re-sending a write whose ACK was lost is
-harmless.  Port failures (:class:`RoboClawConnectionError`) are not retried.
+Every reply is matched to its own request.  A controller answers its requests in
+order, one at a time, but a reply can come late (after the driver gave up on it)
+and a write's acknowledgement is the single byte 0xFF, whatever the command.  So:
+
+* stale bytes are drained before every request (after a failure, until the line
+  has been quiet for :attr:`RoboClaw.SETTLE` s);
+* :class:`LineState` (shared by every driver on one serial object) remembers
+  which replies may still arrive late; a write is only sent on a line that owes
+  nothing -- otherwise a *probe* (a read whose reply cannot be confused with any
+  owed one: its CRC covers address and command) first proves that every owed
+  reply has arrived; if the probe fails the write is still sent, but its 0xFF
+  raises :class:`RoboClawUnmatchedReply` instead of counting as a success;
+* bytes beyond the expected reply make the exchange an error, not a success.
+
+Retries: a timeout, a CRC mismatch, a wrong ACK byte or an unmatched reply is
+retried ``retries`` times; every request used here is idempotent, so re-sending
+a write whose ACK was lost is harmless.  Port failures
+(:class:`RoboClawConnectionError`) are not retried.
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from typing import Any, Callable, Protocol, TypeVar
 
 from . import protocol as P
-from .errors import RoboClawConnectionError, RoboClawCRCError, RoboClawError, RoboClawNoAck, RoboClawTimeout
+from ._line import ACK_REPLY, SYNC_PROBES, UNKNOWN_REPLY, LineState, line_state
+from .errors import (
+    RoboClawConnectionError,
+    RoboClawCRCError,
+    RoboClawError,
+    RoboClawNoAck,
+    RoboClawTimeout,
+    RoboClawUnmatchedReply,
+)
 
 T = TypeVar("T")
+log = logging.getLogger("trajopt.hardware")
+
+_RETRYABLE = (RoboClawTimeout, RoboClawCRCError, RoboClawNoAck, RoboClawUnmatchedReply)
 
 PYSERIAL_HINT = "pyserial is required to talk to RoboClaw controllers: pip install soft-envs[hardware]"
 
@@ -66,9 +92,12 @@ class RoboClaw:
             or an already-open serial-like object (not closed by :meth:`close`).
         address: packet-serial address 0x80..0x87.
         timeout: seconds to wait for a complete reply.
-        retries: extra attempts after a timeout / CRC error / bad ACK.
+        retries: extra attempts after a timeout / CRC error / bad ACK / unmatched reply.
         baudrate: only used when opening a port by name (ignored by USB RoboClaws).
     """
+
+    #: Silence [s] that ends the drain after a failed exchange (the device's packet gap).
+    SETTLE = 0.010
 
     def __init__(self, port_or_serial: str | SerialLike, address: int = 0x80, timeout: float = 0.1,
                  retries: int = 2, baudrate: int = 115200) -> None:
@@ -87,6 +116,8 @@ class RoboClaw:
             self.port = str(getattr(port_or_serial, "port", None) or getattr(port_or_serial, "name", "<serial>"))
             self._ser = port_or_serial
             self._owns_port = False
+        self._line = line_state(self._ser)
+        self._can_peek = hasattr(type(self._ser), "in_waiting")  # pyserial: bytes already received
 
     # ------------------------------------------------------------------ lifecycle
     def at_address(self, address: int) -> RoboClaw:
@@ -97,6 +128,11 @@ class RoboClaw:
     def serial(self) -> Any:
         """The underlying serial object."""
         return self._ser
+
+    @property
+    def line(self) -> LineState:
+        """Replies still owed on this driver's serial line (shared with its siblings)."""
+        return self._line
 
     def close(self) -> None:
         """Close the port if this driver opened it."""
@@ -131,33 +167,120 @@ class RoboClaw:
             if time.monotonic() > deadline:
                 raise self._error(RoboClawTimeout, f"no complete reply within {self.timeout:g} s", command,
                                   bytes(buf))
-            try:
-                chunk = self._ser.read(len(sofar) + n - len(buf))
-            except Exception as exc:  # noqa: BLE001
-                raise self._error(RoboClawConnectionError, f"read failed: {exc}", command, bytes(buf)) from exc
-            buf += chunk
+            buf += self._read_chunk(len(sofar) + n - len(buf), command, bytes(buf))
         return bytes(buf[len(sofar):])
 
-    def _flush_input(self, command: int) -> None:
+    def _in_waiting(self, command: int) -> int:
+        try:
+            return int(self._ser.in_waiting)
+        except Exception as exc:  # noqa: BLE001 - SerialException/OSError on a dead port
+            raise self._error(RoboClawConnectionError, f"port check failed: {exc}", command, b"") from exc
+
+    def _drain(self, command: int, quiet: float) -> None:
+        """Discard stale input; with ``quiet > 0`` keep discarding until the line was silent that long."""
+        stray = bytearray()
+        start = last = time.monotonic()
+        while self._can_peek:
+            n = self._in_waiting(command)
+            now = time.monotonic()
+            if n:
+                stray += self._read_chunk(n, command, bytes(stray))
+                last = now
+            elif now - last >= quiet or now - start > quiet + self.timeout:  # a babbling line cannot hold us
+                break
+            else:
+                time.sleep(0.001)
         try:
             self._ser.reset_input_buffer()
         except Exception as exc:  # noqa: BLE001 - termios.error on a dead pty
             raise self._error(RoboClawConnectionError, f"flush failed: {exc}", command, b"") from exc
+        if stray:
+            self._line.stray_bytes += len(stray)
+            log.warning("%s: discarded %d stale byte(s) before command %d (%s): %s", self, len(stray), command,
+                        P.command_name(command), bytes(stray).hex(" "))
+            if self._line.in_sync():  # nothing was owed: some earlier exchange may have been mismatched
+                for address in self._line.addresses:
+                    self._line.owe(address, UNKNOWN_REPLY)
 
-    def _exchange(self, frame: bytes, receive: Callable[[float], T]) -> T:
-        """Send ``frame`` and parse the answer with ``receive(deadline)``, retrying transient errors."""
-        last: RoboClawError | None = None
-        for attempt in range(self.retries + 1):
-            if attempt:
-                self._flush_input(frame[1])
-            self._send(frame)
+    def _read_chunk(self, n: int, command: int, sofar: bytes) -> bytes:
+        try:
+            return bytes(self._ser.read(n))
+        except Exception as exc:  # noqa: BLE001
+            raise self._error(RoboClawConnectionError, f"read failed: {exc}", command, sofar) from exc
+
+    def _resync(self, kind: int, command: int) -> RoboClawError | None:
+        """Probe the controllers that may owe a reply confusable with ``kind``; ``None`` once in sync."""
+        addresses = sorted(self._line.addresses | set(self._line.owed)) if kind == ACK_REPLY else [self.address]
+        for address in addresses:
+            owed = self._line.owed.get(address)
+            if not owed:
+                continue
+            probe = next((c for c in SYNC_PROBES if c not in owed and c != kind), SYNC_PROBES[0])
+            drv = self if address == self.address else self.at_address(address)
             try:
-                return receive(time.monotonic() + self.timeout)
-            except (RoboClawTimeout, RoboClawCRCError, RoboClawNoAck) as exc:
-                last = exc
-        assert last is not None
-        last.attempts = self.retries + 1
-        raise last
+                drv._attempt(P.read_frame(address, probe), drv._fixed_reply(probe), probe, quiet=self.SETTLE,
+                             probing=True)
+            except RoboClawConnectionError:
+                raise
+            except RoboClawError as exc:
+                return exc
+        if self._line.owes(self.address, kind):
+            return self._error(RoboClawUnmatchedReply, "owed replies could not be ruled out", command, b"")
+        return None
+
+    def _attempt(self, frame: bytes, receive: Callable[[float], T], kind: int, quiet: float,
+                 probing: bool = False) -> T:
+        """One request/reply; any failure (even KeyboardInterrupt) leaves its reply owed.
+
+        A read is not sent while its reply could be confused with a late one (the probe failed);
+        a write is sent anyway (a stop must go out), but its 0xFF then does not count as an ACK.
+        A probe never probes: if its own kind is owed, success proves only that nothing else is.
+        """
+        command, line = frame[1], self._line
+        line.addresses.add(self.address)
+        matched = False
+        try:
+            self._drain(command, quiet)
+            still_owed = probing and line.owes(self.address, kind)
+            doubt = self._resync(kind, command) if not probing and line.owes(self.address, kind) else None
+            if doubt is not None:
+                probe = P.command_name(doubt.command if doubt.command is not None else command)
+                why = f"sync probe {probe} of {doubt.address or self.address:#04x} failed ({doubt.detail}) " \
+                      "after an earlier request went unanswered"
+                if kind != ACK_REPLY:
+                    cls = type(doubt) if isinstance(doubt, _RETRYABLE) else RoboClawUnmatchedReply
+                    raise self._error(cls, f"not sent: {why}", command, doubt.received)
+            self._send(frame)
+            result = receive(time.monotonic() + self.timeout)
+            extra = self._read_chunk(self._in_waiting(command), command, b"") if self._can_peek else b""
+            if extra:
+                raise self._error(RoboClawUnmatchedReply, f"{len(extra)} byte(s) beyond the reply arrived, so the "
+                                  "reply may belong to another request", command, extra)
+            if doubt is not None:
+                raise self._error(RoboClawUnmatchedReply, f"0xff received but it may be a late reply: {why}",
+                                  command, bytes((P.ACK,)))
+            matched = not still_owed
+            line.matched(self.address)
+            return result
+        finally:
+            if not matched:
+                line.owe(self.address, kind)
+
+    def _exchange(self, frame: bytes, receive: Callable[[float], T], kind: int) -> T:
+        """Send ``frame`` and parse the answer with ``receive(deadline)``, retrying transient errors.
+
+        After the last attempt the *first* error is raised (the root cause; later ones are often
+        failed sync probes), with ``attempts`` set.
+        """
+        first: RoboClawError | None = None
+        for attempt in range(self.retries + 1):
+            try:
+                return self._attempt(frame, receive, kind, quiet=self.SETTLE if attempt else 0.0)
+            except _RETRYABLE as exc:
+                first = first or exc
+        assert first is not None
+        first.attempts = self.retries + 1
+        raise first
 
     def _write(self, frame: bytes) -> None:
         command = frame[1]
@@ -167,7 +290,7 @@ class RoboClaw:
             if got[0] != P.ACK:
                 raise self._error(RoboClawNoAck, "expected ACK 0xff", command, got)
 
-        self._exchange(frame, receive)
+        self._exchange(frame, receive, ACK_REPLY)
 
     def _check_crc(self, command: int, data: bytes, crc: bytes) -> bytes:
         if P.reply_crc(self.address, command, data) != crc:
@@ -175,8 +298,8 @@ class RoboClaw:
                               f"{P.reply_crc(self.address, command, data).hex()})", command, data + crc)
         return data
 
-    def _read(self, command: int) -> bytes:
-        """Send a read request and return the CRC-checked reply data."""
+    def _fixed_reply(self, command: int) -> Callable[[float], bytes]:
+        """Receiver of a fixed-length read reply: the CRC-checked data."""
         n = P.REPLY_DATA_LEN[command]
         assert n is not None
 
@@ -184,7 +307,11 @@ class RoboClaw:
             raw = self._read_exact(n + 2, deadline, command)
             return self._check_crc(command, raw[:n], raw[n:])
 
-        return self._exchange(P.read_frame(self.address, command), receive)
+        return receive
+
+    def _read(self, command: int) -> bytes:
+        """Send a read request and return the CRC-checked reply data."""
+        return self._exchange(P.read_frame(self.address, command), self._fixed_reply(command), command)
 
     # ------------------------------------------------------------------ commands
     def read_encoder(self, channel: int) -> P.EncoderReading:
@@ -208,7 +335,7 @@ class RoboClaw:
             crc = self._read_exact(2, deadline, command, text)
             return self._check_crc(command, text, crc)[:-2].decode("ascii", "replace")
 
-        return self._exchange(P.read_frame(self.address, command), receive)
+        return self._exchange(P.read_frame(self.address, command), receive, command)
 
     def set_encoder(self, channel: int, count: int) -> None:
         """Commands 22/23: set encoder ``channel`` to ``count`` (int32)."""

@@ -10,9 +10,20 @@ with pyserial (or :class:`~trajopt.hardware.RoboClaw`) like a real device::
         rc.duty(1, 0)
 
 Like the real device it silently drops packets with a bad CRC, packets for
-unknown commands, and partial packets after 10 ms without a byte.  Faults can
-be injected: :meth:`inject_no_reply`, :meth:`inject_bad_crc`,
-:meth:`inject_bad_ack`, :meth:`disconnect`, :meth:`disconnect_after`.
+unknown commands, and partial packets after 10 ms without a byte, and it
+answers requests in order.  Faults can be injected, each for the next ``times``
+valid packets (``None`` = forever), optionally only for one ``command``:
+
+* :meth:`inject_no_reply` -- the request is lost: not executed, no reply
+  (forever: a hung controller, :meth:`hang`);
+* :meth:`inject_lost_reply` -- executed, but the reply is lost;
+* :meth:`inject_late_reply` -- executed, the reply leaves ``delay`` s later
+  (later replies queue behind it, as on a busy controller);
+* :meth:`inject_partial_reply` -- executed, only the first bytes of the reply leave;
+* :meth:`inject_bad_crc` / :meth:`inject_bad_ack` -- corrupted read CRC / ACK byte 0x00;
+* :meth:`jam` -- a channel cannot move (snagged cable): its encoder stays put;
+* :meth:`disconnect` / :meth:`disconnect_after` -- the port disappears (unplugged);
+* :meth:`after_packets` -- run any of these at a chosen packet.
 """
 
 from __future__ import annotations
@@ -23,46 +34,39 @@ import struct
 import threading
 import time
 import tty
+from collections import deque
 from dataclasses import dataclass
 from typing import Callable, Iterable, NamedTuple
 
 from . import protocol as P
-from ._motion import ChannelModel, Move
+from ._emulated import ControllerSnapshot, EmulatedController
+
+__all__ = ["ControllerSnapshot", "DEFAULT_FIRMWARE", "ReceivedPacket", "RoboClawEmulator"]
 
 DEFAULT_FIRMWARE = "USB Roboclaw 2x7a v4.1.34"
 
 
 class ReceivedPacket(NamedTuple):
-    """A CRC-valid packet addressed to the emulator; ``answered`` is False if a fault swallowed it."""
+    """A CRC-valid packet addressed to the emulator.
+
+    ``executed`` is False if a fault lost the request, ``answered`` False if no reply (or only part
+    of it) left.
+    """
 
     time: float
     address: int
     command: int
     data: bytes
     answered: bool
+    executed: bool = True
 
 
-@dataclass(frozen=True)
-class ControllerSnapshot:
-    """Inspection snapshot of one emulated controller."""
-
-    address: int
-    counts: tuple[int, int]
-    velocities: tuple[float, float]
-    modes: tuple[str, str]
-    targets: tuple[int | None, int | None]
-    duties: tuple[int, int]
-    speeds: tuple[int, int]
-    queued: tuple[int, int]
-    battery_voltage: float
-
-
-class _Controller:
-    def __init__(self, address: int, no_load_speed: float, battery_voltage: float) -> None:
-        self.address = address
-        self.channels = (ChannelModel(no_load_speed), ChannelModel(no_load_speed))
-        self.battery_voltage = battery_voltage
-        self.status = 0
+@dataclass
+class _Fault:
+    kind: str
+    remaining: int  # -1 = forever
+    command: int | None
+    arg: float = 0.0  # delay [s] (late_reply) or bytes kept (partial_reply)
 
 
 class RoboClawEmulator:
@@ -85,7 +89,7 @@ class RoboClawEmulator:
         addrs = [P.check_address(a) for a in addresses]
         if not addrs:
             raise ValueError("addresses must not be empty")
-        self._ctrl = {a: _Controller(a, no_load_speed, battery_voltage) for a in addrs}
+        self._ctrl = {a: EmulatedController(a, no_load_speed, battery_voltage) for a in addrs}
         self.firmware = firmware
         self.packet_gap = packet_gap
         self._clock = clock
@@ -100,8 +104,10 @@ class RoboClawEmulator:
         os.set_blocking(self._master, False)
         self.port: str = os.ttyname(self._slave)
         self._log: list[ReceivedPacket] = []
-        self._faults = {"no_reply": 0, "bad_crc": 0, "bad_ack": 0}
+        self._faults: list[_Fault] = []
+        self._outbox: deque[tuple[float, bytes]] = deque()  # (release time, bytes), in order
         self._disconnect_after: int | None = None
+        self._hooks: list[list] = []  # [packets left, callback]
         self._connected = True
         self.dropped_packets = 0
         self._last_t = clock()
@@ -145,26 +151,55 @@ class RoboClawEmulator:
         return self._connected
 
     # ------------------------------------------------------------------ faults
-    def inject_no_reply(self, times: int | None = 1) -> None:
-        """Ignore the next ``times`` valid packets entirely (not executed, no reply); ``None`` = forever."""
+    def _inject(self, kind: str, times: int | None, command: int | None, arg: float = 0.0) -> None:
+        remaining = -1 if times is None else P.check_int("times", times, 1, 2**31)
+        if command is not None:
+            P.check_int("command", command, 0, 255)
         with self._lock:
-            self._faults["no_reply"] = -1 if times is None else times
+            self._faults.append(_Fault(kind, remaining, command, float(arg)))
 
-    def inject_bad_crc(self, times: int | None = 1) -> None:
+    def inject_no_reply(self, times: int | None = 1, command: int | None = None) -> None:
+        """Lose the next ``times`` valid requests (not executed, no reply); ``None`` = forever."""
+        self._inject("no_reply", times, command)
+
+    def hang(self) -> None:
+        """The controller stops answering (and executing) anything from now on."""
+        self.inject_no_reply(None)
+
+    def inject_lost_reply(self, times: int | None = 1, command: int | None = None) -> None:
+        """Execute the next ``times`` valid requests but lose their replies."""
+        self._inject("lost_reply", times, command)
+
+    def inject_late_reply(self, delay: float, times: int | None = 1, command: int | None = None) -> None:
+        """Execute the next ``times`` valid requests now but send their replies ``delay`` s later."""
+        if not delay > 0:
+            raise ValueError(f"delay {delay!r} must be a positive number of seconds")
+        self._inject("late_reply", times, command, delay)
+
+    def inject_partial_reply(self, n_bytes: int, times: int | None = 1, command: int | None = None) -> None:
+        """Execute the next ``times`` valid requests but send only the first ``n_bytes`` of each reply."""
+        self._inject("partial_reply", times, command, P.check_int("n_bytes", n_bytes, 0, 1000))
+
+    def inject_bad_crc(self, times: int | None = 1, command: int | None = None) -> None:
         """Corrupt the CRC of the next ``times`` read replies; ``None`` = forever."""
-        with self._lock:
-            self._faults["bad_crc"] = -1 if times is None else times
+        self._inject("bad_crc", times, command)
 
-    def inject_bad_ack(self, times: int | None = 1) -> None:
+    def inject_bad_ack(self, times: int | None = 1, command: int | None = None) -> None:
         """Answer the next ``times`` writes with 0x00 instead of 0xFF (executed anyway); ``None`` = forever."""
+        self._inject("bad_ack", times, command)
+
+    def jam(self, channel: int, address: int | None = None, jammed: bool = True) -> None:
+        """Jam (or free) motor ``channel``: whatever it is commanded, its encoder stays put."""
         with self._lock:
-            self._faults["bad_ack"] = -1 if times is None else times
+            self._advance(self._clock())
+            self._controller(address).channels[P.check_channel(channel) - 1].jammed = bool(jammed)
 
     def clear_faults(self) -> None:
-        """Cancel all pending injected faults (not a disconnect that already happened)."""
+        """Cancel all pending injected faults (not a disconnect that already happened, nor a jam)."""
         with self._lock:
-            self._faults = dict.fromkeys(self._faults, 0)
+            self._faults.clear()
             self._disconnect_after = None
+            self._hooks.clear()
 
     def disconnect(self) -> None:
         """Close the emulator's end of the pty now: the client sees an I/O error / EOF.
@@ -184,16 +219,24 @@ class RoboClawEmulator:
         with self._lock:
             self._disconnect_after = P.check_int("packets", packets, 1, 2**31)
 
-    def _take_fault(self, name: str) -> bool:
-        n = self._faults[name]
-        if n == 0:
-            return False
-        if n > 0:
-            self._faults[name] = n - 1
-        return True
+    def after_packets(self, packets: int, callback: Callable[[], object]) -> None:
+        """Call ``callback()`` (in the serving thread) on receipt of the ``packets``-th next valid packet,
+        before that packet is handled -- e.g. to inject faults at a chosen point of a playback."""
+        with self._lock:
+            self._hooks.append([P.check_int("packets", packets, 1, 2**31), callback])
+
+    def _take_fault(self, kind: str, command: int, is_read: bool | None = None) -> _Fault | None:
+        if is_read is not None and (command in P.READ_COMMANDS) != is_read:
+            return None
+        for fault in self._faults:
+            if fault.kind == kind and fault.remaining != 0 and fault.command in (None, command):
+                if fault.remaining > 0:
+                    fault.remaining -= 1
+                return fault
+        return None
 
     # ------------------------------------------------------------------ inspection
-    def _controller(self, address: int | None) -> _Controller:
+    def _controller(self, address: int | None) -> EmulatedController:
         if address is None:
             if len(self._ctrl) != 1:
                 raise ValueError("several addresses emulated: pass address=")
@@ -206,12 +249,7 @@ class RoboClawEmulator:
         """Current state of one controller (motion integrated up to now)."""
         with self._lock:
             self._advance(self._clock())
-            c = self._controller(address)
-            ch = c.channels
-            return ControllerSnapshot(
-                c.address, (ch[0].count, ch[1].count), (ch[0].vel, ch[1].vel), (ch[0].mode, ch[1].mode),
-                (ch[0].target, ch[1].target), (ch[0].duty, ch[1].duty), (ch[0].speed_cmd, ch[1].speed_cmd),
-                (len(ch[0].queue), len(ch[1].queue)), c.battery_voltage)
+            return self._controller(address).snapshot()
 
     def counts(self, address: int | None = None) -> tuple[int, int]:
         """Encoder counts (M1, M2) of one controller."""
@@ -251,8 +289,7 @@ class RoboClawEmulator:
         while elapsed > 1e-12:
             h = min(self.SUBSTEP, elapsed)
             for c in self._ctrl.values():
-                for ch in c.channels:
-                    ch.advance(h)
+                c.advance(h)
             elapsed -= h
 
     def _serve(self) -> None:
@@ -277,6 +314,15 @@ class RoboClawEmulator:
                     last_rx = now
                     buf += data
                     self._consume(buf, now)
+                self._flush_outbox(now)
+
+    def _flush_outbox(self, now: float) -> None:
+        while self._outbox and self._outbox[0][0] <= now and self._connected:
+            _, reply = self._outbox.popleft()
+            try:
+                os.write(self._master, reply)
+            except (BlockingIOError, OSError):
+                pass  # client not reading: the reply is lost, like on a real line
 
     def _consume(self, buf: bytearray, now: float) -> None:
         while buf and self._connected:
@@ -300,55 +346,40 @@ class RoboClawEmulator:
             address, command, payload = frame[0], frame[1], frame[2:-2]
             if address not in self._ctrl:
                 continue
+            for hook in list(self._hooks):
+                hook[0] -= 1
+                if hook[0] <= 0:
+                    self._hooks.remove(hook)
+                    hook[1]()
             if self._disconnect_after is not None:
                 self._disconnect_after -= 1
                 if self._disconnect_after <= 0:
-                    self._log.append(ReceivedPacket(now, address, command, payload, False))
+                    self._log.append(ReceivedPacket(now, address, command, payload, False, False))
                     self._close_fds()
                     return
-            if self._take_fault("no_reply"):
-                self._log.append(ReceivedPacket(now, address, command, payload, False))
+            if self._take_fault("no_reply", command):
+                self._log.append(ReceivedPacket(now, address, command, payload, False, False))
                 continue
-            self._log.append(ReceivedPacket(now, address, command, payload, True))
-            reply = self._handle(self._ctrl[address], command, payload)
-            try:
-                os.write(self._master, reply)
-            except (BlockingIOError, OSError):
-                pass  # client not reading: the reply is lost, like on a real line
+            self._reply(address, command, payload, now)
 
-    def _handle(self, c: _Controller, command: int, data: bytes) -> bytes:
-        """Execute one valid packet and return the reply bytes."""
-        C = P.Cmd
-        if command in P.READ_COMMANDS:
-            if command in (C.READ_ENCODER_M1, C.READ_ENCODER_M2):
-                ch = c.channels[command - C.READ_ENCODER_M1]
-                body = struct.pack(">iB", ch.count, 0x02 if ch.vel < 0 else 0x00)
-            elif command == C.READ_FIRMWARE:
-                body = self.firmware.encode("ascii")[:P.FIRMWARE_MAX_LEN] + P.FIRMWARE_TERMINATOR
-            elif command == C.READ_MAIN_BATTERY:
-                body = struct.pack(">H", max(0, min(65535, round(c.battery_voltage * 10))))
-            elif command in (C.READ_POSITION_PID_M1, C.READ_POSITION_PID_M2):
-                body = struct.pack(">IIIIIii", *c.channels[command - C.READ_POSITION_PID_M1].pid)
-            else:  # READ_STATUS
-                body = struct.pack(">I", c.status)
-            crc = P.reply_crc(c.address, command, body)
-            if self._take_fault("bad_crc"):
-                crc = bytes(b ^ 0xFF for b in crc)
-            return body + crc
-        if command == C.RESET_ENCODERS:
-            for ch in c.channels:
-                ch.set_count(0)
-        elif command in (C.SET_ENCODER_M1, C.SET_ENCODER_M2):
-            c.channels[command - C.SET_ENCODER_M1].set_count(struct.unpack(">i", data)[0])
-        elif command in (C.DUTY_M1, C.DUTY_M2):
-            c.channels[command - C.DUTY_M1].set_duty(struct.unpack(">h", data)[0])
-        elif command in (C.SPEED_M1, C.SPEED_M2):
-            c.channels[command - C.SPEED_M1].set_speed(struct.unpack(">i", data)[0])
-        elif command in (C.SET_POSITION_PID_M1, C.SET_POSITION_PID_M2):
-            d, p, i, max_i, deadzone, min_pos, max_pos = struct.unpack(">IIIIIii", data)
-            c.channels[command - C.SET_POSITION_PID_M1].pid = (p, i, d, max_i, deadzone, min_pos, max_pos)
-        elif command in (C.SPEED_ACCEL_DECEL_POSITION_M1, C.SPEED_ACCEL_DECEL_POSITION_M2):
-            accel, speed, decel, position, flag = struct.unpack(">IIIiB", data)
-            c.channels[command - C.SPEED_ACCEL_DECEL_POSITION_M1].command_move(
-                Move(accel, speed, decel, position), immediate=flag != 0)
-        return bytes((0x00,)) if self._take_fault("bad_ack") else bytes((P.ACK,))
+    def _reply(self, address: int, command: int, payload: bytes, now: float) -> None:
+        """Execute a valid request and queue its reply, applying the injected faults."""
+        reply = self._ctrl[address].execute(command, payload, self.firmware)
+        if self._take_fault("bad_crc", command, is_read=True):
+            reply = reply[:-2] + bytes(b ^ 0xFF for b in reply[-2:])
+        if self._take_fault("bad_ack", command, is_read=False):
+            reply = bytes((0x00,))
+        answered = True
+        if self._take_fault("lost_reply", command):
+            reply, answered = b"", False
+        partial = self._take_fault("partial_reply", command)
+        if partial is not None:
+            reply, answered = reply[:int(partial.arg)], False
+        late = self._take_fault("late_reply", command)
+        release = now + (late.arg if late is not None else 0.0)
+        if self._outbox:
+            release = max(release, self._outbox[-1][0])  # replies leave in order
+        self._log.append(ReceivedPacket(now, address, command, payload, answered))
+        if reply:
+            self._outbox.append((release, reply))
+        self._flush_outbox(now)

@@ -48,9 +48,24 @@ class RoboClawNoAck(RoboClawError):
     """A write was answered with something other than the ACK byte 0xFF."""
 
 
+class RoboClawUnmatchedReply(RoboClawError):
+    """The bytes received cannot be told to be the reply to this request.
+
+    A write's acknowledgement is one byte, 0xFF, whatever the command: after an
+    earlier request went unanswered (its reply may still arrive late) or when
+    more bytes arrive than the request asks for, an 0xFF proves nothing.  The
+    request was sent; whether the controller executed it is unknown.
+    """
+
+
 class RoboClawConnectionError(RoboClawError):
     """The serial port itself failed (unplugged, closed, I/O error); not retried."""
 
 
 class PlaybackError(RuntimeError):
     """Pre-flight check or playback failure that is not a communication error (e.g. low battery)."""
+
+
+class TrackingError(PlaybackError):
+    """A motor stayed too far from its commanded position for too long (jammed cable, stalled motor,
+    disconnected encoder): playback was aborted and the motors stopped."""

@@ -11,18 +11,22 @@ open the ports; pre-flight (firmware of every controller, battery voltage,
 duty 0 and encoder reset); optional pre-roll to the first sample; stream one
 "move now" command (65/66, buffer flag 1, speed / accel from the config) per
 motor per step on the grid ``start + k * dt`` (absolute deadlines, so sleep
-errors never accumulate), read every encoder back and append commanded vs
-measured counts to a CSV flushed after each row; finally -- also on any error
-or Ctrl-C -- send duty 0 to both channels of every reachable controller.
+errors never accumulate), read every encoder back, append commanded vs
+measured counts to a CSV flushed after each row and abort when a motor stays
+off its target (:class:`~.monitor.TrackingMonitor`); finally -- also on any
+error or Ctrl-C -- stop both channels of every reachable controller and confirm
+each stop by reading it back (:func:`~.stop.stop_motors`).  The
+:class:`~.stop.StopReport` is in the summary, or attached to the exception
+raised (``exc.stop_report``, and a note).
 
 **Assumption**: when playback starts, the robot rests at its assembly pose
 (every cable just taut, ``u = 0``).  The pre-flight check resets the encoders
 there, so encoder 0 means ``u = 0``.
 """
 
+
 from __future__ import annotations
 
-import csv
 import logging
 import os
 import sys
@@ -30,12 +34,13 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence, TextIO
 
-import numpy as np
-
+from . import protocol as P
 from .config import HardwareConfig
 from .driver import RoboClaw, open_serial
-from .errors import PlaybackError, RoboClawConnectionError, RoboClawError
-from .trajectory import TrajectoryPlan, iter_command_stream, plan_trajectory
+from .errors import PlaybackError
+from .monitor import CsvLog, Progress, TrackingMonitor
+from .stop import StopReport, stop_motors
+from .trajectory import TrajectoryPlan, describe_plan, iter_command_stream, plan_trajectory
 
 log = logging.getLogger("trajopt.hardware")
 
@@ -55,7 +60,13 @@ class PlaybackSummary:
     log_path: str | None = None
     dry_run: bool = False
     firmware: dict[str, str] = field(default_factory=dict)
-    stop_failures: tuple[str, ...] = ()
+    stop: StopReport | None = None
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def stop_failures(self) -> tuple[str, ...]:
+        """``"motor: why"`` for every channel whose stop was not confirmed (empty if all were)."""
+        return () if self.stop is None else tuple(f"{c.label}: {c.detail}" for c in self.stop.unconfirmed)
 
     def __str__(self) -> str:
         if self.dry_run:
@@ -66,37 +77,11 @@ class PlaybackSummary:
                 f"(worst lateness {self.max_lateness_steps:.3f} steps)")
         if self.log_path:
             text += f"; log: {self.log_path}"
-        if self.stop_failures:
-            text += f"; COULD NOT STOP: {'; '.join(self.stop_failures)}"
+        if self.stop is not None:
+            text += f"; {self.stop}"
+        for warning in self.warnings:
+            text += f"; warning: {warning}"
         return text
-
-
-class CsvLog:
-    """Incremental CSV log (``time, step, <motor>_commanded, <motor>_measured, ...``), flushed per row."""
-
-    def __init__(self, path: str | os.PathLike[str], motor_names: Sequence[str]) -> None:
-        self.path = os.fspath(path)
-        self._fh = open(self.path, "w", newline="", encoding="utf-8")
-        self._writer = csv.writer(self._fh)
-        header = ["time", "step"]
-        for name in motor_names:
-            header += [f"{name}_commanded", f"{name}_measured"]
-        self._write(header)
-
-    def _write(self, row: list[Any]) -> None:
-        self._writer.writerow(row)
-        self._fh.flush()  # survives a crash of this process
-
-    def row(self, t: float, step: int, commanded: Sequence[int], measured: Sequence[int]) -> None:
-        """Append one step."""
-        cells: list[Any] = [f"{t:.6f}", step]
-        for c, m in zip(commanded, measured):
-            cells += [int(c), int(m)]
-        self._write(cells)
-
-    def close(self) -> None:
-        """Close the file."""
-        self._fh.close()
 
 
 def _default_open(port: str, config: HardwareConfig) -> Any:
@@ -106,6 +91,8 @@ def _default_open(port: str, config: HardwareConfig) -> Any:
 def _add_note(exc: BaseException, note: str) -> None:
     if hasattr(exc, "add_note"):  # Python >= 3.11
         exc.add_note(note)
+    else:  # pragma: no cover - Python 3.10
+        exc.__notes__ = [*getattr(exc, "__notes__", []), note]  # type: ignore[attr-defined]
 
 
 def _wait_until(deadline: float, clock: Callable[[], float], sleep: Callable[[float], None]) -> float:
@@ -117,150 +104,202 @@ def _wait_until(deadline: float, clock: Callable[[], float], sleep: Callable[[fl
     return now
 
 
-def stop_all_reachable(drivers: dict[tuple[str, int], RoboClaw]) -> list[str]:
-    """Duty 0 on both channels of every controller; returns descriptions of those that failed.
-
-    A port that reported a connection error is not tried again for its other controllers.
-    """
-    failures: list[str] = []
-    dead: set[str] = set()
-    for (port, address), drv in drivers.items():
-        if port in dead:
-            failures.append(f"{port} {address:#04x}: port unusable")
-            continue
-        try:
-            drv.stop_all()
-        except RoboClawError as exc:
-            failures.append(f"{port} {address:#04x}: {exc}")
-            if isinstance(exc, RoboClawConnectionError):
-                dead.add(port)
-    return failures
+def check_firmware(text: str, where: str, config: HardwareConfig) -> str | None:
+    """Raise :class:`PlaybackError` for a firmware this driver does not support; a warning if allowed anyway."""
+    version = P.parse_firmware_version(text)
+    supported = ", ".join(f"{major}.x" for major in P.SUPPORTED_FIRMWARE_MAJOR)
+    if version is None:
+        raise PlaybackError(f"{where}: firmware string {text!r} is not a RoboClaw version (expected e.g. "
+                            f"'USB Roboclaw 2x7a v4.1.34'); is another device on this port?")
+    if version[0] in P.SUPPORTED_FIRMWARE_MAJOR:
+        return None
+    problem = (f"{where}: firmware {text!r} (version {'.'.join(map(str, version))}) is not one this driver "
+               f"supports ({supported})")
+    if not config.allow_untested_firmware:
+        raise PlaybackError(f"{problem}; set settings.allow_untested_firmware = true in {config.path} to play anyway")
+    return f"{problem}; playing anyway (settings.allow_untested_firmware = true)"
 
 
-def _preflight(drivers: dict[tuple[str, int], RoboClaw], config: HardwareConfig,
-               zero_encoders: bool) -> dict[str, str]:
-    firmware: dict[str, str] = {}
-    for (port, address), drv in drivers.items():
-        firmware[f"{port}@{address:#04x}"] = drv.read_firmware()
-        volts = drv.read_main_battery_voltage()
-        if volts < config.min_battery_voltage:
-            raise PlaybackError(f"controller {address:#04x} on {port}: main battery {volts:.1f} V is below "
-                                f"min_battery_voltage = {config.min_battery_voltage:.1f} V ({config.path})")
-    for drv in drivers.values():
-        drv.stop_all()  # a motor holding an old position target would jump when its encoder is reset
-        if zero_encoders:
-            drv.reset_encoders()
-    return firmware
+class _Run:
+    """Ports, drivers, log and counters of one playback: everything needed to stop it and report."""
 
+    def __init__(self, plan: TrajectoryPlan, config: HardwareConfig, clock: Callable[[], float],
+                 sleep: Callable[[float], None], progress: Progress) -> None:
+        self.plan, self.config, self.clock, self.sleep, self.progress = plan, config, clock, sleep, progress
+        self.serials: dict[str, Any] = {}
+        self.drivers: dict[tuple[str, int], RoboClaw] = {}
+        self.csv: CsvLog | None = None
+        self.monitor = TrackingMonitor(plan, config)
+        self.firmware: dict[str, str] = {}
+        self.warnings: list[str] = []
+        self.steps_sent, self.late, self.max_late, self.duration = 0, 0.0, 0.0, 0.0
 
-def _preroll(plan: TrajectoryPlan, motor_drivers: list[RoboClaw], clock: Callable[[], float],
-             sleep: Callable[[float], None], tolerance: int) -> None:
-    """Move to the first sample at the configured limits and wait until every motor is there."""
-    target = plan.counts[0]
-    for motor, drv, pos in zip(plan.motors, motor_drivers, target):
-        accel = int(motor.max_accel)
-        drv.speed_accel_decel_position(motor.channel, accel, int(motor.max_speed), accel, int(pos), buffer=False)
-    budget = max(abs(int(p)) / m.max_speed + 2 * m.max_speed / m.max_accel for m, p in zip(plan.motors, target))
-    deadline = clock() + 2.0 * budget + 1.0
-    while True:
-        measured = [drv.read_encoder(m.channel).count for m, drv in zip(plan.motors, motor_drivers)]
-        if all(abs(c - int(p)) <= tolerance for c, p in zip(measured, target)):
-            return
-        if clock() > deadline:
-            raise PlaybackError(f"pre-roll: motors did not reach the first sample {list(map(int, target))} "
-                                f"(at {measured}) within {2.0 * budget + 1.0:.1f} s")
-        sleep(min(plan.dt, 0.05))
+    def open(self, opener: OpenPort) -> None:
+        for port, address in sorted({(m.port, m.address) for m in self.plan.motors}):
+            if port not in self.serials:
+                self.serials[port] = opener(port, self.config)
+            self.drivers[(port, address)] = RoboClaw(self.serials[port], address, timeout=self.config.timeout,
+                                                     retries=self.config.retries)
 
+    def preflight(self, zero_encoders: bool) -> None:
+        for (port, address), drv in self.drivers.items():
+            where = f"controller {address:#04x} on {port}"
+            text = self.firmware[f"{port}@{address:#04x}"] = drv.read_firmware()
+            warning = check_firmware(text, where, self.config)
+            if warning is not None:
+                self.progress.say(f"warning: {warning}")
+                self.warnings.append(warning)
+            volts = drv.read_main_battery_voltage()
+            if volts < self.config.min_battery_voltage:
+                raise PlaybackError(f"{where}: main battery {volts:.1f} V is below min_battery_voltage = "
+                                    f"{self.config.min_battery_voltage:.1f} V ({self.config.path})")
+            self.progress.say(f"{where}: firmware {text!r}, battery {volts:.1f} V")
+        for drv in self.drivers.values():
+            drv.stop_all()  # a motor holding an old position target would jump when its encoder is reset
+            if zero_encoders:
+                drv.reset_encoders()
 
-def play_trajectory(u_post: np.ndarray, dt: float, motor_names: Sequence[str], config: HardwareConfig, *,
-                    loops: int = 1, log_path: str | os.PathLike[str] | None = None, dry_run: bool = False,
-                    clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
-                    port_override: str | None = None, open_port: OpenPort | None = None,
-                    out: TextIO | None = None, zero_encoders: bool = True,
-                    preroll_tolerance: int = 5) -> PlaybackSummary:
-    """Stream ``u_post`` (K, n_motors) [m, step ``dt`` s] to the motors named ``motor_names``.
+    def preroll(self, tolerance: int) -> None:
+        """Move to the first sample at the configured limits and wait until every motor is there."""
+        plan, target = self.plan, self.plan.counts[0]
+        motor_drivers = [self.drivers[(m.port, m.address)] for m in plan.motors]
+        for motor, drv, pos in zip(plan.motors, motor_drivers, target):
+            accel = int(motor.max_accel)
+            drv.speed_accel_decel_position(motor.channel, accel, int(motor.max_speed), accel, int(pos), buffer=False)
+        budget = 2.0 * max(abs(int(p)) / m.max_speed + 2 * m.max_speed / m.max_accel
+                           for m, p in zip(plan.motors, target)) + 1.0
+        deadline = self.clock() + budget
+        while True:
+            measured = [drv.read_encoder(m.channel).count for m, drv in zip(plan.motors, motor_drivers)]
+            if all(abs(c - int(p)) <= tolerance for c, p in zip(measured, target)):
+                return
+            if self.clock() > deadline:
+                raise PlaybackError(f"pre-roll: motors did not reach the first sample {list(map(int, target))} "
+                                    f"(at {measured}) within {budget:.1f} s")
+            self.sleep(min(plan.dt, 0.05))
 
-    Args:
-        loops: play the trajectory this many times back to back (wrap-around is limit-checked).
-        log_path: CSV log written incrementally (kept on errors); ``None`` = no log.
-        dry_run: print the command stream (readable + hex) to ``out`` instead of opening any port.
-        clock, sleep: time source and sleeper (injectable for tests).
-        port_override: use this port for every motor (e.g. an emulator's pty).
-        open_port: ``(port, config) -> serial-like``; default ``serial.serial_for_url``.
-        zero_encoders: reset encoders in pre-flight (robot at assembly pose); False keeps the counts.
-        preroll_tolerance: counts within which the pre-roll to the first sample counts as arrived.
-
-    Raises:
-        ValueError: bad arguments / unknown motor; :class:`TrajectoryLimitError` (a ValueError)
-            for limit violations -- both before any port is opened.
-        PlaybackError: pre-flight failure (e.g. low battery).
-        RoboClawError: communication failure (after the reachable motors were stopped).
-    """
-    config = config.with_port_override(port_override)
-    plan = plan_trajectory(u_post, dt, motor_names, config, loops)
-    if dry_run:
-        stream = out if out is not None else sys.stdout
-        for cmd in iter_command_stream(plan, zero_encoders):
-            print(cmd, file=stream)
-        return PlaybackSummary(plan.n_steps, 0, None, 0.0, 0.0, 0.0, None, dry_run=True)
-
-    opener = open_port or _default_open
-    serials: dict[str, Any] = {}
-    drivers: dict[tuple[str, int], RoboClaw] = {}
-    csv_log: CsvLog | None = None
-    steps_sent, max_err, late, max_late, duration = 0, None, 0.0, 0.0, 0.0
-    firmware: dict[str, str] = {}
-    try:
-        for port, address in config.controllers(list(motor_names)):
-            if port not in serials:
-                serials[port] = opener(port, config)
-            drivers[(port, address)] = RoboClaw(serials[port], address, timeout=config.timeout,
-                                                retries=config.retries)
-        motor_drivers = [drivers[(m.port, m.address)] for m in plan.motors]
-        firmware = _preflight(drivers, config, zero_encoders)
-        if log_path is not None:
-            csv_log = CsvLog(log_path, motor_names)
-        if plan.needs_preroll:
-            _preroll(plan, motor_drivers, clock, sleep, preroll_tolerance)
-        k = plan.counts.shape[0]
-        t0 = clock()
+    def stream(self) -> None:
+        """One move per motor per step on the grid t0 + k dt, encoders read back, log, tracking check."""
+        plan = self.plan
+        motor_drivers = [self.drivers[(m.port, m.address)] for m in plan.motors]
+        t0 = self.clock()
         for step in range(plan.n_steps):
-            now = _wait_until(t0 + step * plan.dt, clock, sleep)
-            late = (now - t0) / plan.dt - step
-            max_late = max(max_late, late)
-            targets = plan.counts[step % k]
+            now = _wait_until(t0 + step * plan.dt, self.clock, self.sleep)
+            self.late = (now - t0) / plan.dt - step
+            self.max_late = max(self.max_late, self.late)
+            targets = self.monitor.target(step)
             for motor, drv, pos in zip(plan.motors, motor_drivers, targets):
                 accel = int(motor.max_accel)
                 drv.speed_accel_decel_position(motor.channel, accel, int(motor.max_speed), accel, int(pos),
                                                buffer=False)
             measured = [drv.read_encoder(m.channel).count for m, drv in zip(plan.motors, motor_drivers)]
-            steps_sent += 1
-            err = int(np.max(np.abs(np.asarray(measured) - targets)))
-            max_err = err if max_err is None else max(max_err, err)
-            if csv_log is not None:
-                csv_log.row(now - t0, step, targets, measured)
-        _wait_until(t0 + plan.n_steps * plan.dt, clock, sleep)  # let the last step run its interval
-        duration = clock() - t0
-    except BaseException as exc:  # includes KeyboardInterrupt: stop first, then re-raise
-        failures = stop_all_reachable(drivers)
-        for failure in failures:
-            log.error("could not stop motors: %s", failure)
-        if failures:
-            _add_note(exc, "could not stop: " + "; ".join(failures))
-        if csv_log is not None:
-            _add_note(exc, f"playback log kept at {csv_log.path} ({steps_sent} steps)")
-        raise
-    else:
-        failures = stop_all_reachable(drivers)
-        for failure in failures:
-            log.error("could not stop motors: %s", failure)
-    finally:
-        if csv_log is not None:
-            csv_log.close()
-        for ser in serials.values():
+            self.steps_sent += 1
+            if self.csv is not None:
+                self.csv.row(now - t0, step, targets, measured)
+            self.monitor.check(now - t0, step, measured)
+            self.progress.step(step, now - t0, self.monitor.max_error, self.late)
+        _wait_until(t0 + plan.n_steps * plan.dt, self.clock, self.sleep)  # let the last step run its interval
+        self.duration = self.clock() - t0
+
+    def stop(self) -> StopReport:
+        """Stop and confirm every reachable channel (never raises)."""
+        names = {(m.port, m.address, m.channel): name for name, m in self.config.motors.items()}
+        unreached = [f"{m.name} ({m.port} not opened)" for m in self.plan.motors if m.port not in self.serials]
+        if self.drivers:
+            self.progress.say("stopping the motors (duty 0, then reading each encoder back)")
+        report = stop_motors(self.drivers, names, unreached=unreached)
+        log.info("stop: %s", report)  # the report itself travels with the summary or the exception
+        return report
+
+    def close(self) -> None:
+        if self.csv is not None:
+            self.csv.close()
+            if not self.csv.rows:  # failed before the first step: a header alone is clutter
+                os.remove(self.csv.path)
+        for ser in self.serials.values():
             try:
                 ser.close()
             except Exception:  # noqa: BLE001 - closing a dead port must not mask the real error
                 pass
-    return PlaybackSummary(plan.n_steps, steps_sent, max_err, late, max_late, duration,
-                           csv_log.path if csv_log else None, False, firmware, tuple(failures))
+
+    def summary(self, report: StopReport) -> PlaybackSummary:
+        return PlaybackSummary(self.plan.n_steps, self.steps_sent, self.monitor.max_error, self.late, self.max_late,
+                               self.duration, self.csv.path if self.csv else None, False, self.firmware, report,
+                               tuple(self.warnings))
+
+
+def _dry_run(plan: TrajectoryPlan, zero_encoders: bool, stream: TextIO, verbose: bool) -> PlaybackSummary:
+    packets = 0
+    for cmd in iter_command_stream(plan, zero_encoders):
+        packets += 1
+        if verbose:
+            print(cmd, file=stream)
+    for line in describe_plan(plan):
+        print(line, file=stream)
+    print(f"{packets} packets would be sent" + ("" if verbose else " (--verbose lists them)"), file=stream)
+    return PlaybackSummary(plan.n_steps, 0, None, 0.0, 0.0, 0.0, None, dry_run=True)
+
+
+def play_trajectory(u_post: Any, dt: float, motor_names: Sequence[str], config: HardwareConfig, *,
+                    loops: int = 1, log_path: str | os.PathLike[str] | None = None, dry_run: bool = False,
+                    clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
+                    port_override: str | None = None, open_port: OpenPort | None = None,
+                    out: TextIO | None = None, zero_encoders: bool = True, preroll_tolerance: int = 5,
+                    verbose: bool = False, progress: TextIO | None = None) -> PlaybackSummary:
+    """Stream ``u_post`` (K, n_motors) [m, step ``dt`` s] to the motors named ``motor_names``.
+
+    Args:
+        loops: play the trajectory this many times back to back (wrap-around is limit-checked).
+        log_path: CSV log written incrementally (kept on errors once a step was logged; an existing
+            file is refused, ValueError); ``None`` = no log.
+        dry_run: describe the plan on ``out`` (default stdout) instead of opening any port.
+        clock, sleep: time source and sleeper of the schedule (injectable for tests).
+        port_override: use this port for every motor (e.g. an emulator's pty).
+        open_port: ``(port, config) -> serial-like``; default ``serial.serial_for_url``.
+        zero_encoders: reset encoders in pre-flight (robot at assembly pose); False keeps the counts.
+        preroll_tolerance: counts within which the pre-roll to the first sample counts as arrived.
+        verbose: dry run: list every packet; playback: a progress line per step.
+        progress: stream for progress lines (pre-flight, about every 10 % of the steps); ``None`` = none.
+
+    Raises:
+        ValueError: bad arguments / unknown motor; :class:`TrajectoryLimitError` (a ValueError)
+            for limit violations -- both before any port is opened.
+        PlaybackError: pre-flight failure (e.g. low battery, unsupported firmware);
+            :class:`TrackingError` when a motor stays off its target.
+        RoboClawError: communication failure.
+        Any of these, and KeyboardInterrupt, only after the stop sequence ran: its
+        :class:`StopReport` is ``exc.stop_report`` (and a note on the exception).
+    """
+    config = config.with_port_override(port_override)
+    plan = plan_trajectory(u_post, dt, motor_names, config, loops)
+    if dry_run:
+        return _dry_run(plan, zero_encoders, out if out is not None else sys.stdout, verbose)
+    run = _Run(plan, config, clock, sleep, Progress(progress, plan.n_steps, every=1 if verbose else None))
+    if log_path is not None:  # before any port is opened
+        try:
+            run.csv = CsvLog(log_path, motor_names)
+        except FileExistsError:
+            raise ValueError(f"playback log {os.fspath(log_path)} already exists; choose another name") from None
+        except OSError as exc:
+            raise ValueError(f"cannot write the playback log {os.fspath(log_path)}: {exc}") from exc
+    try:
+        run.open(open_port or _default_open)
+        run.preflight(zero_encoders)
+        if plan.needs_preroll:
+            run.preroll(preroll_tolerance)
+        run.stream()
+    except BaseException as exc:  # includes KeyboardInterrupt: stop first, then re-raise
+        report = run.stop()
+        try:
+            exc.stop_report = report  # type: ignore[attr-defined]
+        except AttributeError:  # pragma: no cover - exception types without __dict__
+            pass
+        _add_note(exc, str(report))
+        if run.csv is not None and run.csv.rows:
+            _add_note(exc, f"playback log kept at {run.csv.path} ({run.csv.rows} steps)")
+        raise
+    else:
+        report = run.stop()
+    finally:
+        run.close()
+    return run.summary(report)

@@ -15,12 +15,14 @@ where the CRC covers the *request's* address and command bytes followed by the
 reply data.
 
 Status (command 90): newer firmware (4.x) answers a 32-bit status word, older
-firmware a 16-bit one.  This package implements the **uint32** variant only.
+firmware a 16-bit one.  This package implements the **uint32** variant only, and
+playback accepts firmware 4.x only (:func:`parse_firmware_version`).
 """
 
 from __future__ import annotations
 
 import binascii
+import re
 import struct
 from enum import IntEnum
 from typing import NamedTuple
@@ -35,6 +37,9 @@ INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 UINT32_MAX = 2**32 - 1
 FIRMWARE_MAX_LEN = 48
 FIRMWARE_TERMINATOR = b"\n\x00"
+#: Firmware major version(s) this driver was written and tested for (status word, reply layouts).
+SUPPORTED_FIRMWARE_MAJOR = (4,)
+_FIRMWARE_VERSION = re.compile(r"roboclaw\b.*\bv(\d+)\.(\d+)\.(\d+)", re.IGNORECASE)
 
 
 class Cmd(IntEnum):
@@ -250,6 +255,18 @@ def parse_battery(data: bytes) -> float:
     """Parse a uint16 voltage in tenths of a volt, returning volts."""
     (tenths,) = struct.unpack(">H", data)
     return int(tenths) / 10.0
+
+
+def parse_firmware_version(text: str) -> tuple[int, int, int] | None:
+    """``(major, minor, patch)`` of a RoboClaw firmware string such as ``"USB Roboclaw 2x7a v4.1.34"``.
+
+    Returns ``None`` if ``text`` is not a RoboClaw version string (another device on the port).
+    """
+    match = _FIRMWARE_VERSION.search(text)
+    if match is None:
+        return None
+    major, minor, patch = (int(g) for g in match.groups())
+    return major, minor, patch
 
 
 def parse_status(data: bytes) -> int:

@@ -109,6 +109,28 @@ def plan_trajectory(u_post: np.ndarray, dt: float, motor_names: Sequence[str], c
 
 
 # ----------------------------------------------------------------------------- dry run
+def describe_plan(plan: TrajectoryPlan) -> list[str]:
+    """Readable summary of a plan: duration, controllers, and per motor its range and peak speed/accel."""
+    k = plan.counts.shape[0]
+    controllers = sorted({(m.port, m.address) for m in plan.motors})
+    lines = [f"{plan.n_steps} steps ({k} samples x {plan.loops} loop{'s' if plan.loops > 1 else ''}) of "
+             f"{plan.dt:g} s = {plan.n_steps * plan.dt:.2f} s on "
+             + ", ".join(f"{port} {address:#04x}" for port, address in controllers)]
+    seq = np.concatenate([plan.counts, plan.counts]) if plan.loops > 1 else plan.counts
+    for j, m in enumerate(plan.motors):
+        counts = plan.counts[:, j]
+        u = m.to_length(counts)
+        speed = float(np.abs(np.diff(seq[:, j])).max(initial=0)) / plan.dt
+        accel = float(np.abs(np.diff(seq[:, j], 2)).max(initial=0)) / plan.dt**2
+        lines.append(f"  {m.name} ({m.address:#04x} M{m.channel}): counts {counts.min()}..{counts.max()} "
+                     f"(u {u.min() * 1000:.2f}..{u.max() * 1000:.2f} mm), peak speed {speed:.0f} counts/s "
+                     f"({100 * speed / m.max_speed:.0f} % of max_speed), peak accel {accel:.0f} counts/s^2 "
+                     f"({100 * accel / m.max_accel:.0f} % of max_accel)")
+    if plan.needs_preroll:
+        lines.append("  pre-roll: every motor first moves to the first sample at its speed/accel limits")
+    return lines
+
+
 @dataclass(frozen=True)
 class PlannedCommand:
     """One request of the command stream: when (s after start, ``None`` = not on the grid) and what."""
