@@ -1,7 +1,7 @@
 """Projected Gauss-Newton (Levenberg-Marquardt damped) for bound-constrained least squares.
 
 Minimises ``O(z) = 0.5 |r(z)|^2`` subject to ``lower <= z <= upper``, where ``fun(z, need_jac)``
-returns ``(r, J, info)`` and may raise :class:`~soft_envs.sim.SimulationError` (a trial point
+returns ``(r, J, info)`` and may raise :class:`~soft_envs.envs.SimulationError` (a trial point
 whose rollout fails counts as ``O = inf``: a rejected step, not a crash).
 
 Each iteration
@@ -33,7 +33,7 @@ from typing import Callable
 
 import numpy as np
 
-from soft_envs.sim import SimulationError
+from soft_envs.envs import SimulationError
 
 __all__ = ["GaussNewtonOptions", "GaussNewtonResult", "gauss_newton"]
 
