@@ -1,7 +1,7 @@
 """soft_envs: simulation and Gymnasium environments of cable-driven soft robots.
 
-The package has three layers; imports point one way, ``trajopt -> soft_envs.envs ->
-soft_envs.sim``, and the rules below hold at import time (``tests/test_layers.py``):
+Its layers and what each may import (arrows point one way, ``trajopt -> soft_envs.envs ->
+soft_envs.sim``; the rules hold at import time, ``tests/test_layers.py`` checks them):
 
 * :mod:`soft_envs.sim` is the physics alone: robots, the finite-element energy, implicit-Euler
   rollouts and their exact sensitivities. It imports numpy, scipy, numba, meshio and cvxopt,
@@ -10,8 +10,9 @@ soft_envs.sim``, and the rules below hold at import time (``tests/test_layers.py
   the gradient protocol (:class:`~soft_envs.envs.GradientEnv`) through which ``trajopt`` reaches
   the physics. It imports :mod:`soft_envs.sim`, Gymnasium and :mod:`soft_envs.render`, never
   ``trajopt``.
-* :mod:`soft_envs.render` draws frames offscreen with matplotlib (no OpenGL); it imports only the
-  mesh helpers of :mod:`soft_envs.sim`.
+* :mod:`soft_envs.render` draws frames offscreen with matplotlib (no OpenGL) and
+  :mod:`soft_envs.animation` writes them to GIF or MP4; they import matplotlib, Pillow and the
+  mesh helpers of :mod:`soft_envs.sim` only.
 
 Importing the package registers the environments with Gymnasium when Gymnasium is installed
 (``gymnasium.make("SoftPuppy-v0")`` after ``import soft_envs``, or

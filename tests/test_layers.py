@@ -125,7 +125,7 @@ def _violations(folder: str, forbidden: tuple[str, ...]) -> list[str]:
 @pytest.mark.parametrize("folder, forbidden", [
     ("trajopt", ("soft_envs.sim",)),                             # trajopt goes through soft_envs.envs
     ("soft_envs", ("trajopt",)),                                 # arrows point one way
-    ("soft_envs/sim", ("gymnasium", "soft_envs.envs", "soft_envs.render")),
+    ("soft_envs/sim", ("gymnasium", "soft_envs.envs", "soft_envs.render", "soft_envs.animation")),
     ("trajopt/hardware", ("soft_envs", "numba", "scipy")),
 ], ids=["trajopt-not-sim", "soft_envs-not-trajopt", "sim-not-envs", "hardware-not-simulator"])
 def test_source_imports_respect_the_layers(folder, forbidden):

@@ -93,9 +93,12 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         height: int = 360,
         camera_config: Mapping[str, Any] | None = None,
     ):
-        self._task = LocomotionTask(task, target_heading_deg, turn_direction, turn_radius, forward_reward_weight,
-                                    ctrl_cost_weight, healthy_reward, terminate_when_unhealthy, healthy_tilt_deg,
-                                    healthy_height_fraction)
+        self._task = LocomotionTask(
+            task=task, target_heading_deg=target_heading_deg, turn_direction=turn_direction,
+            turn_radius=turn_radius, forward_reward_weight=forward_reward_weight,
+            ctrl_cost_weight=ctrl_cost_weight, healthy_reward=healthy_reward,
+            terminate_when_unhealthy=terminate_when_unhealthy, healthy_tilt_deg=healthy_tilt_deg,
+            healthy_height_fraction=healthy_height_fraction)
         _check_arguments(frame_skip=frame_skip, timestep=timestep, gait_period=gait_period,
                          reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
                          incline_deg=incline_deg, render_mode=render_mode)
