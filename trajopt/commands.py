@@ -35,6 +35,7 @@ def _load_resume(out: Path) -> Result | None:
         print(f"{out} is finished ({prev.status}); nothing to resume. {prev.summary()}")
         return None
     print(f"resuming {out} after iteration {len(prev.history)}")
+    prev.settings["source"] = str(out)          # named by the settings check's error
     return prev
 
 

@@ -117,12 +117,14 @@ def build_problem(env: GradientEnv, task: str, gait: GaitSpec, *, speed_bl_per_m
 
 # ---------------------------------------------------------------------- 2. the start
 def check_resume(resume: Result, task: str, settings: dict[str, Any]) -> None:
-    """The one check that an interrupted run ``resume`` can be continued with ``settings``."""
+    """The one check that an interrupted run ``resume`` can be continued with ``settings``
+    (the error names ``resume.settings["source"]``, its file, when set)."""
     saved = {**resume.settings, **GaitSpec.from_settings(resume.settings).to_settings()}
     differ = {k: (saved.get(k), settings[k]) for k in RESUME_KEYS if saved.get(k) != settings[k]}
     if differ or resume.task != task:
-        raise ValueError(f"cannot resume: the settings differ from the interrupted run's (saved, asked): "
-                         f"{differ or {'task': (resume.task, task)}}")
+        source = resume.settings.get("source")
+        raise ValueError(f"{source + ': ' if source else ''}cannot resume: the settings differ from the "
+                         f"interrupted run's (saved, asked): {differ or {'task': (resume.task, task)}}")
 
 
 def _best_seed(problem: GaitProblem, seeds: list[np.ndarray]) -> np.ndarray:
