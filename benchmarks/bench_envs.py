@@ -72,7 +72,7 @@ def bench(env_id: str, kind: str) -> dict:
         env.action_space.seed(0)
         actions = np.array([env.action_space.sample() for _ in range(STEPS)])
     else:
-        u = gait_controls(u_env.robot, K=STEPS, dt=u_env.dt)
+        u = gait_controls(u_env.robot, K=STEPS, dt=u_env.timestep)
         actions = u_env.control_to_action(u).astype(np.float32)
     best = min((run(env, actions) for _ in range(REPEATS)), key=lambda r: r["wall"])
     env.close()

@@ -41,17 +41,19 @@ import gymnasium as gym
 import numpy as np
 
 import soft_envs  # noqa: F401
+from soft_envs.envs import make_gradient_env
 from trajopt import GaussNewtonOptions, optimize_gait
 from trajopt.evaluation import evaluate_controls
-from trajopt.hooks import make_hooks
+from trajopt.gait import GaitSpec
 from trajopt.optimize import DEFAULT_SPEED
 from trajopt.parameterization import GaitParameterization
-from trajopt.rl.envs import N_CYCLE, N_PREP, ROBOT_IDS
+from trajopt.rl.envs import GAIT, ROBOT_IDS
 from trajopt.rl.evaluate import evaluate_policy_metric, export_result, load_policy, play_controls_in_env, run_metric
 from trajopt.rl.training import checkpoint_steps, train
 
 HERE = Path(__file__).resolve().parent
 EVAL_CYCLES = 6
+N_PREP, N_CYCLE = GAIT.n_prep, GAIT.n_cycle   # trajopt's gait: prep and cycle [simulation steps]
 PAPER = {"tripod": 6.1, "puppy": 8.6}          # paper Table I, simulation [BL/min]
 #: environment steps of RL training (frame_skip 1: = simulation steps)
 BUDGETS = {"tripod": {"ppo": 30_000, "sac": 20_000}, "puppy": {"ppo": 15_000, "sac": 8_000}}
@@ -61,7 +63,7 @@ HIGH_SPEED_FACTOR = 1.5                        # the second trajopt run asks for
 
 # ----------------------------------------------------------------------------- trajopt
 def run_trajopt(robot: str, speed: float, max_iter: int, runs: Path, label: str, curve: bool = True) -> dict:
-    hooks = make_hooks(robot)                  # the Gymnasium env (reset noise 0) as hooks
+    hooks = make_gradient_env(robot)           # the environment (reset noise 0) as gradient hooks
     iterates: list[tuple[int, float, np.ndarray]] = []
 
     def on_iteration(entry, partial):
@@ -73,8 +75,7 @@ def run_trajopt(robot: str, speed: float, max_iter: int, runs: Path, label: str,
     wall = time.perf_counter() - t0
     res.save(runs / f"{robot}_trajopt_{label}.npz")
     s = res.settings
-    param = GaitParameterization(hooks.robot.u_bounds, hooks.robot.mirror_map, s["n_prep"], s["n_cycle"],
-                                 s["n_keyframes"], s["symmetry"])
+    param = GaitParameterization.for_robot(hooks.robot, GaitSpec.from_settings(s))
     cache: dict[bytes, float] = {res.z.tobytes(): res.evaluation["speed_bl_per_min"]}
     points = []
     for steps, _, z in (iterates if curve else []):

@@ -21,7 +21,8 @@ import numpy as np
 from common import report
 from trajopt import GaussNewtonOptions, optimize_gait
 from trajopt.evaluation import evaluate_controls
-from trajopt.hooks import make_hooks
+from soft_envs.envs import make_gradient_env
+from trajopt.gait import GaitSpec
 from trajopt.parameterization import GaitParameterization
 
 OUT = Path(__file__).with_name("results")
@@ -41,7 +42,7 @@ def row(task: str, robot_name: str, hooks, res, wall: float) -> dict:
 
 
 def optimise(task: str, robot_name: str, **kw):
-    hooks = make_hooks(robot_name, incline_deg=kw.pop("incline_deg", 0.0))
+    hooks = make_gradient_env(robot_name, incline_deg=kw.pop("incline_deg", 0.0))
     t0 = time.perf_counter()
     res = optimize_gait(hooks, task, eval_cycles=EVAL_CYCLES, robot_spec=robot_name,
                         options=GaussNewtonOptions(max_iter=kw.pop("max_iter", 10)), **kw)
@@ -64,8 +65,7 @@ def main() -> None:
     rows.append(row(f"puppy incline {INCLINE_DEG:g} deg", "puppy", hooks, res, wall))
     # the flat-ground gait on the slope
     s = walk.settings
-    param = GaitParameterization(hooks.robot.u_bounds, hooks.robot.mirror_map, s["n_prep"], s["n_cycle"],
-                                 s["n_keyframes"], s["symmetry"])
+    param = GaitParameterization.for_robot(hooks.robot, GaitSpec.from_settings(s))
     u = param.controls(np.asarray(walk.z), EVAL_CYCLES)
     ev = evaluate_controls(hooks, u, n_prep=param.n_prep, n_cycle=param.n_cycle)
     rows.append({"task": f"puppy flat gait on {INCLINE_DEG:g} deg", "nodes": hooks.robot.mesh.n_nodes,

@@ -2,9 +2,12 @@
 
 Run:  python examples/optimize_tripod_walk.py      (about half a minute)
 
-The optimiser reaches the physics through the Gymnasium environment's gradient hooks: every
-Gauss-Newton iteration is one rollout with exact sensitivities (dx/dz of all 168 states) plus a
-short line search. The same thing from the shell: `trajopt optimize tripod --task walk`.
+The optimiser reaches the physics through the Gymnasium environment's gradient hooks (the
+`soft_envs.envs.GradientEnv` protocol on `env.unwrapped`): every Gauss-Newton iteration is one
+rollout with exact sensitivities (dx/dz of all 168 states) plus a short line search. A robot of
+your own works the same way: `optimize_gait("my_robot/robot.toml", task="walk")` builds a bare
+environment for it (`soft_envs.envs.make_gradient_env`); `gait=trajopt.GaitSpec(...)` changes the
+phase lengths and keyframes. The same thing from the shell: `trajopt optimize tripod --task walk`.
 """
 import gymnasium as gym
 

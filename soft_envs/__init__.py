@@ -1,13 +1,25 @@
 """soft_envs: simulation and Gymnasium environments of cable-driven soft robots.
 
-Importing the package registers the environments ``SoftTripod-v0`` and ``SoftPuppy-v0`` with
-Gymnasium (``gymnasium.make("SoftPuppy-v0")`` after ``import soft_envs``, or
-``gymnasium.make("soft_envs:SoftPuppy-v0")`` without the import). The environment classes are
-only imported when an environment is made; :mod:`soft_envs.sim` is the physics alone.
-"""
-from gymnasium.envs.registration import register, registry
+Its layers and what each may import (arrows point one way, ``trajopt -> soft_envs.envs ->
+soft_envs.sim``; the rules hold at import time, ``tests/test_layers.py`` checks them):
 
-__all__ = ["ENV_IDS"]
+* :mod:`soft_envs.sim` is the physics alone: robots, the finite-element energy, implicit-Euler
+  rollouts and their exact sensitivities. It imports numpy, scipy, numba, meshio and cvxopt,
+  never Gymnasium, :mod:`soft_envs.envs` or ``trajopt``; it imports without Gymnasium installed.
+* :mod:`soft_envs.envs` is the Gymnasium environments (``SoftTripod-v0``, ``SoftPuppy-v0``) and
+  the gradient protocol (:class:`~soft_envs.envs.GradientEnv`) through which ``trajopt`` reaches
+  the physics. It imports :mod:`soft_envs.sim`, Gymnasium and :mod:`soft_envs.render`, never
+  ``trajopt``.
+* :mod:`soft_envs.render` draws frames offscreen with matplotlib (no OpenGL) and
+  :mod:`soft_envs.animation` writes them to GIF or MP4; they import matplotlib, Pillow and the
+  mesh helpers of :mod:`soft_envs.sim` only.
+
+Importing the package registers the environments with Gymnasium when Gymnasium is installed
+(``gymnasium.make("SoftPuppy-v0")`` after ``import soft_envs``, or
+``gymnasium.make("soft_envs:SoftPuppy-v0")`` without the import). The environment classes are
+only imported when an environment is made.
+"""
+__all__ = ["ENV_IDS", "MAX_EPISODE_STEPS"]
 
 #: Environment ids registered by this package and their entry points.
 ENV_IDS = {
@@ -15,7 +27,21 @@ ENV_IDS = {
     "SoftPuppy-v0": "soft_envs.envs.puppy:SoftPuppyEnv",
 }
 
-for _env_id, _entry_point in ENV_IDS.items():
-    if _env_id not in registry:       # re-imports (importlib.reload) must not re-register
-        register(id=_env_id, entry_point=_entry_point, max_episode_steps=300)
-del _env_id, _entry_point
+#: Episode length of ``gymnasium.make`` (its ``TimeLimit`` wrapper), in environment steps: 300
+#: steps of 0.033 s are 10 s, about four of the paper's 72-step gait cycles. Pass
+#: ``max_episode_steps`` to ``gymnasium.make`` for another length (``trajopt rl`` trains on
+#: 168 steps, trajopt's optimisation horizon).
+MAX_EPISODE_STEPS = 300
+
+
+def _register_environments() -> None:
+    try:
+        from gymnasium.envs.registration import register, registry
+    except ImportError:               # the physics (soft_envs.sim) does not need Gymnasium
+        return
+    for env_id, entry_point in ENV_IDS.items():
+        if env_id not in registry:    # re-imports (importlib.reload) must not re-register
+            register(id=env_id, entry_point=entry_point, max_episode_steps=MAX_EPISODE_STEPS)
+
+
+_register_environments()

@@ -11,13 +11,13 @@ robot faces ``+x`` at rest, ``(x, z)`` is the horizontal plane.  Node
 positions are ``(n_nodes, 3)`` arrays.
 
 Also provided: :func:`surface_triangles` (outward boundary faces of a tet
-mesh) and :func:`write_animation` (GIF via Pillow, MP4 via imageio-ffmpeg).
+mesh) and :func:`write_animation` (GIF via Pillow, MP4 via imageio-ffmpeg; from
+:mod:`soft_envs.animation`).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Sequence
 
 import numpy as np
 from matplotlib import colormaps
@@ -26,6 +26,7 @@ from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
+from .animation import write_animation
 from .sim.mesh import boundary_faces
 
 __all__ = ["Renderer", "surface_triangles", "write_animation"]
@@ -37,8 +38,6 @@ _SHADOW = np.array([0.42, 0.42, 0.42])
 _SLACK = (0.55, 0.55, 0.55, 1.0)
 _UP = np.array([0.0, 1.0, 0.0])
 
-# Local faces of a tet (a, b, c, d), each outward when det[b-a, c-a, d-a] > 0,
-# and the index of the vertex opposite each face.
 #: boundary faces of a tet mesh, outward (the mesh module's function under the name used here)
 surface_triangles = boundary_faces
 
@@ -341,65 +340,3 @@ class Renderer:
         h, w = min(self.height, img.shape[0]), min(self.width, img.shape[1])
         out[:h, :w] = img[:h, :w]
         return out
-
-
-def write_animation(frames: Iterable[np.ndarray], path: str | Path, fps: float) -> Path:
-    """Write RGB frames to ``.gif`` (Pillow, loops forever) or ``.mp4``.
-
-    MP4 needs ``imageio`` and ``imageio-ffmpeg``; without them a
-    ``RuntimeError`` says what to install.  Frames must all have the same
-    ``(H, W, 3)`` uint8 shape.  Note: Pillow merges *consecutive identical*
-    GIF frames into one (summing their durations), so a GIF's ``n_frames``
-    can be smaller than the number of frames given when some repeat.
-
-    Returns:
-        The written path.
-    """
-    path = Path(path)
-    if not fps > 0:
-        raise ValueError("fps must be positive")
-    suffix = path.suffix.lower()
-    if suffix not in (".gif", ".mp4"):
-        raise ValueError(f"unsupported animation format {path.suffix!r}; use .gif or .mp4")
-    shape: list[tuple[int, ...]] = []
-
-    def checked(it: Iterable[np.ndarray]) -> Iterable[np.ndarray]:
-        for i, f in enumerate(it):
-            f = np.asarray(f)
-            if f.ndim != 3 or f.shape[2] != 3:
-                raise ValueError(f"frame {i} must be (H, W, 3), got {f.shape}")
-            if not shape:
-                shape.append(f.shape)
-            elif f.shape != shape[0]:
-                raise ValueError(f"frame {i} has shape {f.shape}, expected {shape[0]}")
-            yield f.astype(np.uint8, copy=False)
-
-    stream = iter(checked(frames))
-    if suffix == ".mp4":
-        try:
-            import imageio.v2 as iio
-            import imageio_ffmpeg  # noqa: F401
-        except ImportError as exc:
-            raise RuntimeError(
-                "writing .mp4 needs imageio and imageio-ffmpeg: `pip install imageio imageio-ffmpeg` "
-                "(or write a .gif instead)"
-            ) from exc
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with iio.get_writer(path, fps=fps, codec="libx264", macro_block_size=2, quality=7) as writer:
-            n = 0
-            for f in stream:
-                writer.append_data(f)
-                n += 1
-        if n == 0:
-            raise ValueError("no frames given")
-        return path
-    from PIL import Image
-
-    first = next(stream, None)
-    if first is None:
-        raise ValueError("no frames given")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    rest = (Image.fromarray(f) for f in stream)
-    Image.fromarray(first).save(path, save_all=True, append_images=rest, duration=int(round(1000.0 / fps)),
-                                loop=0, optimize=False)
-    return path

@@ -249,7 +249,7 @@ def test_get_set_state_and_hook_values():
     assert u.cable_deformation().shape == (len(u.robot.tendons),)
     with pytest.raises(ValueError, match="shape"):
         u.set_state({"x": np.zeros((3, 3))})
-    assert u.dt == 0.033 and u.env_dt == 0.033
+    assert u.dt == 0.033 and u.timestep == 0.033
     # x_prev2 (the solver's extrapolation) is part of the state; without it the next state is
     # the same to within the Newton tolerance
     assert saved["x_prev2"].shape == saved["x"].shape

@@ -64,8 +64,6 @@ sys.exit(args.func(args))
     assert result.stdout.strip().splitlines()[-1] == "dry run: 40 steps planned, nothing sent"
 
 
-@pytest.mark.xfail(strict=True, reason="trajopt/__init__.py imports the optimiser (soft_envs, scipy) eagerly; "
-                                       "another branch makes it lazy -- remove this mark when that lands")
 def test_plain_import_without_the_simulator_stack(tmp_path: Path) -> None:
     result = run_python(BLOCK + "import trajopt.hardware, trajopt.results\n", tmp_path)
     assert result.returncode == 0, result.stderr

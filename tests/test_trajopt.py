@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
+from soft_envs.envs import as_gradient_env, make_gradient_env
 from soft_envs.sim import NewtonOptions
-from trajopt import GaitParameterization, GaussNewtonOptions, ObjectiveWeights, Result, optimize_gait
+from trajopt import GaitParameterization, GaitSpec, GaussNewtonOptions, ObjectiveWeights, Result, optimize_gait
 from trajopt.evaluation import zero_slack_controls
-from trajopt.hooks import SimulatorHooks, as_hooks
 from trajopt.optimize import GaitProblem
 from trajopt.parameterization import hermite_cycle_basis
 from trajopt.targets import quarter_circle, straight_line
@@ -20,7 +20,7 @@ from .conftest import shipped
 
 def puppy_param(symmetry=True, **kw):
     robot = shipped("puppy")[0]
-    return robot, GaitParameterization(robot.u_bounds, robot.mirror_map, symmetry=symmetry, **kw)
+    return robot, GaitParameterization.for_robot(robot, GaitSpec(symmetry=symmetry, **kw))
 
 
 def test_spline_is_periodic_zero_tangent_and_bounded():
@@ -79,13 +79,13 @@ def test_objective_jacobian_matches_finite_differences_of_rollouts():
     """The residual Jacobian (COM tracking, slack eating with active cables, regularisers) equals
     central differences of whole rollouts."""
     robot = shipped("tripod")[0]
-    hooks = SimulatorHooks(robot)
-    hooks.simulator.newton.options = NewtonOptions(tol=1e-12)
-    p = GaitParameterization(robot.u_bounds, robot.mirror_map, n_prep=6, n_cycle=16)
-    x0, _ = hooks.reset_state()
-    target = straight_line(robot.com(x0)[[0, 2]], p.n_steps(), hooks.dt, 0.02)
+    env = make_gradient_env(robot)
+    env.simulator.newton.options = NewtonOptions(tol=1e-12)
+    p = GaitParameterization.for_robot(robot, GaitSpec(n_prep=6, n_cycle=16))
+    x0, _ = env.reset_state()
+    target = straight_line(robot.com(x0)[[0, 2]], p.n_steps(), env.timestep, 0.02)
     weights = ObjectiveWeights(slack=1.0, slack_eps=2e-4)
-    prob = GaitProblem(hooks, p, target, weights)
+    prob = GaitProblem(env, p, target, weights)
     z = p.initial_z(0.5, np.random.default_rng(2), noise=0.45)
     r, J, terms = prob(z)
     assert terms["terms"]["slack"] > 0 and terms["terms"]["com"] > 0
@@ -101,10 +101,10 @@ def test_objective_jacobian_matches_finite_differences_of_rollouts():
 @pytest.fixture(scope="module")
 def short_walk():
     robot = shipped("tripod")[0]
-    hooks = SimulatorHooks(robot)
-    res = optimize_gait(hooks, "walk", n_prep=12, n_cycle=36, options=GaussNewtonOptions(max_iter=2),
+    env = make_gradient_env(robot)
+    res = optimize_gait(env, "walk", gait=GaitSpec(n_prep=12, n_cycle=36), options=GaussNewtonOptions(max_iter=2),
                         n_seeds=2, eval_cycles=3, robot_spec="tripod")
-    return hooks, res
+    return env, res
 
 
 def test_short_optimisation_lowers_objective_and_walks_forward(short_walk):
@@ -161,26 +161,26 @@ def test_resume_continues_from_saved_iterate(tmp_path):
     """An optimisation stopped after one iteration (as by Ctrl-C, which saves first) and resumed
     ends where an uninterrupted run ends."""
     robot = shipped("tripod")[0]
-    hooks = SimulatorHooks(robot)
-    kw = dict(n_prep=4, n_cycle=12, n_seeds=1, eval_cycles=1, robot_spec="tripod")
-    full = optimize_gait(hooks, "walk", options=GaussNewtonOptions(max_iter=3, ftol=0), **kw)
+    env = make_gradient_env(robot)
+    kw = dict(gait=GaitSpec(n_prep=4, n_cycle=12), n_seeds=1, eval_cycles=1, robot_spec="tripod")
+    full = optimize_gait(env, "walk", options=GaussNewtonOptions(max_iter=3, ftol=0), **kw)
     saved = {}
 
     def stop_after_first(entry, partial):
         partial.save(tmp_path / "ckpt")
         saved["n"] = entry["iteration"]
         return True
-    optimize_gait(hooks, "walk", options=GaussNewtonOptions(max_iter=3, ftol=0), callback=stop_after_first, **kw)
+    optimize_gait(env, "walk", options=GaussNewtonOptions(max_iter=3, ftol=0), callback=stop_after_first, **kw)
     part = Result.load(tmp_path / "ckpt.npz")
     assert saved["n"] == 1 and len(part.history) == 1 and part.status == "running"
-    resumed = optimize_gait(hooks, "walk", options=GaussNewtonOptions(max_iter=2, ftol=0), resume=part, **kw)
+    resumed = optimize_gait(env, "walk", options=GaussNewtonOptions(max_iter=2, ftol=0), resume=part, **kw)
     assert [h["iteration"] for h in resumed.history] == [h["iteration"] for h in full.history]
     assert np.allclose(resumed.z, full.z, atol=1e-10)
 
 
-def test_as_hooks_rejects_objects_without_hooks():
+def test_as_gradient_env_rejects_objects_without_hooks():
     with pytest.raises(TypeError, match="gradient hook"):
-        as_hooks(object())
+        as_gradient_env(object())
 
 
 def test_results_reject_malformed_metadata(short_walk, tmp_path):
@@ -210,25 +210,24 @@ def test_results_reject_malformed_metadata(short_walk, tmp_path):
 
 
 def test_nan_is_written_as_null_and_resume_checks_settings(short_walk, tmp_path):
-    hooks, res = short_walk
+    env, res = short_walk
     res.evaluation = {**res.evaluation, "speed_bl_per_min": float("nan")}
     path = res.save(tmp_path / "nan")
     assert json.loads(path.with_suffix(".json").read_text())["evaluation"]["speed_bl_per_min"] is None
     with pytest.raises(ValueError, match="cannot resume"):
-        optimize_gait(hooks, "walk", n_prep=12, n_cycle=24, resume=res, robot_spec="tripod")
+        optimize_gait(env, "walk", gait=GaitSpec(n_prep=12, n_cycle=24), resume=res, robot_spec="tripod")
     with pytest.raises(ValueError, match="eval_cycles"):
-        optimize_gait(hooks, "walk", eval_cycles=0)
+        optimize_gait(env, "walk", eval_cycles=0)
 
 
 def test_incline_is_recorded_from_the_environment():
-    from trajopt.hooks import make_hooks
-    hooks = make_hooks("tripod", incline_deg=15.0)
-    assert hooks.incline_deg == 15.0 and hooks.simulator.gravity[0] < 0
+    env = make_gradient_env("tripod", incline_deg=15.0)
+    assert env.incline_deg == 15.0 and env.simulator.gravity[0] < 0 and env.gravity[0] < 0
 
 
 def test_symmetric_keyframes_respect_both_mirror_ranges():
     bounds = np.array([[0.0, 0.01], [0.0, 0.006]])
-    p = GaitParameterization(bounds, np.array([1, 0]), n_prep=4, n_cycle=8)
+    p = GaitParameterization(bounds, np.array([1, 0]), np.zeros(2), GaitSpec(n_prep=4, n_cycle=8))
     lo, hi = p.bounds()
     assert np.allclose(hi, 0.006) and np.allclose(lo, 0.0)
     u = p.controls(hi)
@@ -241,8 +240,8 @@ def test_prep_eases_from_the_rest_contraction_when_u_min_is_positive():
     every control of every step stays in range, and the controls stay affine with the same
     exact dudz (the offset is the z-independent part)."""
     bounds = np.array([[0.004, 0.012], [0.004, 0.012], [-0.002, 0.01]])
-    p = GaitParameterization(bounds, np.array([1, 0, 2]), n_prep=6, n_cycle=8)
-    assert np.allclose(p.u_start, [0.004, 0.004, 0.0])
+    u_rest = np.array([0.004, 0.004, 0.0])            # robot.u_rest: 0 clipped into each range
+    p = GaitParameterization(bounds, np.array([1, 0, 2]), u_rest, GaitSpec(n_prep=6, n_cycle=8))
     lo, hi = p.bounds()
     rng = np.random.default_rng(3)
     for z in [lo, hi, *p.seeds(4, rng), lo + rng.uniform(size=p.nz) * (hi - lo)]:
@@ -250,31 +249,34 @@ def test_prep_eases_from_the_rest_contraction_when_u_min_is_positive():
         assert (u >= bounds[:, 0] - 1e-15).all() and (u <= bounds[:, 1] + 1e-15).all()
         assert np.allclose(u, p.offset() + p.dudz() @ z, atol=1e-15)
     u = p.controls(hi)
-    ease0 = float(1 - (1 / 6) ** 2 * (3 - 2 / 6))           # weight of u_start at prep step 0
+    ease0 = float(1 - (1 / 6) ** 2 * (3 - 2 / 6))           # weight of u_rest at prep step 0
     assert np.allclose(u[0, :2], ease0 * 0.004 + (1 - ease0) * 0.012)
     assert np.allclose(p.offset()[p.n_prep:], 0.0) and np.allclose(p.offset()[:, 2], 0.0)
 
 
-def test_simulator_hooks_start_at_the_rest_contraction():
-    """The bare-simulator hooks start where the environments do: at rest with u = u_start."""
+def test_gradient_env_starts_at_the_rest_contraction():
+    """A bare gradient environment starts where the Gymnasium environments do: at rest with
+    u = robot.u_rest (0 clipped into each motor's range), and the gait's prep phase eases from
+    there."""
     import dataclasses
 
+    from soft_envs.envs import SoftRobotEnv
     from soft_envs.sim import load_robot
-    from trajopt.hooks import SimulatorHooks
 
     robot = load_robot("tripod")
     motors = tuple(dataclasses.replace(m, u_min=0.002) for m in robot.motors)
-    hooks = SimulatorHooks(dataclasses.replace(robot, motors=motors))
-    assert np.allclose(hooks.u_start, 0.002)
-    x0, _ = hooks.reset_state()
-    assert np.allclose(x0, hooks.simulator.rest_state(hooks.u_start))
-    assert not np.allclose(x0, hooks.simulator.rest_state())
-    from soft_envs.envs.base import SoftRobotEnv
-    env = SoftRobotEnv(hooks.robot, reset_noise_scale=0.0)
-    env.reset(seed=0)
-    assert np.allclose(env.get_state()["x"], x0, atol=1e-12)
-    traj = hooks.rollout(np.full((3, robot.n_motors), 0.002))
-    assert np.allclose(traj.cable_deformation[0], hooks.cable_deformation())
+    robot = dataclasses.replace(robot, motors=motors)
+    assert np.allclose(robot.u_rest, 0.002)
+    assert np.allclose(GaitParameterization.for_robot(robot).u_rest, 0.002)
+    env = make_gradient_env(robot)
+    x0, _ = env.reset_state()
+    assert np.allclose(x0, env.simulator.rest_state(robot.u_rest))
+    assert not np.allclose(x0, env.simulator.rest_state())
+    gym_env = SoftRobotEnv(env.robot, reset_noise_scale=0.0)
+    gym_env.reset(seed=0)
+    assert np.allclose(gym_env.get_state()["x"], x0, atol=1e-12)
+    traj = env.rollout(np.full((3, robot.n_motors), 0.002))
+    assert np.allclose(traj.cable_deformation[0], env.cable_deformation())
 
 
 def test_gauss_newton_resume_keeps_the_rejection_count():

@@ -133,11 +133,11 @@ def test_vtu_series_reads_back(tmp_path, tripod_frames):
 
 def test_cli_render_plot_export(tmp_path):
     """End to end: a (short) result through trajopt render / plot / export / evaluate."""
-    from trajopt import GaussNewtonOptions, optimize_gait
+    from soft_envs.envs import make_gradient_env
+    from trajopt import GaitSpec, GaussNewtonOptions, optimize_gait
     from trajopt.cli import main
-    from trajopt.hooks import make_hooks
-    res = optimize_gait(make_hooks("tripod"), "walk", n_prep=4, n_cycle=12, n_seeds=1, eval_cycles=1,
-                        options=GaussNewtonOptions(max_iter=1), robot_spec="tripod")
+    res = optimize_gait(make_gradient_env("tripod"), "walk", gait=GaitSpec(n_prep=4, n_cycle=12), n_seeds=1,
+                        eval_cycles=1, options=GaussNewtonOptions(max_iter=1), robot_spec="tripod")
     path = res.save(tmp_path / "r.npz")
     assert main(["render", str(path), "--gif", str(tmp_path / "r.gif"), "--cycles", "1", "--every", "4",
                  "--size", "96x72"]) == 0

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .gait import DEFAULT_EVAL_CYCLES, GaitSpec
+
 __all__ = ["main", "build_parser"]
 
 
@@ -37,11 +39,15 @@ def _add_optimize(sub) -> None:
     sym.add_argument("--no-symmetry", dest="symmetry", action="store_false", help="symmetry off (default for turn)")
     p.add_argument("--warm-start", type=Path, default=None, help="start from this result's keyframes")
     p.add_argument("--iterations", type=int, default=10, help="Gauss-Newton iterations at most")
-    p.add_argument("--keyframes", type=int, default=4, help="spline keyframes per cycle")
-    p.add_argument("--cycle-steps", type=int, default=72, help="steps per gait cycle (paper: 72)")
-    p.add_argument("--prep-steps", type=int, default=24, help="steps of the preparatory phase (paper: 24)")
+    paper = GaitSpec()
+    p.add_argument("--keyframes", type=int, default=paper.n_keyframes,
+                   help=f"spline keyframes per cycle (default {paper.n_keyframes}, the paper's)")
+    p.add_argument("--cycle-steps", type=int, default=paper.n_cycle,
+                   help=f"simulation steps per gait cycle (default {paper.n_cycle}, the paper's)")
+    p.add_argument("--prep-steps", type=int, default=paper.n_prep,
+                   help=f"simulation steps of the preparatory phase (default {paper.n_prep}, the paper's)")
     p.add_argument("--seeds", type=int, default=8, help="random starting patterns tried (no warm start)")
-    p.add_argument("--cycles", type=int, default=6, help="cycles played for the evaluation")
+    p.add_argument("--cycles", type=int, default=DEFAULT_EVAL_CYCLES, help="cycles played for the evaluation")
     p.add_argument("--out", type=Path, default=Path("results"), help="output directory")
     p.add_argument("--name", default=None, help="result file name (default ROBOT_TASK)")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run of the same name")
@@ -58,14 +64,16 @@ def _add_result_commands(sub) -> None:
     p.add_argument("result", type=Path)
     p.add_argument("--gif", type=Path, default=None)
     p.add_argument("--mp4", type=Path, default=None)
-    p.add_argument("--cycles", type=int, default=2)
+    p.add_argument("--cycles", type=int, default=GaitSpec().n_cycles,
+                   help="gait cycles played after the prep phase (RL results play their own controls)")
     p.add_argument("--every", type=int, default=2, help="render every n-th simulation step")
     p.add_argument("--size", default="480x360", help="frame size WIDTHxHEIGHT")
     p.set_defaults(func=_cmd_render)
     p = sub.add_parser("export", help="ParaView time series (.vtu per step + .pvd)")
     p.add_argument("result", type=Path)
     p.add_argument("--vtu", type=Path, required=True, help="output directory")
-    p.add_argument("--cycles", type=int, default=2)
+    p.add_argument("--cycles", type=int, default=GaitSpec().n_cycles,
+                   help="gait cycles played after the prep phase (RL results play their own controls)")
     p.set_defaults(func=_cmd_export)
     p = sub.add_parser("plot", help="COM path, controls, convergence and speed plots")
     p.add_argument("result", type=Path)

@@ -1,19 +1,26 @@
 """Evaluating a gait: play prep + N cycles and measure speed in body lengths per minute.
 
-The paper's unit (Table I). The speed is the mean velocity of the centre of mass along the
-target direction over the repeated cycles (from the end of the prep phase to the end of the
-last cycle); per-cycle speeds show whether the gait is periodic. "Upright" means the body's
-up axis never tilts more than ``max_tilt_deg`` from vertical and the COM never drops below
-half of its rest height.
+The paper's unit (Table I). :func:`measure_gait` measures a finished trajectory (of
+:meth:`~soft_envs.envs.GradientEnv.rollout`, or states recorded while stepping an environment);
+:func:`evaluate_controls` plays controls and measures them; :func:`evaluate_result` does that for
+a saved :class:`~trajopt.results.Result`. The speed is the mean velocity of the centre of mass
+along the target direction over the repeated cycles (from the end of the prep phase to the end
+of the last cycle); per-cycle speeds show whether the gait is periodic. "Upright" means the
+body's up axis never tilts more than ``max_tilt_deg`` from vertical and the COM never drops
+below half of its rest height.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
-from soft_envs.sim import SimulationError
-from soft_envs.sim.kinematics import BodyFrame, tilt_deg_of, yaw_of
+from soft_envs.envs import BodyFrame, GradientEnv, SimulationError, heading_vector, tilt_deg_of, yaw_of
 
-__all__ = ["evaluate_controls", "zero_slack_controls", "mps_to_bl_per_min"]
+from .gait import DEFAULT_EVAL_CYCLES
+
+__all__ = ["measure_gait", "evaluate_controls", "evaluate_result", "zero_slack_controls", "mps_to_bl_per_min",
+           "DEFAULT_EVAL_CYCLES"]
 
 
 def mps_to_bl_per_min(v: float, body_length: float) -> float:
@@ -25,8 +32,9 @@ def zero_slack_controls(u: np.ndarray, gamma: np.ndarray, tendon_motor: np.ndarr
     """Paper III-B-2: ``u_post = u + s`` with ``s = |min(Gamma, 0)|``.
 
     ``gamma`` (K+1, T) are the cable deformations of the rollout of ``u`` (state k+1 follows
-    control k). A motor drives a tendon pair: it reels in the smaller slack of its tendons, so
-    no tendon is tightened beyond taut. The result is clipped to the motor bounds."""
+    control k); ``tendon_motor`` (T,) is ``robot.tendon_motor``, the motor of each tendon. A motor
+    drives a tendon pair: it reels in the smaller slack of its tendons, so no tendon is tightened
+    beyond taut. The result is clipped to the motor bounds."""
     slack = np.abs(np.minimum(gamma[1:], 0.0))                       # (K, T)
     s = np.zeros_like(u)
     for m in range(u.shape[1]):
@@ -36,22 +44,24 @@ def zero_slack_controls(u: np.ndarray, gamma: np.ndarray, tendon_motor: np.ndarr
     return np.clip(u + s, u_bounds[:, 0], u_bounds[:, 1])
 
 
-def evaluate_controls(hooks, u: np.ndarray, *, n_prep: int, n_cycle: int, heading_deg_target: float = 0.0,
-                      max_tilt_deg: float = 60.0) -> dict:
-    """Play ``u`` (prep + N cycles) from the reset state and measure it."""
-    robot = hooks.robot
-    dt = hooks.dt
-    K = len(u)
-    n_cycles = (K - n_prep) // n_cycle if n_cycle > 0 else 0
+def _count_cycles(n_steps: int, n_prep: int, n_cycle: int) -> int:
+    n_cycles = (n_steps - n_prep) // n_cycle if n_cycle > 0 else 0
     if n_cycles < 1:
-        raise ValueError(f"need at least one full cycle to evaluate: {K} steps, prep {n_prep}, cycle {n_cycle}")
-    try:
-        traj = hooks.rollout(u)
-    except SimulationError as err:
-        return {"cycles": n_cycles, "speed_bl_per_min": float("nan"), "upright": False,
-                "sim_failure": str(err)}
-    a = np.radians(heading_deg_target)
-    direction = np.array([np.cos(a), 0.0, np.sin(a)])
+        raise ValueError(f"need at least one full cycle to evaluate: {n_steps} steps, prep {n_prep}, "
+                         f"cycle {n_cycle}")
+    return n_cycles
+
+
+def measure_gait(traj: Any, env: GradientEnv, *, n_prep: int, n_cycle: int, heading_deg: float = 0.0,
+                 max_tilt_deg: float = 60.0) -> dict[str, Any]:
+    """Speed, per-cycle speeds, path speed, heading change, tilt and uprightness of a finished
+    trajectory ``traj`` (anything with ``x`` (K+1, n, 3) and ``com`` (K+1, 3) of simulation steps
+    of ``env.timestep`` seconds, state 0 the start) of ``env.robot``: prep ``n_prep`` steps, then
+    cycles of ``n_cycle`` steps, measured along ``heading_deg``."""
+    robot, dt = env.robot, env.timestep
+    K = len(traj.x) - 1
+    n_cycles = _count_cycles(K, n_prep, n_cycle)
+    direction = heading_vector(heading_deg)
     bl = robot.body_length
     marks = n_prep + n_cycle * np.arange(n_cycles + 1)
     com = traj.com
@@ -74,5 +84,34 @@ def evaluate_controls(hooks, u: np.ndarray, *, n_prep: int, n_cycle: int, headin
         "max_tilt_deg": float(tilt.max()),
         "upright": upright,
         "sim_steps": int(K),
-        "com": traj.com.tolist(),
+        "com": np.asarray(com).tolist(),
     }
+
+
+def evaluate_controls(env: GradientEnv, u: np.ndarray, *, n_prep: int, n_cycle: int, heading_deg: float = 0.0,
+                      max_tilt_deg: float = 60.0) -> dict[str, Any]:
+    """Play ``u`` (prep + N cycles) from ``env``'s reset state and :func:`measure_gait` it; a
+    failed simulation gives ``speed_bl_per_min`` NaN, ``upright`` False and ``sim_failure``."""
+    n_cycles = _count_cycles(len(u), n_prep, n_cycle)
+    try:
+        traj = env.rollout(u)
+    except SimulationError as err:
+        return {"cycles": n_cycles, "speed_bl_per_min": float("nan"), "upright": False,
+                "sim_failure": str(err)}
+    return measure_gait(traj, env, n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading_deg,
+                        max_tilt_deg=max_tilt_deg)
+
+
+def evaluate_result(res, n_cycles: int | None = None) -> dict[str, Any]:
+    """The metric of a saved gait (a :class:`~trajopt.results.Result`) over ``n_cycles``
+    cycles (default: as it was evaluated, else :data:`DEFAULT_EVAL_CYCLES`), on the physics it
+    was made on; keyframe results are re-expanded, others (like exported RL gaits) play their
+    ``u``."""
+    from .replay import env_for_result, result_controls
+    cycles = int(res.settings.get("eval_cycles", DEFAULT_EVAL_CYCLES)) if n_cycles is None else int(n_cycles)
+    if cycles < 1:
+        raise ValueError(f"the number of cycles must be >= 1, got {cycles}")
+    env = env_for_result(res)
+    u, n_prep, n_cycle = result_controls(res, env.robot, cycles)
+    return evaluate_controls(env, u, n_prep=n_prep, n_cycle=n_cycle,
+                             heading_deg=float(res.settings.get("heading_deg", 0.0)))

@@ -1,7 +1,7 @@
 """Projected Gauss-Newton (Levenberg-Marquardt damped) for bound-constrained least squares.
 
 Minimises ``O(z) = 0.5 |r(z)|^2`` subject to ``lower <= z <= upper``, where ``fun(z, need_jac)``
-returns ``(r, J, info)`` and may raise :class:`~soft_envs.sim.SimulationError` (a trial point
+returns ``(r, J, info)`` and may raise :class:`~soft_envs.envs.SimulationError` (a trial point
 whose rollout fails counts as ``O = inf``: a rejected step, not a crash).
 
 Each iteration
@@ -33,7 +33,7 @@ from typing import Callable
 
 import numpy as np
 
-from soft_envs.sim import SimulationError
+from soft_envs.envs import SimulationError
 
 __all__ = ["GaussNewtonOptions", "GaussNewtonResult", "gauss_newton"]
 
@@ -72,6 +72,40 @@ def _evaluate(fun, z, need_jac):
     return 0.5 * float(r @ r), r, J, info
 
 
+def _active_set(g: np.ndarray, z: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Step 2: the free variables (not held at a bound that the gradient ``g`` pushes outwards)."""
+    at_lo = (z <= lower) & (g > 0)
+    at_hi = (z >= upper) & (g < 0)
+    return ~(at_lo | at_hi)
+
+
+def _direction(J: np.ndarray, g: np.ndarray, free: np.ndarray, lam: float) -> np.ndarray:
+    """Step 3: the Levenberg-Marquardt step on the free variables (zero on the others)."""
+    Jf = J[:, free]
+    A = Jf.T @ Jf
+    d = np.diag(A).copy()
+    mu = d.mean() if d.size else 1.0
+    A[np.diag_indices_from(A)] += lam * (d + mu)
+    dz = np.zeros_like(g)
+    dz[free] = np.linalg.solve(A, -g[free])
+    return dz
+
+
+def _line_search(fun: Callable, z: np.ndarray, dz: np.ndarray, g: np.ndarray, f: float, lower: np.ndarray,
+                 upper: np.ndarray, opt: GaussNewtonOptions) -> tuple[bool, float, np.ndarray, int, dict]:
+    """Step 4: ``(accepted, alpha, z_try, trials, info)``: backtrack along the clipped step
+    until the Armijo condition holds (one rollout without sensitivities per trial)."""
+    alpha, trials, info = 1.0, 0, {}
+    for _ in range(opt.max_backtracks + 1):
+        trials += 1
+        z_try = np.clip(z + alpha * dz, lower, upper)
+        f_try, _, _, info = _evaluate(fun, z_try, False)
+        if f_try <= f + opt.armijo * min(float(g @ (z_try - z)), 0.0):   # slope of the clipped step
+            return True, alpha, z_try, trials, info
+        alpha *= 0.5
+    return False, alpha, z_try, trials, info
+
+
 def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                  options: GaussNewtonOptions = GaussNewtonOptions(), *,
                  callback: Callable[[dict], bool | None] | None = None,
@@ -97,33 +131,16 @@ def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.nda
     for it in range(first_iteration, first_iteration + opt.max_iter):
         t0 = time.perf_counter()
         g = J.T @ r
-        at_lo = (z <= lower) & (g > 0)
-        at_hi = (z >= upper) & (g < 0)
-        free = ~(at_lo | at_hi)
-        pg = np.where(free, g, 0.0)
-        if np.abs(pg * scale).max() < opt.gtol:
+        free = _active_set(g, z, lower, upper)
+        if np.abs(np.where(free, g, 0.0) * scale).max() < opt.gtol:
             status = "gtol"
             break
-        Jf = J[:, free]
-        A = Jf.T @ Jf
-        d = np.diag(A).copy()
-        mu = d.mean() if d.size else 1.0
-        A[np.diag_indices_from(A)] += lam * (d + mu)
-        dz = np.zeros_like(z)
-        dz[free] = np.linalg.solve(A, -g[free])
-        alpha, accepted, trials = 1.0, False, 0
-        for _ in range(opt.max_backtracks + 1):
-            trials += 1
-            z_try = np.clip(z + alpha * dz, lower, upper)
-            f_try, r_try, _, info_try = _evaluate(fun, z_try, False)
-            if f_try <= f + opt.armijo * min(float(g @ (z_try - z)), 0.0):   # slope of the clipped step
-                accepted = True
-                break
-            alpha *= 0.5
+        dz = _direction(J, g, free, lam)
+        accepted, alpha, z_try, trials, info_try = _line_search(fun, z, dz, g, f, lower, upper, opt)
         entry = {"iteration": it, "objective": f, "accepted": accepted, "alpha": alpha if accepted else 0.0,
                  "step": float(np.abs(z_try - z).max()) if accepted else 0.0, "lambda": lam,
                  "trials": trials, "terms": info.get("terms", {})}
-        if accepted:
+        if accepted:                        # step 5: less damping after a full step
             step = z_try - z
             f_old = f
             z = z_try

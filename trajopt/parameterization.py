@@ -1,13 +1,13 @@
 """Control trajectories from a few keyframes (paper III-B, eq. 12).
 
-``u = (u_prep, u_cycle, u_cycle)``: each motor's cycle is a periodic zero-tangent cubic Hermite
-spline through ``n_keyframes`` equally spaced keyframes; the preparatory phase eases from the
-rest contraction ``u_start`` (0 clipped into each motor's range, where the environments and
-:class:`trajopt.hooks.SimulatorHooks` start) into the cycle's first value. With zero tangents
-the spline never leaves the range of its keyframes, and the prep blends two in-range values, so
+``u = (u_prep, u_cycle, u_cycle)`` (the shape is a :class:`~trajopt.gait.GaitSpec`): each motor's
+cycle is a periodic zero-tangent cubic Hermite spline through ``n_keyframes`` equally spaced
+keyframes; the preparatory phase eases from the rest contraction ``u_rest`` (``robot.u_rest``:
+where the environments' rollouts start) into the cycle's first value. With zero tangents the
+spline never leaves the range of its keyframes, and the prep blends two in-range values, so
 bounds on the keyframes z are bounds on u.
 
-Tendon pairs share a motor (that is what a motor is in :class:`soft_envs.sim.Robot`).
+Tendon pairs share a motor (that is what a motor is in :class:`soft_envs.envs.Robot`).
 Bilateral symmetry: a motor's mirror motor plays the same signal shifted by half a period,
 which for an even number of keyframes is a rotation of its keyframes by ``n_keyframes / 2``;
 only one motor of each mirror pair then carries parameters.
@@ -21,6 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .gait import GaitSpec
 
 __all__ = ["GaitParameterization", "hermite_cycle_basis", "prep_ease"]
 
@@ -58,27 +60,34 @@ class GaitParameterization:
     ----------
     u_bounds : (n_motors, 2) lower/upper contraction of each motor [m].
     mirror_map : (n_motors,) index of each motor's mirror motor (itself if none).
-    n_prep, n_cycle, n_keyframes : phase lengths in steps and keyframes per cycle (paper: 24,
-        72, 4).
-    symmetry : bilateral symmetry on (mirror motors = half-period shift of their partner).
+    u_rest : (n_motors,) contraction at rest [m], where the prep phase starts (``robot.u_rest``).
+    gait : the phase lengths, cycles, keyframes and symmetry (default: the paper's).
+
+    :meth:`for_robot` takes the first three from a robot.
     """
 
     u_bounds: np.ndarray
     mirror_map: np.ndarray
-    n_prep: int = 24
-    n_cycle: int = 72
-    n_keyframes: int = 4
-    symmetry: bool = True
+    u_rest: np.ndarray
+    gait: GaitSpec = GaitSpec()
     free_motors: np.ndarray = field(init=False)
+
+    @classmethod
+    def for_robot(cls, robot, gait: GaitSpec = GaitSpec()) -> "GaitParameterization":
+        """The parameterisation of ``robot``'s motors (bounds, mirror pairs, rest contraction)."""
+        return cls(robot.u_bounds, robot.mirror_map, robot.u_rest, gait)
 
     def __post_init__(self):
         self.u_bounds = np.asarray(self.u_bounds, dtype=np.float64).reshape(-1, 2)
         self.mirror_map = np.asarray(self.mirror_map, dtype=np.int64)
+        self.u_rest = np.asarray(self.u_rest, dtype=np.float64)
         n = len(self.u_bounds)
         if self.mirror_map.shape != (n,):
             raise ValueError(f"mirror_map must have {n} entries")
-        if self.n_prep < 0 or self.n_cycle < self.n_keyframes:
-            raise ValueError("need n_prep >= 0 and n_cycle >= n_keyframes")
+        if self.u_rest.shape != (n,):
+            raise ValueError(f"u_rest must have {n} entries, got shape {self.u_rest.shape}")
+        if not isinstance(self.gait, GaitSpec):
+            raise TypeError(f"gait must be a GaitSpec, got {type(self.gait).__name__}")
         has_pairs = np.any(self.mirror_map != np.arange(n))
         if self.symmetry and has_pairs and self.n_keyframes % 2:
             raise ValueError("bilateral symmetry needs an even number of keyframes "
@@ -108,6 +117,22 @@ class GaitParameterization:
 
     # ------------------------------------------------------------------ sizes
     @property
+    def n_prep(self) -> int:
+        return self.gait.n_prep
+
+    @property
+    def n_cycle(self) -> int:
+        return self.gait.n_cycle
+
+    @property
+    def n_keyframes(self) -> int:
+        return self.gait.n_keyframes
+
+    @property
+    def symmetry(self) -> bool:
+        return self.gait.symmetry
+
+    @property
     def n_motors(self) -> int:
         return len(self.u_bounds)
 
@@ -115,13 +140,9 @@ class GaitParameterization:
     def nz(self) -> int:
         return len(self.free_motors) * self.n_keyframes
 
-    def n_steps(self, n_cycles: int = 2) -> int:
-        return self.n_prep + n_cycles * self.n_cycle
-
-    @property
-    def u_start(self) -> np.ndarray:
-        """(n_motors,) contraction at rest: 0 clipped into each motor's range [u_min, u_max]."""
-        return np.clip(0.0, self.u_bounds[:, 0], self.u_bounds[:, 1])
+    def n_steps(self, n_cycles: int | None = None) -> int:
+        """Steps of the prep phase and ``n_cycles`` cycles (default: the gait's)."""
+        return self.gait.n_steps(n_cycles)
 
     # ------------------------------------------------------------------ maps
     def keyframes(self, z: np.ndarray) -> np.ndarray:
@@ -129,22 +150,23 @@ class GaitParameterization:
         z = self._check_z(z)
         return (self._P @ z).reshape(self.n_motors, self.n_keyframes)
 
-    def dudz(self, n_cycles: int = 2) -> np.ndarray:
+    def dudz(self, n_cycles: int | None = None) -> np.ndarray:
         """Exact, constant (K, n_motors, nz) Jacobian of :meth:`controls`."""
+        n_cycles = self.gait.n_cycles if n_cycles is None else n_cycles
         B = hermite_cycle_basis(self.n_cycle, self.n_keyframes)          # (C, Kf)
         ease = prep_ease(self.n_prep)[:, None] * B[0][None, :]             # prep eases to cycle[0]
         steps = np.concatenate([ease] + [B] * n_cycles)                     # (K, Kf)
         P = self._P.reshape(self.n_motors, self.n_keyframes, self.nz)
         return np.einsum("kj,mjz->kmz", steps, P)
 
-    def offset(self, n_cycles: int = 2) -> np.ndarray:
+    def offset(self, n_cycles: int | None = None) -> np.ndarray:
         """(K, n_motors) part of the controls that does not depend on z: the prep phase's
-        ``(1 - ease) u_start`` (zero for motors whose range contains 0), zero in the cycles."""
+        ``(1 - ease) u_rest`` (zero for motors whose range contains 0), zero in the cycles."""
         out = np.zeros((self.n_steps(n_cycles), self.n_motors))
-        out[: self.n_prep] = (1.0 - prep_ease(self.n_prep))[:, None] * self.u_start[None, :]
+        out[: self.n_prep] = (1.0 - prep_ease(self.n_prep))[:, None] * self.u_rest[None, :]
         return out
 
-    def controls(self, z: np.ndarray, n_cycles: int = 2) -> np.ndarray:
+    def controls(self, z: np.ndarray, n_cycles: int | None = None) -> np.ndarray:
         """(n_prep + n_cycles n_cycle, n_motors) controls ``offset + dudz . z`` for parameters z."""
         return self.offset(n_cycles) + self.dudz(n_cycles) @ self._check_z(z)
 
@@ -152,7 +174,7 @@ class GaitParameterization:
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds on z (= bounds on u in the cycles thanks to the zero tangents; with symmetry,
         the intersection of a motor's and its mirror's ranges). The prep phase blends
-        ``u_start`` and the cycle's first value, both in range, so it respects them too."""
+        ``u_rest`` and the cycle's first value, both in range, so it respects them too."""
         lo = np.repeat(self._zbounds[:, 0], self.n_keyframes)
         hi = np.repeat(self._zbounds[:, 1], self.n_keyframes)
         return lo, hi

@@ -43,7 +43,7 @@ class Result:
 
     robot : shipped robot name or path of its robot.toml.
     task : "walk" | "turn" | "incline" | "custom" | "rl".
-    motor_names, dt : controls' columns and time step [s].
+    motor_names, dt : controls' columns and the simulation time step [s] (one row of u per step).
     z : parameters (keyframes); u : (K, n_motors) optimised controls (prep + 2 cycles) [m];
     u_post : the zero-slack controls (paper III-B-2), what hardware plays.
     target : (K+1, 2) target horizontal COM path; com : (K+1, 3) simulated COM.

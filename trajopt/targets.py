@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from soft_envs.envs import heading_vector
+
 __all__ = ["straight_line", "quarter_circle", "from_array", "bl_per_min_to_mps"]
 
 
@@ -17,8 +19,8 @@ def bl_per_min_to_mps(speed_bl_per_min: float, body_length: float) -> float:
 
 
 def _unit(heading_deg: float) -> np.ndarray:
-    a = np.radians(heading_deg)
-    return np.array([np.cos(a), np.sin(a)])
+    """(x, z) unit vector of a heading (:func:`soft_envs.envs.heading_vector` in the ground plane)."""
+    return heading_vector(heading_deg)[[0, 2]]
 
 
 def straight_line(start, n_steps: int, dt: float, speed: float, heading_deg: float = 0.0) -> np.ndarray:

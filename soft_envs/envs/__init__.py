@@ -1,11 +1,24 @@
-"""Gymnasium environments of cable-driven soft robots (registered on ``import soft_envs``).
+"""Gymnasium environments of cable-driven soft robots, and the gradient protocol of trajopt.
 
-``SoftTripod-v0`` (:class:`SoftTripodEnv`) and ``SoftPuppy-v0`` (:class:`SoftPuppyEnv`), both
-:class:`SoftRobotEnv` subclasses offering the :class:`GradientEnv` hooks for ``trajopt``.
+This layer turns the physics of :mod:`soft_envs.sim` into Gymnasium environments
+(``SoftTripod-v0``: :class:`SoftTripodEnv`, ``SoftPuppy-v0``: :class:`SoftPuppyEnv`, both
+:class:`SoftRobotEnv`, registered on ``import soft_envs``) and offers ``trajopt`` its one way into
+the physics: the :class:`GradientEnv` protocol (rollouts with exact sensitivities, the robot, the
+simulation time step, the slope) with :func:`make_gradient_env` / :func:`as_gradient_env`, plus the
+re-exports below (the failure exception, body-frame measurements, cable points, strain energy).
+It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`; never
+``trajopt``.
 """
-from .base import SoftRobotEnv
-from .protocol import GradientEnv
+from ..sim import Robot, SimulationError, Trajectory, load_robot
+from .base import MOTOR_NO_LOAD_RPM, PAPER_GAIT_PERIOD, PAPER_TIMESTEP, SoftRobotEnv
+from .domain import DEFAULT_DOMAIN_RANDOMIZATION
+from .measure import (BodyFrame, cable_points, heading_vector, strain_energy_density, tilt_deg_of, wrap_angle,
+                      yaw_of)
+from .protocol import GradientEnv, as_gradient_env, make_gradient_env
 from .puppy import SoftPuppyEnv
 from .tripod import SoftTripodEnv
 
-__all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv"]
+__all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv", "make_gradient_env",
+           "as_gradient_env", "Robot", "Trajectory", "SimulationError", "load_robot", "BodyFrame", "yaw_of",
+           "tilt_deg_of", "wrap_angle", "heading_vector", "cable_points", "strain_energy_density",
+           "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION"]

@@ -26,29 +26,52 @@ import numpy as np
 from gymnasium import spaces
 
 from ..sim import FactorCache, Robot, SimulationError, Simulator, Trajectory, incline_gravity, load_robot
+from .actuation import Actuation
 from .domain import parse_domain_randomization, randomized_robot, sample_factors
-from ..sim.kinematics import BodyFrame, heading_vector, tilt_deg_of, wrap_angle, yaw_of
+from .measure import BodyFrame, tilt_deg_of, wrap_angle, yaw_of
+from .task import LocomotionTask
 from .viewer import EnvViewer, RenderingMixin
 
-__all__ = ["SoftRobotEnv", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM"]
+__all__ = ["SoftRobotEnv", "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM"]
 
-PAPER_GAIT_PERIOD = 72 * 0.033      # [s] the paper's gait cycle: 72 steps of 0.033 s
+PAPER_TIMESTEP = 0.033              # [s] the paper's simulation time step h
+PAPER_GAIT_PERIOD = 72 * PAPER_TIMESTEP   # [s] the paper's gait cycle: 72 steps
 MOTOR_NO_LOAD_RPM = 100.0           # Pololu 298:1 micro metal gearmotor, no-load at 6 V
 _TRAIL_LENGTH = 3000                # COM trail points kept for rendering
+_RENDER_MODES = ("human", "rgb_array")
+
+
+def _check_arguments(*, frame_skip: Any, timestep: float, gait_period: float, reset_noise_scale: float,
+                     motor_speed_rpm: float | None, incline_deg: float, render_mode: str | None) -> None:
+    """Raise ValueError naming the first bad keyword of :class:`SoftRobotEnv` (the task's own
+    keywords are checked by :class:`LocomotionTask`)."""
+    if int(frame_skip) != frame_skip or frame_skip < 1:
+        raise ValueError(f"frame_skip must be a positive integer, got {frame_skip!r}")
+    for name, v in (("timestep", timestep), ("gait_period", gait_period)):
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be positive, got {v!r}")
+    if not (math.isfinite(reset_noise_scale) and reset_noise_scale >= 0):
+        raise ValueError(f"reset_noise_scale must be >= 0, got {reset_noise_scale!r}")
+    if motor_speed_rpm is not None and not motor_speed_rpm > 0:
+        raise ValueError(f"motor_speed_rpm must be positive or None, got {motor_speed_rpm!r}")
+    if not abs(incline_deg) < 90:
+        raise ValueError(f"incline_deg must be in (-90, 90), got {incline_deg!r}")
+    if render_mode is not None and render_mode not in _RENDER_MODES:
+        raise ValueError(f"render_mode must be one of {list(_RENDER_MODES)} or None, got {render_mode!r}")
 
 
 class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
     """A cable-driven soft robot on the ground plane (see the module docstring and the
-    per-robot subclasses for the specification)."""
+    per-robot subclasses for the specification, keywords included)."""
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 30}
+    metadata = {"render_modes": list(_RENDER_MODES), "render_fps": 30}
 
     def __init__(
         self,
         robot: str | os.PathLike | Robot = "puppy",
         *,
         frame_skip: int = 1,
-        timestep: float = 0.033,
+        timestep: float = PAPER_TIMESTEP,
         task: str = "walk",
         target_heading_deg: float = 0.0,
         turn_direction: str = "right",
@@ -64,83 +87,71 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         motor_speed_rpm: float | None = MOTOR_NO_LOAD_RPM,
         gait_period: float = PAPER_GAIT_PERIOD,
         observe_nodes: bool = False,
-        domain_randomization: Mapping[str, tuple[float, float]] | None = None,
+        domain_randomization: Mapping[str, tuple[float, float]] | bool | None = None,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
         camera_config: Mapping[str, Any] | None = None,
     ):
-        if task not in ("walk", "turn"):
-            raise ValueError(f"task must be 'walk' or 'turn', got {task!r}")
-        if turn_direction not in ("right", "left"):
-            raise ValueError(f"turn_direction must be 'right' or 'left', got {turn_direction!r}")
-        if int(frame_skip) != frame_skip or frame_skip < 1:
-            raise ValueError(f"frame_skip must be a positive integer, got {frame_skip!r}")
-        for name, v in (("timestep", timestep), ("gait_period", gait_period)):
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be positive, got {v!r}")
-        if not (math.isfinite(reset_noise_scale) and reset_noise_scale >= 0):
-            raise ValueError(f"reset_noise_scale must be >= 0, got {reset_noise_scale!r}")
-        if motor_speed_rpm is not None and not motor_speed_rpm > 0:
-            raise ValueError(f"motor_speed_rpm must be positive or None, got {motor_speed_rpm!r}")
-        if not abs(incline_deg) < 90:
-            raise ValueError(f"incline_deg must be in (-90, 90), got {incline_deg!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
-                             f"got {render_mode!r}")
+        self._task = LocomotionTask(
+            task=task, target_heading_deg=target_heading_deg, turn_direction=turn_direction,
+            turn_radius=turn_radius, forward_reward_weight=forward_reward_weight,
+            ctrl_cost_weight=ctrl_cost_weight, healthy_reward=healthy_reward,
+            terminate_when_unhealthy=terminate_when_unhealthy, healthy_tilt_deg=healthy_tilt_deg,
+            healthy_height_fraction=healthy_height_fraction)
+        _check_arguments(frame_skip=frame_skip, timestep=timestep, gait_period=gait_period,
+                         reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
+                         incline_deg=incline_deg, render_mode=render_mode)
         self._base_robot = robot if isinstance(robot, Robot) else load_robot(robot)
         if self._base_robot.n_motors == 0:
             raise ValueError(f"robot {self._base_robot.name!r} has no motors")
         self.frame_skip = int(frame_skip)
-        self._task = task
-        self._turn_sign = 1.0 if turn_direction == "right" else -1.0    # +yaw: from +x towards +z
-        self._turn_radius = turn_radius
-        self._heading = heading_vector(target_heading_deg)
+        self._timestep = float(timestep)
+        self._heading = self._task.heading
+        self._incline_deg = float(incline_deg)
         self._gravity = incline_gravity(incline_deg, uphill=(self._heading[0], self._heading[2]))
-        self.incline_deg = float(incline_deg)      # read by trajopt (results record the slope)
-        self._forward_reward_weight = float(forward_reward_weight)
-        self._ctrl_cost_weight = float(ctrl_cost_weight)
-        self._healthy_reward = float(healthy_reward)
-        self._terminate_when_unhealthy = bool(terminate_when_unhealthy)
-        self._healthy_tilt_deg = float(healthy_tilt_deg)
-        self._healthy_height_fraction = float(healthy_height_fraction)
         self._reset_noise_scale = float(reset_noise_scale)
-        self._motor_speed_rpm = motor_speed_rpm
         self._gait_period = float(gait_period)
         self._observe_nodes = bool(observe_nodes)
         self._domain_ranges = parse_domain_randomization(domain_randomization)
-        self._timestep = float(timestep)
+        # rendering (the viewer is made at the first frame)
         self.render_mode = render_mode
         self._width, self._height = int(width), int(height)
         self._camera_config = dict(camera_config or {})
         self._viewer: EnvViewer | None = None
+        self._init_actuation(motor_speed_rpm)
+        self._init_spaces()
+        self._init_physics()
 
+    def _init_actuation(self, motor_speed_rpm: float | None) -> None:
+        """The motors, and the cable-deformation scale of the observation (each tendon's Gamma
+        divided by its motor's range)."""
+        self._actuation = Actuation(self._base_robot, motor_speed_rpm, self._timestep)
+        self.motor_speed = self._actuation.speed                          # (M,) [m/s]
+        rng = self._actuation.range
+        tm = self._base_robot.tendon_motor
+        self._gamma_scale = 1.0 / np.where(tm >= 0, rng[np.maximum(tm, 0)], rng.mean())
+
+    def _init_spaces(self) -> None:
         r = self._base_robot
-        self._lo, self._hi = r.u_bounds[:, 0].copy(), r.u_bounds[:, 1].copy()
-        self._range = self._hi - self._lo
-        self._u_start = r.u_rest
-        radius = np.array([m.spool_radius for m in r.motors])
-        rpm = math.inf if motor_speed_rpm is None else float(motor_speed_rpm)
-        self.motor_speed = rpm * 2.0 * math.pi / 60.0 * radius            # (M,) [m/s]
-        self._du_max = self.motor_speed * self._timestep                  # per simulation step [m]
-        tm = r.tendon_motor
-        self._gamma_scale = 1.0 / np.where(tm >= 0, self._range[np.maximum(tm, 0)], self._range.mean())
-
-        n_t, n_m = len(r.tendons), r.n_motors
-        self.observation_structure = {"com_position": 3, "com_velocity": 3, "forward_vector": 3,
-                                      "up_vector": 3, "cable_deformation": n_t, "contraction": n_m,
-                                      "gait_phase": 2, "nodes": 3 * r.mesh.n_nodes if observe_nodes else 0}
+        self.observation_structure = {
+            "com_position": 3, "com_velocity": 3, "forward_vector": 3, "up_vector": 3,
+            "cable_deformation": len(r.tendons), "contraction": r.n_motors, "gait_phase": 2,
+            "nodes": 3 * r.mesh.n_nodes if self._observe_nodes else 0}
         self._obs_size = sum(self.observation_structure.values())
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(n_m,), dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(r.n_motors,), dtype=np.float32)
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(self._obs_size,), dtype=np.float64)
-        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.env_dt))}
+        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
 
+    def _init_physics(self) -> None:
+        """The simulator of the nominal robot, and the state at rest (until the first reset)."""
         self._domain: dict[str, float] = {}
         self._sim: Simulator | None = None
         self._set_domain({k: 1.0 for k in (self._domain_ranges or {})})
-        x = self._sim.rest_state(self._u_start)
+        u_rest = self._base_robot.u_rest
+        x = self._sim.rest_state(u_rest)
         self._x0_reset, self._xm1_reset = x, x.copy()
-        self._restore(x, x.copy(), self._u_start.copy(), 0, self._frame.com(x))
+        self._restore(x, x.copy(), u_rest, 0, self._frame.com(x))
 
     # ------------------------------------------------------------------ properties (hooks)
     @property
@@ -156,14 +167,29 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
 
     @property
     def dt(self) -> float:
-        """Simulation time step [s]. NB: unlike MuJoCo environments, where ``dt`` is the
-        duration of an environment step, that is :attr:`env_dt` here."""
+        """Duration of one environment step [s]: ``frame_skip * timestep``, as in Gymnasium's
+        MuJoCo environments (rewards divide displacements by it)."""
+        return self.frame_skip * self._timestep
+
+    @property
+    def timestep(self) -> float:
+        """Simulation time step h [s] (``simulator.dt``): the step of :meth:`rollout`."""
         return self._sim.dt
 
     @property
-    def env_dt(self) -> float:
-        """Duration of one environment step, ``frame_skip * dt`` [s]."""
-        return self.frame_skip * self._timestep
+    def control_mode(self) -> str:
+        """``"length"``: controls are contracted cable lengths [m] (the environments' mode)."""
+        return self._sim.control
+
+    @property
+    def incline_deg(self) -> float:
+        """Ground slope [deg], rising along the target heading."""
+        return self._incline_deg
+
+    @property
+    def gravity(self) -> np.ndarray:
+        """Gravity vector (3,) [m/s^2] (rotated for an incline)."""
+        return self._gravity.copy()
 
     @property
     def domain_parameters(self) -> dict[str, float]:
@@ -179,38 +205,27 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         robot = randomized_robot(self._base_robot, factors)
         self._sim = Simulator(robot, dt=self._timestep, gravity=self._gravity, control="length")
         self._domain = factors
-        x_rest = self._sim.rest_state(self._u_start)
+        x_rest = self._sim.rest_state(robot.u_rest)
         self._frame = BodyFrame(x_rest, robot.node_masses)
         self._rest_com_height = float(self._frame.com(x_rest)[1])
 
     # ------------------------------------------------------------------ actions
-    def _check_action(self, action: Any) -> np.ndarray:
-        a = np.asarray(action)
-        if a.shape != self.action_space.shape:
-            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
-        try:
-            a = a.astype(np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be numeric, got dtype {a.dtype}") from None
-        if not np.isfinite(a).all():
-            raise ValueError(f"action contains NaN or inf: {a.tolist()}")
-        return np.clip(a, -1.0, 1.0)
-
     def action_to_control(self, action: Any) -> np.ndarray:
         """Contractions u [m] (M,) commanded by ``action`` (clipped to [-1, 1]):
         ``u = u_min + (a + 1) / 2 (u_max - u_min)``; no speed limit."""
-        return self._lo + 0.5 * (self._check_action(action) + 1.0) * self._range
+        return self._actuation.command(self._actuation.check_action(action))
 
     def control_to_action(self, u: Any) -> np.ndarray:
         """The action (float64, not clipped) that commands contractions ``u`` [m], (..., M)."""
-        return 2.0 * (np.asarray(u, dtype=np.float64) - self._lo) / self._range - 1.0
+        return self._actuation.to_action(u)
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         if self._domain_ranges is not None:
             self._set_domain(sample_factors(self._domain_ranges, self.np_random))
-        x_rest = self._sim.rest_state(self._u_start)
+        u_rest = self.robot.u_rest
+        x_rest = self._sim.rest_state(u_rest)
         s = self._reset_noise_scale
         if s > 0:
             x0 = x_rest + self.np_random.uniform(-s, s, size=x_rest.shape)
@@ -218,21 +233,20 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         else:
             x0, xm1 = x_rest, x_rest.copy()
         self._x0_reset, self._xm1_reset = x0.copy(), xm1.copy()
-        self._restore(x0, xm1, self._u_start.copy(), 0, self._frame.com(x0), None if s > 0 else x0.copy())
+        self._restore(x0, xm1, u_rest, 0, self._frame.com(x0), None if s > 0 else x0.copy())
         if self.render_mode == "human":
             self.render()
         return self._get_obs(), self._get_info()
 
     def step(self, action: Any):
-        a = self._check_action(action)
-        u_cmd = self._lo + 0.5 * (a + 1.0) * self._range
+        a = self._actuation.check_action(action)
+        u_cmd = self._actuation.command(a)
         x, xp, xp2, u = self._x, self._x_prev, self._x_prev2, self._u
         u_sub = np.empty((self.frame_skip, len(u)))
         cache = FactorCache()         # the sub-steps of this step share factorisations, no others
         try:
             for i in range(self.frame_skip):
-                d = u_cmd - u
-                u = np.where(np.abs(d) <= self._du_max, u_cmd, u + np.clip(d, -self._du_max, self._du_max))
+                u = self._actuation.follow(u, u_cmd)
                 xp2, xp, x = xp, x, self._sim.step(x, xp, u, k=self._n_sub + i, x_prev3=xp2,
                                                    factor_cache=cache)
                 u_sub[i] = u
@@ -243,10 +257,10 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
             return self._get_obs(), 0.0, True, False, info
         com_before, yaw_before = self._com, self._yaw
         self._restore(x, xp, u, self._n_sub + self.frame_skip, self._com_start, xp2)
-        forward_velocity = float((self._com - com_before) @ self._heading) / self.env_dt / self._body_length
-        yaw_rate = wrap_angle(self._yaw - yaw_before) / self.env_dt
-        reward, reward_info = self._get_rew(forward_velocity, yaw_rate, a)
-        terminated = self._terminate_when_unhealthy and not self.is_healthy
+        forward_velocity = float((self._com - com_before) @ self._heading) / self.dt / self._body_length
+        yaw_rate = wrap_angle(self._yaw - yaw_before) / self.dt
+        reward, reward_info = self._task.reward(forward_velocity, yaw_rate, a, self.is_healthy, self._body_length)
+        terminated = self._task.terminate_when_unhealthy and not self.is_healthy
         info = self._get_info()
         info.update(forward_velocity=forward_velocity, yaw_rate=yaw_rate, u_substeps=u_sub, **reward_info)
         if self.render_mode == "human":
@@ -270,9 +284,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         self._rot = self._frame.rotation(x)
         self._yaw = yaw_of(self._rot)
         self._tilt = tilt_deg_of(self._rot)
-        self._healthy = bool(self._tilt <= self._healthy_tilt_deg
-                             and self._com[1] >= self._healthy_height_fraction * self._rest_com_height
-                             and np.isfinite(self._com).all())
+        self._healthy = self._task.is_healthy(self._tilt, self._com, self._rest_com_height)
         if n_sub == 0 or not hasattr(self, "_trail"):
             self._trail: deque[np.ndarray] = deque(maxlen=_TRAIL_LENGTH)
         if self.render_mode is not None:     # the COM path drawn on the ground
@@ -295,7 +307,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         i = 12 + s["cable_deformation"]
         obs[12:i] = self._sim.cable_deformation(self._x, self._u) * self._gamma_scale
         j = i + s["contraction"]
-        obs[i:j] = 2.0 * (self._u - self._lo) / self._range - 1.0
+        obs[i:j] = self._actuation.to_action(self._u)
         phase = 2.0 * math.pi * self._n_sub * self._timestep / self._gait_period
         obs[j] = math.sin(phase)
         obs[j + 1] = math.cos(phase)
@@ -308,20 +320,6 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
                 "com": self._com.copy(), "displacement": self._com - self._com_start,
                 "yaw": self._yaw, "tilt_deg": self._tilt, "time": self._n_sub * self._timestep,
                 "u": self._u.copy(), "is_healthy": self.is_healthy}
-
-    def _get_rew(self, forward_velocity: float, yaw_rate: float, action: np.ndarray
-                 ) -> tuple[float, dict[str, float]]:
-        """``reward = reward_forward + reward_survive + reward_ctrl`` (the last is <= 0)."""
-        if self._task == "walk":
-            progress = forward_velocity
-        else:
-            radius = self._body_length if self._turn_radius is None else self._turn_radius
-            progress = self._turn_sign * yaw_rate * radius / self._body_length
-        forward = self._forward_reward_weight * progress
-        ctrl_cost = self._ctrl_cost_weight * float(np.sum(np.square(0.5 * (action + 1.0))))
-        survive = self._healthy_reward if self.is_healthy else 0.0
-        reward_info = {"reward_forward": forward, "reward_ctrl": -ctrl_cost, "reward_survive": survive}
-        return forward + survive - ctrl_cost, reward_info
 
     # ------------------------------------------------------------------ gradient hooks
     def reset_state(self) -> tuple[np.ndarray, np.ndarray]:
@@ -372,9 +370,15 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         """Current centre of mass (3,) [m]."""
         return self._com.copy()
 
-    def cable_deformation(self) -> np.ndarray:
-        """Current cable deformation Gamma (T,) [m] per tendon (> 0: stretched, < 0: slack)."""
-        return self._sim.cable_deformation(self._x, self._u)
+    def cable_deformation(self, x: np.ndarray | None = None, u: np.ndarray | None = None) -> np.ndarray:
+        """Cable deformation Gamma (T,) [m] per tendon (> 0: stretched, < 0: slack; paper eq. 3)
+        at positions ``x`` (n, 3) with controls ``u`` (M,), by default the current ones."""
+        return self._sim.cable_deformation(self._x if x is None else x, self._u if u is None else u)
+
+    def cable_tension(self, x: np.ndarray | None = None, u: np.ndarray | None = None) -> np.ndarray:
+        """Cable tension (T,) [N] per tendon (0 when slack) at positions ``x`` (n, 3) with
+        controls ``u`` (M,), by default the current ones."""
+        return self._sim.cable_tension(self._x if x is None else x, self._u if u is None else u)
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()

@@ -24,7 +24,10 @@ class SoftPuppyEnv(SoftRobotEnv):
     turn (`task="turn"`; the paper turns right, using a straight leg as a pivot).
 
     Units are SI with +y up and the ground at y = 0; the robot faces +x at rest and its left
-    is -z. One environment step is `frame_skip` simulation steps of `timestep` = 0.033 s.
+    is -z. One environment step is `frame_skip` simulation steps of `timestep` = 0.033 s; as in
+    Gymnasium's MuJoCo environments, `env.unwrapped.dt` is the duration of one environment step,
+    `frame_skip * timestep`, and the simulation step is `env.unwrapped.timestep`
+    (`env.unwrapped.simulator.dt`).
 
     ## Action Space
     The action space is a `Box(-1, 1, (8,), float32)`. Action *a* commands the cable
@@ -79,7 +82,7 @@ class SoftPuppyEnv(SoftRobotEnv):
     - *forward_reward* (`info["reward_forward"]`): task progress times `forward_reward_weight`.
       With `task="walk"`, the speed of the COM along the target heading
       (`target_heading_deg`, 0 = +x) in body lengths per second over the step,
-      $w_{forward} \times \frac{\Delta c \cdot d}{dt \cdot L}$ with *L* = 0.13 m.
+      $w_{forward} \times \frac{\Delta c \cdot d}{dt \cdot L}$ (*dt* = `env.unwrapped.dt`, the duration of the step) with *L* = 0.13 m.
       With `task="turn"`, the yaw rate (rad/s) in the requested direction (`turn_direction`,
       right = clockwise seen from above) times `turn_radius` / *L*, i.e. the speed in body
       lengths per second of a point at `turn_radius` from the turning centre (default radius *L*).
@@ -110,7 +113,11 @@ class SoftPuppyEnv(SoftRobotEnv):
       environment's state is left as it was before the step.
 
     ### Truncation
-    300 steps (about 10 s) by the `TimeLimit` wrapper of `gymnasium.make`.
+    `gymnasium.make` wraps the environment in a `TimeLimit` of `max_episode_steps` = 300
+    environment steps (`soft_envs.MAX_EPISODE_STEPS`; 10 s at `frame_skip=1`, about four of the
+    paper's gait cycles); `gym.make(..., max_episode_steps=N)` changes it. The environment
+    itself never truncates. The RL baseline (`trajopt rl train`) passes 168, trajopt's
+    optimisation horizon (24 prep steps + 2 cycles of 72), so both methods see the same episodes.
 
     ## Arguments
     ```python
@@ -122,8 +129,8 @@ class SoftPuppyEnv(SoftRobotEnv):
     | Parameter                  | Type               | Default        | Description |
     |----------------------------|--------------------|----------------|-------------|
     | `robot`                    | **str \| Path \| Robot** | `"puppy"`  | shipped robot name, a `robot.toml` path (e.g. the fine mesh `assets/puppy/robot_fine.toml`) or a `Robot`; sizes in the tables above change accordingly |
-    | `frame_skip`               | **int**            | `1`            | simulation steps per environment step |
-    | `timestep`                 | **float**          | `0.033`        | simulation time step [s] (`env.unwrapped.dt`; one env step lasts `env_dt = frame_skip * timestep`) |
+    | `frame_skip`               | **int**            | `1`            | simulation steps per environment step; `env.unwrapped.dt = frame_skip * timestep` |
+    | `timestep`                 | **float**          | `0.033`        | simulation time step [s] (`env.unwrapped.timestep`, `env.unwrapped.simulator.dt`; the paper's h) |
     | `task`                     | **str**            | `"walk"`       | `"walk"` (speed along the target heading) or `"turn"` (yaw rate) |
     | `target_heading_deg`       | **float**          | `0`            | walking direction, degrees from +x towards +z (90 = +z, the robot's right; the convention of `trajopt`); also the uphill direction |
     | `turn_direction`           | **str**            | `"right"`      | `"right"` (clockwise seen from above) or `"left"`; only with `task="turn"` |
@@ -139,18 +146,26 @@ class SoftPuppyEnv(SoftRobotEnv):
     | `motor_speed_rpm`          | **float \| None**  | `100`          | motor output speed limit [rpm] (times the spool radius: the contraction speed limit); `None`: no limit |
     | `gait_period`              | **float**          | `2.376`        | period [s] of the gait-phase observation (the paper's cycle: 72 steps) |
     | `observe_nodes`            | **bool**           | `False`        | append all node positions relative to the COM to the observation |
-    | `domain_randomization`     | **dict \| None**   | `None`         | multiplicative ranges drawn at each reset, keys `friction`, `contact_stiffness`, `youngs_modulus`, `density`, `payload_mass`, e.g. `{"friction": (0.7, 1.3), "youngs_modulus": (0.8, 1.2)}` |
+    | `domain_randomization`     | **dict \| bool \| None** | `None`   | multiplicative factors drawn uniformly at each reset (from `np_random`, keys in sorted order) for `friction`, `contact_stiffness`, `youngs_modulus`, `density`, `payload_mass`, as `{key: (low, high)}`, e.g. `{"friction": (0.7, 1.3)}`; `True`: `soft_envs.envs.DEFAULT_DOMAIN_RANDOMIZATION` = friction (0.7, 1.3), youngs_modulus (0.8, 1.2), density (0.9, 1.1), payload_mass (0.9, 1.1); `None` or `False`: the nominal robot. `env.unwrapped.domain_parameters` holds the episode's factors |
     | `render_mode`              | **str \| None**    | `None`         | `"rgb_array"` (uint8 frames, offscreen matplotlib, no OpenGL) or `"human"` (matplotlib window) |
     | `width`, `height`          | **int**            | `480`, `360`   | frame size in pixels |
     | `camera_config`            | **dict \| None**   | `None`         | extra keyword arguments of `soft_envs.render.Renderer` (`elevation`, `azimuth`, `distance`, ...) |
 
-    Gradient hooks for trajectory optimisation (`soft_envs.envs.protocol.GradientEnv`) are on
-    `env.unwrapped`: `simulator`, `robot`, `dt`, `rollout(u, dudz=None, store_dxdz=False)`,
-    `reset_state()`, `get_state()`, `set_state()`, `com()`, `cable_deformation()`,
-    `action_to_control()`, `control_to_action()`.
+    `gymnasium.make` also takes `max_episode_steps` (default 300, see Truncation).
+
+    Gradient hooks for trajectory optimisation (`soft_envs.envs.GradientEnv`) are on
+    `env.unwrapped`: `robot`, `timestep`, `control_mode`, `incline_deg`, `gravity`,
+    `rollout(u, dudz=None, store_dxdz=False)` (one row of `u` per simulation step),
+    `reset_state()`, `get_state()`, `set_state()`, `com()`, `cable_deformation(x=None, u=None)`,
+    `cable_tension(x=None, u=None)`; also `simulator`, `action_to_control()`,
+    `control_to_action()` and `domain_parameters`.
 
     ## Version History
-    * v0: Initial version.
+    * v0: Initial version. Since then, without a new id (the dynamics and rewards are
+      unchanged): `env.unwrapped.dt` is the duration of an environment step, as in Gymnasium's
+      MuJoCo environments (it was the simulation step, now `env.unwrapped.timestep`; the two are
+      equal at the default `frame_skip=1`), and `domain_randomization=True` selects the
+      default ranges.
     """
 
     def __init__(self, robot: str | os.PathLike | Robot = "puppy", **kwargs: Any):

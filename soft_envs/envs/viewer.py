@@ -15,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..sim import Robot
+from .measure import cable_points
 
 __all__ = ["EnvViewer", "RenderingMixin", "cable_polylines"]
 
@@ -23,10 +24,9 @@ _warned_headless = False
 
 
 def cable_polylines(robot: Robot, x: np.ndarray, tension: np.ndarray) -> list[tuple[np.ndarray, float]]:
-    """``[(points (p, 3), tension [N])]`` per tendon at node positions ``x`` (n, 3)."""
-    cd = robot.cable_data
-    pts = np.einsum("pk,pkd->pd", cd.pt_w, x[cd.pt_nodes])
-    return [(pts[cd.ptr[t]:cd.ptr[t + 1]], float(tension[t])) for t in range(len(tension))]
+    """``[(points (p, 3), tension [N])]`` per tendon at node positions ``x`` (n, 3): what
+    :meth:`soft_envs.render.Renderer.render` draws."""
+    return [(pts, float(t)) for pts, t in zip(cable_points(robot, x), tension)]
 
 
 class EnvViewer:

@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from .envs import DEFAULT_EVAL_CYCLES, ROBOT_IDS, TRAIN_HORIZON
+from .envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOT_IDS, TRAIN_HORIZON
 from .hyperparams import ALGOS
 
 __all__ = ["add_rl_parser"]
@@ -56,7 +56,8 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
 
     p = rsub.add_parser("evaluate", help="trajopt's metric (BL/min along the target, upright) for a policy")
     p.add_argument("model", type=Path, help="run directory, its model.zip or a checkpoint .zip")
-    p.add_argument("--cycles", type=int, default=DEFAULT_EVAL_CYCLES, help="gait cycles of 72 steps after 24 prep steps")
+    p.add_argument("--cycles", type=int, default=DEFAULT_EVAL_CYCLES,
+                   help=f"gait cycles of {GAIT.n_cycle} steps after {GAIT.n_prep} prep steps")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--reset-noise", type=float, default=0.0,
                    help="reset noise [m] (default 0: trajopt's start, the exact rest state)")

@@ -5,10 +5,11 @@ The physics is the registered Gymnasium environment, unchanged (``SoftTripod-v0`
 :class:`soft_envs.envs.tripod.SoftTripodEnv`). Two choices are made here, both recorded in the
 run's ``rl_config.json``:
 
-* **Episode length** ``max_episode_steps = 168`` simulation steps, the horizon ``trajopt``
-  optimises over (24 prep steps + 2 cycles of 72), so both methods see episodes of the same
-  length; the evaluation (:mod:`trajopt.rl.evaluate`) then plays 24 + 6 x 72 steps, like
-  ``trajopt``'s.
+* **Episode length** ``max_episode_steps = 168`` simulation steps (:data:`TRAIN_HORIZON`), the
+  horizon ``trajopt`` optimises over (``GaitSpec()``: 24 prep steps + 2 cycles of 72), so both
+  methods see episodes of the same length (``gymnasium.make`` alone gives 300,
+  ``soft_envs.MAX_EPISODE_STEPS``); the evaluation (:mod:`trajopt.rl.evaluate`) then plays
+  24 + 6 x 72 steps, like ``trajopt``'s.
 * **Translation-invariant observation** (:class:`DropHorizontalPosition`): the COM x and z
   relative to the start (observation entries 0 and 2) are removed. They grow without bound as
   the robot walks and carry no information a walking policy needs (the COM velocity, the
@@ -26,15 +27,17 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["ROBOT_IDS", "N_PREP", "N_CYCLE", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES",
-           "DropHorizontalPosition", "make_env", "robot_name", "env_id"]
+from ..gait import DEFAULT_EVAL_CYCLES, GaitSpec
+
+__all__ = ["ROBOT_IDS", "GAIT", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES", "DropHorizontalPosition", "make_env",
+           "robot_name", "env_id"]
 
 #: robots of the RL baseline and their Gymnasium ids
 ROBOT_IDS = {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
-N_PREP = 24                       # trajopt's prep phase [simulation steps]
-N_CYCLE = 72                      # trajopt's gait cycle [simulation steps]
-TRAIN_HORIZON = N_PREP + 2 * N_CYCLE   # 168: trajopt's optimisation horizon
-DEFAULT_EVAL_CYCLES = 6           # trajopt's default evaluation: prep + 6 cycles
+#: trajopt's gait (prep phase, cycle length, cycles optimised): the phases the policy is measured in
+GAIT = GaitSpec()
+#: 168 simulation steps: trajopt's optimisation horizon, the RL baseline's episode length
+TRAIN_HORIZON = GAIT.n_steps()
 
 
 def robot_name(robot: str) -> str:
@@ -76,9 +79,9 @@ def make_env(robot: str, *, frame_skip: int = 1, max_episode_steps: int | None =
     **env_kwargs)``, wrapped in :class:`DropHorizontalPosition` when ``drop_com_xz``.
 
     ``max_episode_steps`` counts environment steps (``frame_skip`` simulation steps each);
-    ``None`` keeps the registered 300. ``ignore_sigint_in_worker``: in a SubprocVecEnv worker,
-    ignore Ctrl-C so that only the main process handles it (it saves the model and then closes
-    the workers cleanly)."""
+    ``None`` keeps the registered ``soft_envs.MAX_EPISODE_STEPS`` (300).
+    ``ignore_sigint_in_worker``: in a SubprocVecEnv worker, ignore Ctrl-C so that only the main
+    process handles it (it saves the model and then closes the workers cleanly)."""
     import soft_envs  # noqa: F401  (registers the ids)
 
     if ignore_sigint_in_worker and multiprocessing.current_process().name != "MainProcess":

@@ -1,6 +1,6 @@
 """Evaluating an RL policy with trajopt's metric, and exporting it as a trajopt ``Result``.
 
-The metric is :func:`trajopt.evaluation.evaluate_controls`, the very function that scores
+The metric is :func:`trajopt.evaluation.measure_gait`, the very function that scores
 optimised gaits: play ``n_prep`` = 24 steps + ``n_cycles`` (default 6) cycles of 72 steps,
 then ``speed_bl_per_min`` = mean COM velocity along the target direction from the end of the
 prep phase to the end of the last cycle, in body lengths per minute, and ``upright`` = the
@@ -9,16 +9,15 @@ body never tilts more than 60 degrees and the COM never drops below half its res
 The policy is run closed loop in the environment (deterministic actions, through the
 ``VecNormalize`` statistics saved with it), with ``terminate_when_unhealthy=False`` so that a
 fall is measured rather than cut short, and by default from the exact rest state
-(``reset_noise_scale=0``), the start of every ``trajopt`` rollout. The applied contraction of
-every simulation step is recorded (``info["u_substeps"]``, with the motor speed limit already
-applied); that control trajectory is the exported :class:`~trajopt.results.Result`, which
-``env.unwrapped.rollout`` (no speed limit, nothing clipped) replays to the same trajectory up
-to the Newton tolerance.
+(``reset_noise_scale=0``), the start of every ``trajopt`` rollout; the recorded states are
+measured as they are. The applied contraction of every simulation step is recorded
+(``info["u_substeps"]``, with the motor speed limit already applied); that control trajectory
+is the exported :class:`~trajopt.results.Result`, which ``env.unwrapped.rollout`` (no speed
+limit, nothing clipped) replays to the same trajectory up to the Newton tolerance.
 """
 from __future__ import annotations
 
 import json
-import math
 import os
 import pickle
 from dataclasses import dataclass
@@ -28,12 +27,13 @@ from typing import Any
 
 import numpy as np
 
-from soft_envs.envs.base import MOTOR_NO_LOAD_RPM
+from soft_envs.envs import MOTOR_NO_LOAD_RPM, heading_vector
 
-from ..evaluation import evaluate_controls, zero_slack_controls
+from ..evaluation import evaluate_controls, evaluate_result, measure_gait, zero_slack_controls
+from ..gait import GaitSpec
 from ..results import Result
 from . import require_sb3
-from .envs import DEFAULT_EVAL_CYCLES, N_CYCLE, N_PREP, make_env
+from .envs import DEFAULT_EVAL_CYCLES, GAIT, make_env
 from .training import CONFIG_NAME, MODEL_NAME, VECNORM_NAME
 
 __all__ = ["LoadedPolicy", "load_policy", "run_policy", "evaluate_policy_metric", "export_result",
@@ -107,18 +107,6 @@ def load_policy(path: str | os.PathLike, *, torch_threads: int | None = 1) -> Lo
     return LoadedPolicy(model=model, vecnormalize=vecnorm, config=config, path=model_path)
 
 
-class _RecordedHooks:
-    """Hooks whose ``rollout`` returns an already simulated trajectory, so that
-    :func:`evaluate_controls` scores a closed-loop run with exactly trajopt's formulas."""
-
-    def __init__(self, hooks, u: np.ndarray, traj):
-        self.robot, self.dt, self._u, self._traj = hooks.robot, hooks.dt, u, traj
-
-    def rollout(self, u, dudz=None, **_):
-        assert u is self._u
-        return self._traj
-
-
 def play_controls_in_env(env, policy, n_steps: int, *, seed: int | None = 0) -> dict[str, Any]:
     """Reset ``env`` (seeded) and step it ``n_steps`` times with ``policy(obs, k) -> action``.
 
@@ -148,18 +136,18 @@ def play_controls_in_env(env, policy, n_steps: int, *, seed: int | None = 0) -> 
             "sim_failure": failure}
 
 
-def run_metric(env, u: np.ndarray, x: np.ndarray | None, *, n_prep: int = N_PREP, n_cycle: int = N_CYCLE,
+def run_metric(env, u: np.ndarray, x: np.ndarray | None, *, gait: GaitSpec = GAIT,
                heading_deg: float = 0.0) -> dict[str, Any]:
-    """trajopt's evaluation (:func:`evaluate_controls`) of a run recorded by
-    :func:`play_controls_in_env`: its applied controls ``u`` and states ``x``; replays ``u``
-    from the reset state only when the per-step states were not observed (frame_skip > 1)."""
+    """trajopt's metric of a run recorded by :func:`play_controls_in_env`: :func:`measure_gait`
+    of its states ``x`` (the COM computed as :meth:`Simulator.rollout` does), with ``gait``'s
+    prep and cycle lengths; when the per-step states were not observed (frame_skip > 1), of the
+    replay of its applied controls ``u`` from the reset state (:func:`evaluate_controls`)."""
     base = env.unwrapped
     if x is not None:
-        traj = SimpleNamespace(x=x, com=np.einsum("kni,n->ki", x, base.robot.node_masses)
-                               / base.robot.total_mass)         # as Simulator.rollout
-        return evaluate_controls(_RecordedHooks(base, u, traj), u, n_prep=n_prep, n_cycle=n_cycle,
-                                 heading_deg_target=heading_deg)
-    return evaluate_controls(base, u, n_prep=n_prep, n_cycle=n_cycle, heading_deg_target=heading_deg)
+        robot = base.robot
+        traj = SimpleNamespace(x=x, com=np.einsum("kni,n->ki", x, robot.node_masses) / robot.total_mass)
+        return measure_gait(traj, base, n_prep=gait.n_prep, n_cycle=gait.n_cycle, heading_deg=heading_deg)
+    return evaluate_controls(base, u, n_prep=gait.n_prep, n_cycle=gait.n_cycle, heading_deg=heading_deg)
 
 
 def _eval_env(policy: LoadedPolicy, n_env_steps: int, reset_noise_scale: float):
@@ -171,14 +159,15 @@ def _eval_env(policy: LoadedPolicy, n_env_steps: int, reset_noise_scale: float):
 
 
 def run_policy(policy: LoadedPolicy, *, n_cycles: int = DEFAULT_EVAL_CYCLES, seed: int = 0,
-               reset_noise_scale: float = 0.0, n_prep: int = N_PREP, n_cycle: int = N_CYCLE
+               reset_noise_scale: float = 0.0, gait: GaitSpec = GAIT
                ) -> tuple[dict[str, Any], dict[str, Any], Any]:
-    """Run the policy deterministically for ``n_prep + n_cycles * n_cycle`` simulation steps.
-    Returns (evaluation, recording, env); see :func:`evaluate_policy_metric`."""
+    """Run the policy deterministically for ``gait.n_prep + n_cycles * gait.n_cycle`` simulation
+    steps. Returns (evaluation, recording, env); see :func:`evaluate_policy_metric`."""
     if n_cycles < 1:
         raise ValueError(f"n_cycles must be >= 1, got {n_cycles}")
     fs = int(policy.config["env"].get("frame_skip", 1))
-    K = n_prep + n_cycles * n_cycle
+    n_prep, n_cycle = gait.n_prep, gait.n_cycle
+    K = gait.n_steps(n_cycles)
     if n_prep % fs or n_cycle % fs:
         raise ValueError(f"frame_skip {fs} must divide n_prep {n_prep} and n_cycle {n_cycle}")
     env = _eval_env(policy, K // fs, reset_noise_scale)
@@ -194,10 +183,9 @@ def run_policy(policy: LoadedPolicy, *, n_cycles: int = DEFAULT_EVAL_CYCLES, see
         ev = {"cycles": n_cycles, "speed_bl_per_min": float("nan"), "upright": False,
               "sim_failure": rec["sim_failure"], "sim_steps": len(rec["u"])}
     else:
-        ev = run_metric(env, rec["u"], rec["x"], n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading)
+        ev = run_metric(env, rec["u"], rec["x"], gait=gait, heading_deg=heading)
     com = rec["com"]
-    a = math.radians(heading)
-    d = np.array([math.cos(a), 0.0, math.sin(a)])
+    d = heading_vector(heading)
     i0 = n_prep // fs
     ev["displacement_m"] = float((com[-1] - com[i0]) @ d) if len(com) == K // fs + 1 else float("nan")
     ev.update(n_prep=n_prep, n_cycle=n_cycle, seed=int(seed), reset_noise_scale=float(reset_noise_scale),
@@ -243,7 +231,7 @@ def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLik
     cfg = policy.config
     env_kwargs = cfg["env"].get("env_kwargs", {})
     settings = {
-        "n_prep": N_PREP, "n_cycle": N_CYCLE, "eval_cycles": int(n_cycles), "algo": cfg["algo"],
+        "n_prep": GAIT.n_prep, "n_cycle": GAIT.n_cycle, "eval_cycles": int(n_cycles), "algo": cfg["algo"],
         "timesteps": int(cfg.get("timesteps_done", cfg.get("timesteps", 0))),
         "timesteps_requested": int(cfg.get("timesteps", 0)), "seed": int(cfg.get("seed", 0)),
         "eval_seed": int(seed), "sim_steps_training": int(cfg.get("sim_steps", 0)),
@@ -253,11 +241,11 @@ def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLik
         "heading_deg": float(env_kwargs.get("target_heading_deg", 0.0)),
         "incline_deg": float(env_kwargs.get("incline_deg", 0.0)),
         "motor_speed_rpm": env_kwargs.get("motor_speed_rpm", MOTOR_NO_LOAD_RPM),
-        "control": base.simulator.control, "source": str(policy.path),
+        "control": base.control_mode, "source": str(policy.path),
     }
     evaluation = dict(ev)
     evaluation["replay_max_com_error_m"] = float(np.abs(traj.com - np.asarray(ev["com"])).max())
-    res = Result(robot=cfg["robot"], task="rl", motor_names=list(robot.motor_names), dt=float(base.dt),
+    res = Result(robot=cfg["robot"], task="rl", motor_names=list(robot.motor_names), dt=float(base.timestep),
                  z=np.zeros(0), u=u, u_post=zero_slack_controls(u, traj.cable_deformation, robot.tendon_motor,
                                                                  robot.u_bounds),
                  target=np.zeros((0, 2)), com=np.asarray(ev["com"], dtype=np.float64), settings=settings,
@@ -270,8 +258,8 @@ def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLik
 
 def evaluate_trajopt_result(result: Result | str | os.PathLike, n_cycles: int = DEFAULT_EVAL_CYCLES
                             ) -> dict[str, Any]:
-    """``trajopt evaluate`` as a function: the metric of a saved gait over ``n_cycles`` cycles
-    (keyframe results are re-expanded; others, like exported RL gaits, play their ``u``)."""
-    from ..commands import evaluate_result
+    """``trajopt evaluate`` as a function (:func:`trajopt.evaluation.evaluate_result`): the metric
+    of a saved gait over ``n_cycles`` cycles (keyframe results are re-expanded; others, like
+    exported RL gaits, play their ``u``)."""
     res = result if isinstance(result, Result) else Result.load(result)
     return evaluate_result(res, n_cycles)

@@ -108,17 +108,8 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     hp.update(hyperparams or {})
     checkpoint_every = int(checkpoint_every or max(timesteps // 10, 1))
 
-    name = name or f"{robot}_{algo}_seed{seed}"
-    run_dir = Path(out) / name
-    ckpt_dir = run_dir / "checkpoints"
-    if (run_dir / CONFIG_NAME).exists():
-        if not overwrite:
-            raise ValueError(f"{run_dir} holds a run already; choose another name or overwrite it "
-                             "(--overwrite)")
-        for old in [*ckpt_dir.glob("model_*_steps.zip"), *ckpt_dir.glob("model_vecnormalize_*_steps.pkl")]:
-            old.unlink()
-    for d in (run_dir, ckpt_dir, run_dir / "logs", run_dir / "monitor"):
-        d.mkdir(parents=True, exist_ok=True)
+    run_dir = Path(out) / (name or f"{robot}_{algo}_seed{seed}")
+    ckpt_dir = _prepare_run_dir(run_dir, overwrite)
     if torch_threads is not None:
         torch.set_num_threads(int(torch_threads))
 
@@ -139,6 +130,21 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
             venv.close()
         except (EOFError, BrokenPipeError, ConnectionResetError, OSError):   # workers already gone
             pass
+
+
+def _prepare_run_dir(run_dir: Path, overwrite: bool) -> Path:
+    """Create the run's folders; an existing run is an error unless ``overwrite`` (then its
+    checkpoints are deleted). Returns the checkpoint folder."""
+    ckpt_dir = run_dir / "checkpoints"
+    if (run_dir / CONFIG_NAME).exists():
+        if not overwrite:
+            raise ValueError(f"{run_dir} holds a run already; choose another name or overwrite it "
+                             "(--overwrite)")
+        for old in [*ckpt_dir.glob("model_*_steps.zip"), *ckpt_dir.glob("model_vecnormalize_*_steps.pkl")]:
+            old.unlink()
+    for d in (run_dir, ckpt_dir, run_dir / "logs", run_dir / "monitor"):
+        d.mkdir(parents=True, exist_ok=True)
+    return ckpt_dir
 
 
 def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_subproc, env_cfg, hp,

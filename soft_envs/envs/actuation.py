@@ -1,0 +1,60 @@
+"""The motors of an environment: actions in [-1, 1] -> commanded cable contractions, followed at
+the motors' speed limit.
+
+``u_cmd = u_min + (a + 1) / 2 (u_max - u_min)`` per motor; in every simulation step the applied
+contraction moves towards ``u_cmd`` by at most ``v_max * timestep``, with ``v_max =
+motor_speed_rpm * 2 pi / 60 * spool_radius`` (``motor_speed_rpm=None``: no limit).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..sim import Robot
+
+__all__ = ["Actuation"]
+
+
+class Actuation:
+    """Action <-> contraction maps and the speed limit of a robot's motors.
+
+    ``lo``, ``hi``, ``range`` (M,) contraction bounds [m]; ``speed`` (M,) contraction speed
+    limit [m/s]; ``du_max`` (M,) largest change of the contraction in one simulation step [m]."""
+
+    def __init__(self, robot: Robot, motor_speed_rpm: float | None, timestep: float):
+        self.lo, self.hi = robot.u_bounds[:, 0].copy(), robot.u_bounds[:, 1].copy()
+        self.range = self.hi - self.lo
+        radius = np.array([m.spool_radius for m in robot.motors])
+        rpm = math.inf if motor_speed_rpm is None else float(motor_speed_rpm)
+        self.speed = rpm * 2.0 * math.pi / 60.0 * radius
+        self.du_max = self.speed * timestep
+
+    def check_action(self, action: Any) -> np.ndarray:
+        """``action`` as float64 clipped to [-1, 1]; ValueError for a wrong shape, a non-numeric
+        dtype, NaN or inf."""
+        a = np.asarray(action)
+        if a.shape != self.lo.shape:
+            raise ValueError(f"action must have shape {self.lo.shape}, got {a.shape}")
+        try:
+            a = a.astype(np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"action must be numeric, got dtype {a.dtype}") from None
+        if not np.isfinite(a).all():
+            raise ValueError(f"action contains NaN or inf: {a.tolist()}")
+        return np.clip(a, -1.0, 1.0)
+
+    def command(self, a: np.ndarray) -> np.ndarray:
+        """Commanded contractions [m] of a checked action ``a``."""
+        return self.lo + 0.5 * (a + 1.0) * self.range
+
+    def to_action(self, u: Any) -> np.ndarray:
+        """The action (float64, not clipped) commanding contractions ``u`` [m], (..., M)."""
+        return 2.0 * (np.asarray(u, dtype=np.float64) - self.lo) / self.range - 1.0
+
+    def follow(self, u: np.ndarray, u_cmd: np.ndarray) -> np.ndarray:
+        """The contraction one simulation step after ``u`` when the motors drive towards
+        ``u_cmd`` at their speed limit."""
+        d = u_cmd - u
+        return np.where(np.abs(d) <= self.du_max, u_cmd, u + np.clip(d, -self.du_max, self.du_max))

@@ -1,0 +1,77 @@
+"""What a gait's control trajectory looks like: :class:`GaitSpec`, with the paper's defaults.
+
+``u = (u_prep, u_cycle, ..., u_cycle)`` (paper III-B, eq. 12): ``n_prep`` steps that ease from
+rest into the cycle, then ``n_cycles`` repetitions of a cycle of ``n_cycle`` simulation steps;
+each motor's cycle is a periodic spline through ``n_keyframes`` keyframes; with ``symmetry``,
+a motor's mirror motor plays the same signal half a period later. The paper: 24 + 2 x 72 steps
+(168 steps, 5.5 s at h = 0.033 s), 4 keyframes, symmetric walks and an asymmetric turn. A gait is
+evaluated over :data:`DEFAULT_EVAL_CYCLES` cycles after the prep phase.
+
+This module imports nothing heavy: the command line reads its defaults from here.
+"""
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["GaitSpec", "DEFAULT_EVAL_CYCLES"]
+
+#: cycles played after the prep phase when a gait is evaluated (speed in BL/min, upright)
+DEFAULT_EVAL_CYCLES = 6
+
+
+@dataclass(frozen=True)
+class GaitSpec:
+    """Phase lengths [simulation steps], cycles, keyframes per cycle and bilateral symmetry of a
+    gait (see the module docstring). ``GaitSpec()`` is the paper's walking gait."""
+
+    n_prep: int = 24
+    n_cycle: int = 72
+    n_cycles: int = 2
+    n_keyframes: int = 4
+    symmetry: bool = True
+
+    def __post_init__(self):
+        for name in ("n_prep", "n_cycle", "n_cycles", "n_keyframes"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise ValueError(f"GaitSpec.{name} must be an integer, got {v!r}")
+        if self.n_prep < 0:
+            raise ValueError(f"GaitSpec.n_prep must be >= 0, got {self.n_prep}")
+        if self.n_cycles < 1:
+            raise ValueError(f"GaitSpec.n_cycles must be >= 1, got {self.n_cycles}")
+        if not 1 <= self.n_keyframes <= self.n_cycle:
+            raise ValueError(f"GaitSpec needs 1 <= n_keyframes <= n_cycle, got {self.n_keyframes} keyframes "
+                             f"and {self.n_cycle} cycle steps")
+        if not isinstance(self.symmetry, bool):
+            raise ValueError(f"GaitSpec.symmetry must be True or False, got {self.symmetry!r}")
+
+    @classmethod
+    def for_task(cls, task: str, *, symmetry: bool | None = None, **fields: Any) -> "GaitSpec":
+        """The gait of a task: symmetric unless ``task == "turn"`` (paper IV-B) when ``symmetry``
+        is None; ``fields`` override the other defaults."""
+        return cls(symmetry=(task != "turn") if symmetry is None else bool(symmetry), **fields)
+
+    def n_steps(self, n_cycles: int | None = None) -> int:
+        """Simulation steps of the prep phase and ``n_cycles`` cycles (default ``self.n_cycles``)."""
+        return self.n_prep + (self.n_cycles if n_cycles is None else int(n_cycles)) * self.n_cycle
+
+    def replace(self, **changes: Any) -> "GaitSpec":
+        return dataclasses.replace(self, **changes)
+
+    def to_settings(self) -> dict[str, Any]:
+        """The fields as a result's ``settings`` entries."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_settings(cls, settings: Mapping[str, Any]) -> "GaitSpec":
+        """The gait recorded in a result's ``settings`` (results written before ``n_cycles`` was
+        recorded optimised two cycles)."""
+        default = cls()
+        return cls(n_prep=int(settings.get("n_prep", default.n_prep)),
+                   n_cycle=int(settings.get("n_cycle", default.n_cycle)),
+                   n_cycles=int(settings.get("n_cycles", default.n_cycles)),
+                   n_keyframes=int(settings.get("n_keyframes", default.n_keyframes)),
+                   symmetry=bool(settings.get("symmetry", default.symmetry)))
