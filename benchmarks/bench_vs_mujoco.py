@@ -218,15 +218,8 @@ def parse_args():
     return a
 
 
-def main() -> None:
-    import mujoco
-
-    a = parse_args()
-    warnings: list[str] = []
-    mujoco.set_mju_user_warning(lambda msg: warnings.append(msg.strip()))
-    print(f"MuJoCo {mujoco.__version__}, Python {platform.python_version()}, {os.cpu_count()} cores; "
-          f"h = {DT} s; contact laws: {a.contact}; {a.rounds} rounds of {a.steps} steps "
-          f"({a.env_steps} environment steps); load average {os.getloadavg()[0]:.2f}")
+def setup(a) -> tuple[dict, dict, dict]:
+    """Our cases, the MuJoCo models and their settled states; prints the comparability table."""
     cases, mjs, states, facts = {}, {}, {}, []
     for name in a.robots:
         for law in a.contact:
@@ -236,9 +229,12 @@ def main() -> None:
         mjs[name] = {v: FlexModel(ref.robot, DT, mu, **kw) for v, kw in MJ_VARIANTS.items()}
         rows, states[name] = comparability(name, ref, mjs[name], a.settle, a.steps, mu)
         facts += rows
-    report("comparability: our model vs MuJoCo's flex (standing, h = 0.033 s)", facts)
-    print_warnings(warnings)
+    report(f"comparability: our model ({a.contact[0]} law) vs MuJoCo's flex (standing, h = {DT} s)", facts)
+    return cases, mjs, states
 
+
+def time_rounds(a, cases: dict, mjs: dict, states: dict) -> tuple[dict, dict, list]:
+    """Every figure once per round, alternating; seconds per step (or per environment step)."""
     times: dict[tuple, list[float]] = {}
     failures: dict[tuple, int] = {}
     loads = []
@@ -258,13 +254,16 @@ def main() -> None:
                     failures[name, law] = failures.get((name, law), 0) + fails
         loads.append(os.getloadavg()[0])
         print(f"round {r + 1}/{a.rounds} done, load average {loads[-1]:.2f}")
-    best = {k: min(v) for k, v in times.items()}
+    return times, failures, loads
 
+
+def summary_rows(a, cases: dict, times: dict, failures: dict) -> list[dict]:
+    best = {k: min(v) for k, v in times.items()}
     rows = []
     for name in a.robots:
         t_mj = best[name, "mujoco", "mujoco"]
         for law in a.contact:
-            case = cases[name, law]
+            case, env = cases[name, law], cases[name, law].env is not None
             row = {"robot": name, "contact": law, "mj_stand_ms": 1e3 * t_mj,
                    "mj_default_contact_ms": 1e3 * best[name, "mujoco", "mujoco_default_contact"],
                    "mj_10_its_ms": 1e3 * best[name, "mujoco", "mujoco_10_iterations"]}
@@ -272,17 +271,34 @@ def main() -> None:
                 row[f"{kind}_ms"] = 1e3 * best[name, law, kind]
                 row[f"{kind}_x_mj"] = best[name, law, kind] / t_mj
             row.update({f"{k}_newton_its": v for k, v in case.newton_its.items() if k != "stand"})
+            row["linear_solver"] = type(case.sim.newton.solver).__name__
             row["factorize_ms"] = 1e3 * best[name, law, "factorize"]
             row["gait_in_factorizations"] = best[name, law, "gait"] / best[name, law, "factorize"]
-            row["env"] = case.env_id if case.env is not None else f"{case.env_id} (not registered)"
-            row["env_steps_per_s"] = 1.0 / best[name, law, "env"] if case.env is not None else None
-            row["env_step_x_mj"] = best[name, law, "env"] / t_mj if case.env is not None else None
+            row["env"] = case.env_id if env else f"{case.env_id} (not registered)"
+            row["env_steps_per_s"] = 1.0 / best[name, law, "env"] if env else None
+            row["env_step_x_mj"] = best[name, law, "env"] / t_mj if env else None
             row["env_failures"] = failures.get((name, law))
             rows.append(row)
+    return rows
+
+
+def main() -> None:
+    import mujoco
+
+    a = parse_args()
+    warnings: list[str] = []
+    mujoco.set_mju_user_warning(lambda msg: warnings.append(msg.strip()))
+    print(f"MuJoCo {mujoco.__version__}, Python {platform.python_version()}, {os.cpu_count()} cores; "
+          f"h = {DT} s; contact laws: {a.contact}; {a.rounds} rounds of {a.steps} steps "
+          f"({a.env_steps} environment steps); load average {os.getloadavg()[0]:.2f}")
+    cases, mjs, states = setup(a)
+    print_warnings(warnings)
+    times, failures, loads = time_rounds(a, cases, mjs, states)
+    rows = summary_rows(a, cases, times, failures)
     report(f"ours vs MuJoCo flex standing: best of {a.rounds} alternating rounds, {a.steps} steps", rows)
     report("run", [{"mujoco": mujoco.__version__, "rounds": a.rounds, "steps": a.steps,
                     "env_steps": a.env_steps, "load_per_round": loads,
-                    "load_at_end": list(os.getloadavg())}])
+                    "load_at_end": list(os.getloadavg()), "targets_coulomb": TARGETS}])
     print(json.dumps({"benchmark": "bench_vs_mujoco: seconds per step, every round",
                       "times": {"/".join(k): v for k, v in times.items()}}))
     print_targets(rows)
