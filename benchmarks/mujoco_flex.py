@@ -14,7 +14,7 @@ the step); ``solver="Newton"``; no self-collision (our simulator has none); and,
 the ``diagexact`` flag. Without it MuJoCo's soft contact rows use a body-based approximation of
 the constraint-space inertia, which for light surface vertices coupled to a heavy body makes
 the contact far too soft at h = 0.033 s: the Puppy sinks 16 mm into the ground and the Tripod
-sinks 8 mm and tips over (``exact_contact_diagonal=False`` builds that model, for reference).
+sinks 17 mm and tips over (``exact_contact_diagonal=False`` builds that model, for reference).
 
 Frames: ours is +y up (ground y = 0); MuJoCo's is +z up. A point (x, y, z) of ours is
 (x, -z, y) in MuJoCo (a rotation, so tets keep their orientation).
