@@ -73,7 +73,7 @@ class Simulator:
         like a freshly constructed simulator)."""
         return {"robot": self.robot, "dt": self.dt, "gravity": np.array(self.gravity),
                 "control": self.control, "newton": self.newton.options,
-                "rest_cache": {k: v.copy() for k, v in self._rest_cache.items()}}
+                "rest_cache": dict(self._rest_cache)}
 
     def __setstate__(self, state: dict) -> None:
         self.__init__(state["robot"], dt=state["dt"], gravity=state["gravity"],
@@ -140,37 +140,55 @@ class Simulator:
 
         Computed as proximal-point iterations ``x_{j+1} = argmin E(x; x_prev = x_j) +
         |x - x_j|^2_M / 2`` (implicit steps of 1 s from rest), which converge to a state where
-        the friction term exerts no force, so a rollout started there stays still. With
-        lagged (viscous-like) friction a robot on a slope creeps, so the rest state of an
-        inclined simulator uses only the normal component of gravity.
+        the friction term exerts no force, so a rollout started there stays still. With the
+        paper's lagged (viscous-like) friction a robot on a slope creeps, so the rest state of
+        an inclined simulator then uses only the normal component of gravity. The Coulomb law
+        holds it: its rest state is under the full gravity, with the stick anchors carried
+        through the iterations (:meth:`rest_history` gives them, and rollouts from the rest
+        state start with them).
         """
+        return self._rest(u, tol, max_iter)[0].copy()
+
+    def rest_history(self, u=None, tol: float = 1e-9, max_iter: int = 200) -> tuple:
+        """The energy terms' history (stick anchors) of :meth:`rest_state` (all None when the
+        contact law keeps none)."""
+        return self._rest(u, tol, max_iter)[1]
+
+    def _rest(self, u, tol: float, max_iter: int) -> tuple[np.ndarray, tuple]:
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
         key = (tuple(u.tolist()), tol)
         if key in self._rest_cache:
-            return self._rest_cache[key].copy()
+            return self._rest_cache[key]
         g = self.gravity
-        normal_g = np.array([0.0, g[1], 0.0]) if self.robot.fixed_nodes.size == 0 else g
-        system = EnergySystem(self.robot, gravity=normal_g, control=self.control)
+        anchored = self.system.has_history
+        relax_g = g if (anchored or self.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])
+        system = EnergySystem(self.robot, gravity=relax_g, control=self.control)
         relax = NewtonSolver(system, 1.0, NewtonOptions(tol=min(tol, 1e-10), max_iter=100,
                                                         solver=self.newton.options.solver))
         x = self.initial_placement()
+        history = system.initial_history(x)
         cache = FactorCache()
         for _ in range(max_iter):
-            try:      # no history: friction anchored at the last iterate (proximal point)
-                xn, _ = relax.step(x, x, u, cache=cache)
+            try:
+                xn, _ = relax.step(x, x, u, cache=cache, history=history)
             except SimulationError as err:
                 raise SimulationError(f"rest_state of robot {self.robot.name!r} failed (u = {u.tolist()}, "
-                                      f"gravity = {normal_g.tolist()}): {err.reason}") from err
+                                      f"gravity = {relax_g.tolist()}): {err.reason}") from err
+            if anchored:
+                history = system.next_history(xn, x, history)
             moved = np.abs(xn - x).max()
             x = xn
             if moved <= tol:
                 break
         else:
+            hint = "; friction may not hold it on this slope (it slides)" if anchored and relax_g[[0, 2]].any() else ""
             raise SimulationError(f"rest_state of robot {self.robot.name!r} did not settle in {max_iter} "
                                   f"relaxation steps (last motion {moved:.2e} m; u = {u.tolist()}, "
-                                  f"gravity = {normal_g.tolist()}, tol = {tol})")
-        self._rest_cache[key] = x.copy()
-        return x
+                                  f"gravity = {relax_g.tolist()}, tol = {tol}){hint}")
+        for a in (x, *[h for h in history if h is not None]):
+            a.setflags(write=False)
+        self._rest_cache[key] = (x, history)
+        return self._rest_cache[key]
 
     def step(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None,
              factor_cache: FactorCache | None = None, history: tuple | None = None) -> np.ndarray:
@@ -219,7 +237,10 @@ class Simulator:
         """
         u = self._check_u(u, K=len(np.asarray(u)), check_bounds=check_bounds)
         K = len(u)
-        x0 = self.rest_state() if x0 is None else self._check_x(x0, "x0")
+        if x0 is None:
+            x0 = self.rest_state()
+            history0 = self.rest_history() if history0 is None else history0
+        x0 = self._check_x(x0, "x0")
         xm1 = x0 if x_prev0 is None else self._check_x(x_prev0, "x_prev0")
         sens = None
         if dudz is not None:
