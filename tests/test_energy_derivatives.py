@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from soft_envs.sim import Simulator
+from soft_envs.sim import ContactParams, Simulator
 from soft_envs.sim.cables import Q, d2Q, dQ, one_sided_quadratic
 from soft_envs.sim.materials import element_energy, element_gradient_hessian, lame_parameters
 
@@ -98,7 +98,8 @@ def test_inverted_element_has_infinite_energy():
 
 
 CASES = ["taut_cable_contact_friction", "cable_in_blend", "slack_cable", "contact_in_blend",
-         "tension_control", "fixed_nodes", "incline"]
+         "tension_control", "fixed_nodes", "incline", "coulomb_stick_and_slip", "coulomb_half_quadratic",
+         "half_quadratic_cable"]
 
 
 def perturbed_state(case: str):
@@ -107,6 +108,12 @@ def perturbed_state(case: str):
     kw, control, gravity = {}, "length", (0.0, -9.81, 0.0)
     if case == "fixed_nodes":
         kw["fixed_nodes"] = np.arange(3)
+    if case.startswith("coulomb"):
+        # a slip distance of 0.33 mm so that central differences resolve the stick regime
+        kw["contact"] = ContactParams(model="coulomb", friction_coefficient=0.7, slip_distance=3.3e-4,
+                                      blend=0.0 if case == "coulomb_half_quadratic" else 5e-4)
+    if case == "half_quadratic_cable":
+        kw["cable_blend"] = 0.0
     robot = small_robot(**kw)
     if case == "tension_control":
         control = "tension"
@@ -129,29 +136,40 @@ def perturbed_state(case: str):
     return sim, x, x_prev, u, rng
 
 
+def _rel(a, b, floor=1e-300):
+    return np.linalg.norm(np.asarray(a) - np.asarray(b)) / max(np.linalg.norm(b), floor)
+
+
 @pytest.mark.parametrize("case", CASES)
 def test_every_term_derivatives_match_finite_differences(case):
     """Each energy term on its own (the list in EnergySystem.terms, so a new term is checked
     without a new test): gradient vs central differences of its energy, Hessian vs differences
-    of its gradient, the control Jacobian d(grad)/du vs differences in u, and the lagged
-    product d(grad)/dx_prev @ S (and its transpose) vs differences in x_prev. Relative error
-    <= RTOL = 1e-5 with h = 1e-7 (m or the control's unit)."""
+    of its gradient, the control Jacobian d(grad)/du vs differences in u, the lagged product
+    d(grad)/dx_prev @ S (and its transpose) vs differences in x_prev, and for terms with a
+    history (stick anchors) d(grad)/dhist @ P and d(next history)/dz vs differences, with
+    their transposes. Relative error <= RTOL = 1e-5 with h = 1e-7 (m or the control's unit)."""
     sim, x, x_prev, u, rng = perturbed_state(case)
     system = sim.system
     n3 = system.n_dof
     pat = system.pattern
     free = system.free
+    history = system.initial_history(x_prev)
+    if case == "coulomb_stick_and_slip":        # anchors 0-0.6 mm from the nodes: both regimes
+        c = system.contact
+        history = list(history)
+        history[system.terms.index(c)] = x[c.nodes][:, [0, 2]] + rng.normal(scale=2.5e-4, size=(len(c.nodes), 2))
+        history = tuple(history)
 
-    def term_grad(term, y, yp=x_prev, uu=u):
-        g = np.zeros(n3)
-        h = np.zeros(pat.nnz + 1)
-        term.assemble(y, yp, uu, g, h, True)
-        return g, h
+    for term, hist in zip(system.terms, history):
+        def term_grad(y, yp=x_prev, uu=u, hh=hist):
+            g = np.zeros(n3)
+            h = np.zeros(pat.nnz + 1)
+            term.assemble(y, yp, uu, hh, g, h, True)
+            return g, h
 
-    for term in system.terms:
-        g, h = term_grad(term, x)
-        E = lambda y: term.energy(y, x_prev, u)                               # noqa: E731
-        assert np.isclose(term.assemble(x, x_prev, u, np.zeros(n3), np.zeros(pat.nnz + 1), False),
+        g, h = term_grad(x)
+        E = lambda y: term.energy(y, x_prev, u, hist)                         # noqa: E731
+        assert np.isclose(term.assemble(x, x_prev, u, hist, np.zeros(n3), np.zeros(pat.nnz + 1), False),
                           E(x), rtol=1e-13, atol=1e-300), term.name
         assert fd_check(E, g.reshape(x.shape), x, rng) < RTOL, term.name
         Hm = pat.full(h)                                                       # free dofs only
@@ -159,28 +177,51 @@ def test_every_term_derivatives_match_finite_differences(case):
             d = np.zeros(x.shape)
             d.reshape(-1)[free] = rng.normal(size=len(free))
             d /= np.linalg.norm(d)
-            fd = (term_grad(term, x + H * d)[0] - term_grad(term, x - H * d)[0])[free] / (2 * H)
+            fd = (term_grad(x + H * d)[0] - term_grad(x - H * d)[0])[free] / (2 * H)
             an = Hm @ d.reshape(-1)[free]
             scale = max(np.linalg.norm(fd), 1e-12 * np.abs(h).max() + 1e-300)
             assert np.linalg.norm(fd - an) / scale < RTOL, f"{term.name}: Hessian"
         G = np.zeros((n3, len(u)))
-        term.add_control_jacobian(x, x_prev, u, G)
+        term.add_control_jacobian(x, x_prev, u, hist, G)
         du = 1e-7 if sim.control == "length" else 1e-4
-        fd = (term_grad(term, x, uu=u + du)[0] - term_grad(term, x, uu=u - du)[0]) / (2 * du)
+        fd = (term_grad(x, uu=u + du)[0] - term_grad(x, uu=u - du)[0]) / (2 * du)
         assert np.linalg.norm(fd - G[:, 0]) <= RTOL * max(np.linalg.norm(fd), 1e-300) + 1e-9, \
             f"{term.name}: control Jacobian"
         S = rng.normal(size=(n3, 2))
         out = np.zeros_like(S)
-        term.add_prev_product(x, x_prev, u, S, out)
+        term.add_prev_product(x, x_prev, u, hist, S, out)
         for j in range(2):
             d = S[:, j].reshape(x.shape)
-            fd = (term_grad(term, x, yp=x_prev + H * d)[0] - term_grad(term, x, yp=x_prev - H * d)[0]) / (2 * H)
+            fd = (term_grad(x, yp=x_prev + H * d)[0] - term_grad(x, yp=x_prev - H * d)[0]) / (2 * H)
             assert np.linalg.norm(fd - out[:, j]) <= RTOL * max(np.linalg.norm(fd), 1e-300) + 1e-9, \
                 f"{term.name}: d(grad)/dx_prev"
         lam = rng.normal(size=n3)
         outT = np.zeros(n3)
-        term.add_prev_product_T(x, x_prev, u, lam, outT)
+        term.add_prev_product_T(x, x_prev, u, hist, lam, outT)
         assert np.isclose(lam @ out[:, 0], outT @ S[:, 0], rtol=1e-12, atol=1e-300), f"{term.name}: transpose"
+        if not term.has_history:
+            continue
+        P = rng.normal(size=(hist.size, 2))
+        outP = np.zeros((n3, 2))
+        term.add_history_product(x, x_prev, u, hist, P, outP)
+        for j in range(2):
+            dp = P[:, j].reshape(hist.shape)
+            fd = (term_grad(x, hh=hist + H * dp)[0] - term_grad(x, hh=hist - H * dp)[0]) / (2 * H)
+            assert _rel(outP[:, j], fd) < RTOL, f"{term.name}: d(grad)/dhist"
+        outPT = np.zeros(hist.size)
+        term.add_history_product_T(x, x_prev, u, hist, lam, outPT)
+        assert np.isclose(lam @ outP[:, 0], outPT @ P[:, 0], rtol=1e-12), f"{term.name}: d(grad)/dhist transpose"
+        # the history update: d next / dz from dx/dz = S and dhist/dz = P
+        T = term.history_tangent(x, x_prev, hist, S, P)
+        for j in range(2):
+            dx_, dp = S[:, j].reshape(x.shape), P[:, j].reshape(hist.shape)
+            fd = (term.next_history(x + H * dx_, x_prev, hist + H * dp)
+                  - term.next_history(x - H * dx_, x_prev, hist - H * dp)).ravel() / (2 * H)
+            assert _rel(T[:, j], fd) < RTOL, f"{term.name}: history tangent"
+        m = rng.normal(size=hist.size)
+        ox, oh = np.zeros(n3), np.zeros(hist.size)
+        term.history_tangent_T(x, x_prev, hist, m, ox, oh)
+        assert np.isclose(m @ T[:, 0], ox @ S[:, 0] + oh @ P[:, 0], rtol=1e-12), f"{term.name}: tangent transpose"
 
 
 @pytest.mark.parametrize("case", CASES)

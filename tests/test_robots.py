@@ -178,7 +178,7 @@ def _fmt(pts) -> str:
 
 @pytest.mark.parametrize("old,new,message", [
     ("body_length = 0.14", "body_length = -0.14", r"body_length must be positive"),
-    ("blend = 2e-4", "blend = -2e-4", r"cables\.blend must be positive"),
+    ("blend = 2e-4", "blend = -2e-4", r"cables\.blend must be >= 0"),
     ("stiffness = 2000.0", "stiffness = -1.0", r"\[contact\] contact\.stiffness must be positive"),
     ("[cables]", '[fixed]\nbox = [[0, 1]]\n\n[cables]', r"\[fixed\]\.box must be"),
 ])

@@ -94,3 +94,48 @@ def test_default_rollout_keeps_only_com_and_gamma_jacobians(puppy):
     assert traj.dxdz is None
     assert traj.dcomdz.shape == (11, 3, 4) and traj.dgammadz.shape == (11, len(robot.tendons), 4)
     assert np.all(traj.dcomdz[0] == 0)
+
+
+def coulomb(robot, **kw):
+    import dataclasses
+    return robot.replace(contact=dataclasses.replace(robot.contact, model="coulomb", **kw))
+
+
+@pytest.mark.parametrize("name", ["tripod", "puppy"])
+def test_rollout_jacobian_with_coulomb_friction(name):
+    """The Coulomb law's stick anchors are state: their sensitivities travel through the
+    recurrence (d grad/d anchors, d next anchors/dz). Feet both stick and slide in this gait."""
+    robot = coulomb(load_robot(name))
+    sim = Simulator(robot, newton=TIGHT)
+    x0 = sim.rest_state()
+    u0 = gait(robot, "length")
+    traj = sim.rollout(u0, x0=x0)
+    c = sim.system.contact
+    anchors, stick, slide = sim.initial_history(x0), 0, 0
+    for k in range(K):
+        nxt = sim.next_history(traj.x[k + 1], traj.x[k], anchors)
+        moved = np.abs(nxt[2] - anchors[2]).max(axis=1) > 0
+        touching = c.normal_forces(traj.x[k]) > 0
+        stick += int((touching & ~moved).sum())
+        slide += int((touching & moved).sum())
+        anchors = nxt
+    assert stick > 50 and slide > 50, (stick, slide)
+    rng = np.random.default_rng(42)
+    dudz = 1e-3 * rng.normal(size=(K, robot.n_motors, 6))
+    errs = rollout_jacobian_errors(sim, u0, dudz, x0=x0, n_dirs=2, h=3e-5, rng=rng,
+                                   full_state=(name == "tripod"))
+    assert max(errs.values()) <= 1e-4, errs
+
+
+def test_adjoint_gradient_with_coulomb_friction():
+    robot = coulomb(load_robot("tripod"))
+    sim = Simulator(robot, newton=NewtonOptions(tol=1e-12))
+    x0 = sim.rest_state()
+    u0 = gait(robot, "length", K=30)
+    rng = np.random.default_rng(5)
+    w = rng.normal(size=(31, robot.mesh.n_nodes, 3))
+    dudz = rng.normal(size=(30, robot.n_motors, 4))
+    traj = sim.rollout(u0, x0=x0, dudz=dudz, store_dxdz=True)
+    forward = np.einsum("kd,kdz->z", w.reshape(31, -1)[1:], traj.dxdz[1:])
+    adjoint = sim.rollout_gradient(u0, w, x0=x0, dudz=dudz, traj=traj)
+    assert relative_error(adjoint, forward) <= 1e-8

@@ -36,7 +36,8 @@ TENSION_CONTROL = 1
 @njit(cache=True)
 def Q(s, k, eps):
     """Smooth one-sided quadratic: 0 for s <= 0, ``k s^3 / (6 eps)`` on (0, eps) (C2 cubic
-    blend, Q'' rising linearly from 0 to k), ``k eps^2/6 + k s (s - eps)/2`` beyond."""
+    blend, Q'' rising linearly from 0 to k), ``k eps^2/6 + k s (s - eps)/2`` beyond. With
+    ``eps = 0`` it is the half-quadratic ``k max(s, 0)^2 / 2`` (C1; Q'' jumps from 0 to k)."""
     if s <= 0.0:
         return 0.0
     if s < eps:
@@ -68,10 +69,11 @@ def one_sided_quadratic(s, k: float, eps: float):
     """Vectorised ``(Q, Q', Q'')`` of :func:`Q` for numpy arrays (used by objectives and tests)."""
     s = np.asarray(s, dtype=np.float64)
     blend = (s > 0) & (s < eps)
-    full = s >= eps
-    q = np.where(blend, k * s**3 / (6 * eps), np.where(full, k * eps**2 / 6 + 0.5 * k * s * (s - eps), 0.0))
-    dq = np.where(blend, 0.5 * k * s**2 / eps, np.where(full, k * (s - 0.5 * eps), 0.0))
-    d2q = np.where(blend, k * s / eps, np.where(full, k, 0.0))
+    full = (s >= eps) & (s > 0)
+    eps_safe = np.where(np.asarray(eps) > 0, eps, 1.0)        # eps = 0: no blend region
+    q = np.where(blend, k * s**3 / (6 * eps_safe), np.where(full, k * eps**2 / 6 + 0.5 * k * s * (s - eps), 0.0))
+    dq = np.where(blend, 0.5 * k * s**2 / eps_safe, np.where(full, k * (s - 0.5 * eps), 0.0))
+    d2q = np.where(blend, k * s / eps_safe, np.where(full, k, 0.0))
     return q, dq, d2q
 
 
@@ -304,11 +306,11 @@ class Cables(EnergyTerm):
         self.hmap = (np.ascontiguousarray(np.concatenate([s.ravel() for s in slots]))
                      if slots else np.zeros(0, dtype=np.int64))
 
-    def energy(self, x, x_prev, u) -> float:
+    def energy(self, x, x_prev, u, hist=None) -> float:
         return cable_energy(x, self.pt_nodes, self.pt_w, self.ptr, self.rest_lengths(u), self.stiffness,
                             self.blend, self.mode, self._tensions(u))
 
-    def assemble(self, x, x_prev, u, grad, hdata, want_hess) -> float:
+    def assemble(self, x, x_prev, u, hist, grad, hdata, want_hess) -> float:
         return cable_assemble(x, self.pt_nodes, self.pt_w, self.ptr, self.rest_lengths(u), self.stiffness,
                               self.blend, self.mode, self._tensions(u), grad, hdata, self.hmap, self.hptr,
                               want_hess)
@@ -317,7 +319,7 @@ class Cables(EnergyTerm):
         """d(tension)/du per tendon: Q''(Gamma)."""
         return one_sided_quadratic(self.deformation(x, u), self.stiffness, self.blend)[2]
 
-    def add_control_jacobian(self, x, x_prev, u, G) -> None:
+    def add_control_jacobian(self, x, x_prev, u, hist, G) -> None:
         c = self._control_stiffness(x, u)
         G += self.length_gradients(x).T @ (c[:, None] * self.motor_matrix)
 

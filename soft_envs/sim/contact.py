@@ -122,16 +122,16 @@ class GroundContact(EnergyTerm):
         """N_i = Q_n'(-y_i) at every contact node [N]."""
         return normal_forces(x, self.nodes, self.k_n, self.eps_n)
 
-    def energy(self, x, x_prev, u) -> float:
+    def energy(self, x, x_prev, u, hist=None) -> float:
         return contact_assemble(x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f, self._scratch,
                                 self._scratch, self.diag_map, False, False)
 
-    def assemble(self, x, x_prev, u, grad, hdata, want_hess) -> float:
+    def assemble(self, x, x_prev, u, hist, grad, hdata, want_hess) -> float:
         return contact_assemble(x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f, grad, hdata,
                                 self.diag_map, True, want_hess)
 
-    def add_prev_product(self, x, x_prev, u, S, out) -> None:
+    def add_prev_product(self, x, x_prev, u, hist, S, out) -> None:
         friction_cross(x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f, S, out)
 
-    def add_prev_product_T(self, x, x_prev, u, lam, out) -> None:
+    def add_prev_product_T(self, x, x_prev, u, hist, lam, out) -> None:
         friction_cross_T(x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f, lam, out)

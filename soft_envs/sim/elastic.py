@@ -33,13 +33,13 @@ class Elastic(EnergyTerm):
         super().bind(slots, diag_slots)
         self.hmap = np.ascontiguousarray(slots[0])            # (m, 144)
 
-    def energy(self, x, x_prev, u) -> float:
+    def energy(self, x, x_prev, u, hist=None) -> float:
         return fem_energy(x, self.tets, self.dN, self.vol, self.mu, self.lam)
 
-    def assemble(self, x, x_prev, u, grad, hdata, want_hess) -> float:
+    def assemble(self, x, x_prev, u, hist, grad, hdata, want_hess) -> float:
         return fem_assemble(x, self.tets, self.dN, self.vol, self.mu, self.lam, grad, hdata,
                             self.hmap, want_hess)
 
-    def assemble_projected(self, x, x_prev, u, grad, hdata) -> float:
+    def assemble_projected(self, x, x_prev, u, hist, grad, hdata) -> float:
         return fem_assemble_projected(x, self.tets, self.dN, self.vol, self.mu, self.lam, grad,
                                       hdata, self.hmap)

@@ -32,9 +32,9 @@ class Gravity(EnergyTerm):
     def __init__(self, node_masses: np.ndarray, g: np.ndarray):
         self.force = (np.asarray(node_masses)[:, None] * np.asarray(g)[None, :]).ravel()   # (3n,)
 
-    def energy(self, x, x_prev, u) -> float:
+    def energy(self, x, x_prev, u, hist=None) -> float:
         return -float(self.force @ x.ravel())
 
-    def assemble(self, x, x_prev, u, grad, hdata, want_hess) -> float:
+    def assemble(self, x, x_prev, u, hist, grad, hdata, want_hess) -> float:
         grad -= self.force
         return -float(self.force @ x.ravel())

@@ -34,6 +34,7 @@ Failure (no descent, too many iterations, non-finite values) raises :class:`Simu
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -104,6 +105,16 @@ class StepInfo:
     solver: object = None     # with need_exact: holds the exact Hessian's factorisation at x_k
 
 
+class _Inputs(NamedTuple):
+    """What one step's Phi depends on besides x: ``x~ = 2 x_{k-1} - x_{k-2}``, ``x_{k-1}``,
+    the controls and the energy terms' history."""
+
+    xt: np.ndarray
+    x_prev: np.ndarray
+    u: np.ndarray
+    history: tuple
+
+
 @dataclass
 class _Iterate:
     """The state of one step's Newton iteration."""
@@ -134,14 +145,15 @@ class NewtonSolver:
         self._fallback = None
 
     # ------------------------------------------------------------------ Phi and its derivatives
-    def phi(self, x, xt, x_prev, u) -> float:
+    def phi(self, x, xt, x_prev, u, history=None) -> float:
         d = (x - xt).ravel()
-        e = self.system.energy(x, x_prev, u)
+        e = self.system.energy(x, x_prev, u, history)
         return e + 0.5 * float(d @ (self.inertia * d))
 
-    def phi_assemble(self, x, xt, x_prev, u, project=False, want_hess=True):
-        """``(Phi, dPhi/dx (3n,), Hessian values or None)`` at x."""
-        e, grad, hdata = self.system.assemble(x, x_prev, u, project, want_hess)
+    def phi_assemble(self, x, xt, x_prev, u, project=False, want_hess=True, history=None):
+        """``(Phi, dPhi/dx (3n,), Hessian values or None)`` at x (``history``: the energy terms'
+        lagged state, see :meth:`EnergySystem.initial_history`; default: at rest at x_prev)."""
+        e, grad, hdata = self.system.assemble(x, x_prev, u, project, want_hess, history)
         d = (x - xt).ravel()
         f = self.inertia * d
         grad += f
@@ -149,12 +161,12 @@ class NewtonSolver:
             hdata[self.system.pattern.diag] += self._diag_inertia
         return e + 0.5 * float(d @ f), grad, hdata
 
-    def factorize(self, hdata, x, xt, x_prev, u) -> tuple[bool, int]:
+    def factorize(self, hdata, x, xt, x_prev, u, history=None) -> tuple[bool, int]:
         """Factorise; fall back to the projected Hessian, then to diagonal shifts.
         Returns (exact, number of fallbacks used)."""
         if self.solver.factorize(hdata):
             return True, 0
-        _, _, hproj = self.phi_assemble(x, xt, x_prev, u, project=True)
+        _, _, hproj = self.phi_assemble(x, xt, x_prev, u, project=True, history=history)
         diag = self.system.pattern.diag
         shift = 0.0
         base = np.abs(hproj[diag]).mean()
@@ -169,33 +181,35 @@ class NewtonSolver:
     # ------------------------------------------------------------------ one step
     def step(self, x_prev: np.ndarray, x_prev2: np.ndarray, u: np.ndarray, k: int | None = None,
              x_fixed: np.ndarray | None = None, need_exact: bool = False,
-             x_prev3: np.ndarray | None = None, cache: FactorCache | None = None
-             ) -> tuple[np.ndarray, StepInfo]:
+             x_prev3: np.ndarray | None = None, cache: FactorCache | None = None,
+             history: tuple | None = None) -> tuple[np.ndarray, StepInfo]:
         """Solve for ``x_k`` given ``x_{k-1}``, ``x_{k-2}`` and controls ``u`` (module
         docstring): initial guess, then Newton directions, the stopping test and a line search
         until the test holds. Inputs are not modified. Fixed nodes keep their positions in
         ``x_prev`` (or ``x_fixed``). ``cache`` (optional) is the factorisation this step may
         reuse and leaves for the next. With ``need_exact`` the returned :class:`StepInfo`
         holds the exact Hessian's factorisation at ``x_k`` (for sensitivities). ``x_prev3``
-        (``x_{k-3}``, optional) only improves the initial guess."""
+        (``x_{k-3}``, optional) only improves the initial guess. ``history`` is the energy
+        terms' lagged state (:meth:`EnergySystem.initial_history`; default: at rest at
+        ``x_prev``)."""
         opt = self.options
         cache = FactorCache() if cache is None else cache
-        xt = 2.0 * x_prev - x_prev2
-        it = self._start(xt, x_prev, x_prev2, x_prev3, u, x_prev if x_fixed is None else x_fixed, k)
+        ctx = _Inputs(2.0 * x_prev - x_prev2, x_prev, u, self.system.resolve_history(history, x_prev))
+        it = self._start(ctx, x_prev2, x_prev3, x_prev if x_fixed is None else x_fixed, k)
         while it.iterations < opt.max_iter:
             it.iterations += 1
-            g, dx, norm, kind = self._direction(it, cache, xt, x_prev, u, k)
+            g, dx, norm, kind = self._direction(it, cache, ctx, k)
             if self._converged(norm, it.prev_norm, kind, it.prev_kind):
                 self._move(it.x, dx)
                 exact_here = kind == "newton" and norm <= opt.tol
                 return it.x, self._info(it, need_exact and not exact_here, need_exact, cache,
-                                        it.x, x_prev, x_prev2, u)
+                                        it.x, x_prev2, ctx)
             slope = float(g @ dx)
             if norm <= opt.tol or (slope < 0 and -slope <= 1e-12 * (abs(it.phi) + 1e-30)):
                 # a step this small needs no line search (or the predicted decrease is at the
                 # round-off level of Phi and Newton is in its quadratic regime): take it
                 self._move(it.x, dx)
-                it.phi, it.grad, _ = self.phi_assemble(it.x, xt, x_prev, u, want_hess=False)
+                it.phi, it.grad, _ = self._phi_grad(it.x, ctx)
                 it.fresh, it.prev_norm, it.prev_kind = False, norm, kind
                 continue
             if slope >= 0:
@@ -203,16 +217,16 @@ class NewtonSolver:
                     cache.drop()          # a stale factorisation: refresh it here
                     continue
                 raise SimulationError(f"Newton direction is not a descent direction (slope {slope:.3e})", k)
-            found = self._line_search(it, dx, slope, xt, x_prev, u)
+            found = self._line_search(it, dx, slope, ctx)
             if found is None and not it.fresh:
                 cache.drop()              # a reused factorisation overshoots: refresh, not damp
                 continue
             if found is None:
                 xn = it.x.copy()
                 self._move(xn, dx)
-                if norm <= 1e3 * opt.tol and self.phi(xn, xt, x_prev, u) <= it.phi:
+                if norm <= 1e3 * opt.tol and self.phi(xn, ctx.xt, ctx.x_prev, ctx.u, ctx.history) <= it.phi:
                     # round-off stalls the line search this close to the solution
-                    return xn, self._info(it, need_exact, need_exact, cache, xn, x_prev, x_prev2, u)
+                    return xn, self._info(it, need_exact, need_exact, cache, xn, x_prev2, ctx)
                 raise SimulationError(f"line search failed (|dx| = {norm:.3e} m)", k)
             it.x, it.phi, it.grad, alpha = found
             it.prev_kind = kind if alpha == 1.0 else None
@@ -225,45 +239,48 @@ class NewtonSolver:
         sys = self.system
         x.reshape(-1)[sys.free if len(sys.free) < sys.n_dof else slice(None)] += dx
 
-    def _start(self, xt, x_prev, x_prev2, x_prev3, u, fixed_src, k) -> _Iterate:
+    def _phi_grad(self, x, ctx: "_Inputs"):
+        return self.phi_assemble(x, ctx.xt, ctx.x_prev, ctx.u, want_hess=False, history=ctx.history)
+
+    def _start(self, ctx: "_Inputs", x_prev2, x_prev3, fixed_src, k) -> _Iterate:
         """The first iterate: :meth:`_initial_guess`, or ``x_{k-1}`` if the guesses invert an
         element."""
         sys = self.system
-        x, phi_x, grad = self._initial_guess(xt, x_prev, x_prev2, x_prev3, u, fixed_src)
+        x, phi_x, grad = self._initial_guess(ctx, x_prev2, x_prev3, fixed_src)
         if not np.isfinite(phi_x):
-            x = x_prev.copy()
+            x = ctx.x_prev.copy()
             if len(sys.free) < sys.n_dof:
                 x.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
-            phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
+            phi_x, grad, _ = self._phi_grad(x, ctx)
             if not np.isfinite(phi_x):
                 raise SimulationError("the previous state is inverted or non-finite", k)
         return _Iterate(x, phi_x, grad)
 
-    def _direction(self, it: _Iterate, cache: FactorCache, xt, x_prev, u, k):
+    def _direction(self, it: _Iterate, cache: FactorCache, ctx: "_Inputs", k):
         """``(g, dx, |dx|_max, kind)``: the Newton step ``-H^{-1} g`` on the free dofs with the
         held factorisation, refreshed first when there is none to reuse or when the chord
         step it gives contracts too slowly (:meth:`_chord_too_slow`)."""
         if not (self.options.reuse_factor and cache.holds(self.solver)):
-            self._refactor(it, cache, xt, x_prev, u)
+            self._refactor(it, cache, ctx)
         sys = self.system
         g = it.grad[sys.free] if len(sys.free) < sys.n_dof else it.grad
-        dx = -self._solve_model(g, it.x, x_prev, u)
+        dx = -self._solve_model(g, it.x, ctx)
         norm = np.abs(dx).max()
         if not it.fresh and self._chord_too_slow(norm, it.prev_norm):
-            self._refactor(it, cache, xt, x_prev, u)
-            dx = -self._solve_model(g, it.x, x_prev, u)
+            self._refactor(it, cache, ctx)
+            dx = -self._solve_model(g, it.x, ctx)
             norm = np.abs(dx).max()
         if not np.isfinite(dx).all():
             raise SimulationError("non-finite Newton step", k)
         kind = ("newton" if cache.exact else None) if it.fresh else "chord"
         return g, dx, norm, kind
 
-    def _solve_model(self, g, x, x_prev, u) -> np.ndarray:
+    def _solve_model(self, g, x, ctx: "_Inputs") -> np.ndarray:
         """The model Hessian's inverse applied to the free gradient ``g`` at ``x``: the held
         factorisation's solve (a hook for studies of other models)."""
         return self.solver.solve(g)
 
-    def _line_search(self, it: _Iterate, dx, slope: float, xt, x_prev, u):
+    def _line_search(self, it: _Iterate, dx, slope: float, ctx: "_Inputs"):
         """Backtracking (Armijo) from the full step; a chord step (reused factorisation) only
         tries the full step. ``(x, Phi, grad, alpha)`` of the accepted point, or None."""
         opt = self.options
@@ -271,7 +288,7 @@ class NewtonSolver:
         for _ in range(opt.max_backtracks):
             xn = it.x.copy()
             self._move(xn, alpha * dx)
-            phi_n, grad_n, _ = self.phi_assemble(xn, xt, x_prev, u, want_hess=False)
+            phi_n, grad_n, _ = self._phi_grad(xn, ctx)
             if phi_n <= it.phi + opt.armijo * alpha * slope:
                 return xn, phi_n, grad_n, alpha
             if not it.fresh:
@@ -279,33 +296,33 @@ class NewtonSolver:
             alpha *= 0.5
         return None
 
-    def _info(self, it: _Iterate, refactor: bool, need_exact: bool, cache, x, x_prev, x_prev2, u) -> StepInfo:
+    def _info(self, it: _Iterate, refactor: bool, need_exact: bool, cache, x, x_prev2, ctx: "_Inputs") -> StepInfo:
         """The :class:`StepInfo` of a finished step; with ``need_exact`` it holds the exact
         Hessian's factorisation at x (the held one when ``refactor`` is False)."""
         solver = None
         if need_exact:
             solver = self.solver
             if refactor:
-                solver = self.factorize_exact_at(x, x_prev, x_prev2, u, cache)
+                solver = self.factorize_exact_at(x, ctx.x_prev, x_prev2, ctx.u, cache, ctx.history)
                 it.factorizations += 1
         return StepInfo(it.iterations, it.factorizations, it.fallbacks, solver)
 
-    def _initial_guess(self, xt, x_prev, x_prev2, x_prev3, u, fixed_src):
+    def _initial_guess(self, ctx: "_Inputs", x_prev2, x_prev3, fixed_src):
         """``(x, Phi, dPhi/dx)`` of ``x~`` or, with ``x_{k-3}`` and ``extrapolation=2``, of the
         constant-acceleration guess if its Phi is lower (after abrupt control changes x~ is
         often the better one). Each candidate's Phi comes with its gradient, so the chosen one
         is not evaluated again."""
         sys = self.system
-        x = xt.copy()
+        x = ctx.xt.copy()
         fixed = len(sys.free) < sys.n_dof
         if fixed:
             x.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
-        phi_x, grad, _ = self.phi_assemble(x, xt, x_prev, u, want_hess=False)
+        phi_x, grad, _ = self._phi_grad(x, ctx)
         if x_prev3 is not None and self.options.extrapolation == 2:
-            x2 = np.ascontiguousarray(3.0 * (x_prev - x_prev2) + x_prev3)   # C order: reshape is a view
+            x2 = np.ascontiguousarray(3.0 * (ctx.x_prev - x_prev2) + x_prev3)   # C order: reshape is a view
             if fixed:
                 x2.reshape(-1)[sys.fixed_dof] = fixed_src.reshape(-1)[sys.fixed_dof]
-            phi_2, grad_2, _ = self.phi_assemble(x2, xt, x_prev, u, want_hess=False)
+            phi_2, grad_2, _ = self._phi_grad(x2, ctx)
             if phi_2 < phi_x:
                 return x2, phi_2, grad_2
         return x, phi_x, grad
@@ -349,21 +366,21 @@ class NewtonSolver:
             return False
         return np.log(self.options.tol / norm) / np.log(rho) > self.options.max_chord
 
-    def _refactor(self, it: _Iterate, cache: FactorCache, xt, x_prev, u) -> None:
+    def _refactor(self, it: _Iterate, cache: FactorCache, ctx: "_Inputs") -> None:
         """Assemble and factorise the Hessian at the current iterate; the cache keeps it."""
         cache.drop()                       # until this factorisation has succeeded
-        _, _, hdata = self.phi_assemble(it.x, xt, x_prev, u)
-        exact, nf = self.factorize(hdata, it.x, xt, x_prev, u)
+        _, _, hdata = self.phi_assemble(it.x, ctx.xt, ctx.x_prev, ctx.u, history=ctx.history)
+        exact, nf = self.factorize(hdata, it.x, ctx.xt, ctx.x_prev, ctx.u, ctx.history)
         cache.keep(self.solver, exact)
         it.fresh = True
         it.factorizations += 1
         it.fallbacks += nf
 
-    def factorize_exact_at(self, x, x_prev, x_prev2, u, cache: FactorCache | None = None):
+    def factorize_exact_at(self, x, x_prev, x_prev2, u, cache: FactorCache | None = None, history=None):
         """Factorise the exact Hessian of Phi at ``x`` (Cholesky, or LU if indefinite) and return
         the solver object that holds it; ``cache`` (optional) then holds it for reuse."""
         xt = 2.0 * x_prev - x_prev2
-        _, _, hdata = self.phi_assemble(x, xt, x_prev, u)
+        _, _, hdata = self.phi_assemble(x, xt, x_prev, u, history=history)
         if cache is not None:
             cache.drop()
         if self.solver.factorize(hdata):

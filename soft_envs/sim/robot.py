@@ -18,26 +18,44 @@ import numpy as np
 from .materials import lame_parameters
 from .mesh import TetMesh, load_mesh
 
-__all__ = ["Robot", "Tendon", "Motor", "ContactParams", "CableData"]
+__all__ = ["Robot", "Tendon", "Motor", "ContactParams", "CableData", "CONTACT_MODELS"]
+
+
+CONTACT_MODELS = ("paper", "coulomb")
 
 
 @dataclass(frozen=True)
 class ContactParams:
-    """Ground contact: penalty ``stiffness`` [N/m] per node, C2 ``blend`` width [m] of the
-    one-sided quadratic, and the friction weight ``friction`` [1/m] (paper's mu, see
-    :mod:`soft_envs.sim.contact`)."""
+    """Ground contact: a penalty normal law and a friction law.
+
+    ``model``: ``"paper"`` (paper II-C, :mod:`soft_envs.sim.contact`: friction energy
+    ``friction * N_{k-1} |dx_t|^2`` with the weight ``friction`` [1/m]; viscous-like and
+    time-step dependent) or ``"coulomb"`` (:mod:`soft_envs.sim.coulomb`: tangential force
+    bounded by ``friction_coefficient * N_{k-1}``, held by stick anchors until a node is
+    ``slip_distance`` [m] from its anchor). Both: normal penalty ``stiffness`` [N/m] per node with a C2
+    ``blend`` [m] of the one-sided quadratic (``blend = 0``: the half-quadratic, Coulomb model
+    only). Each model reads only its own friction parameters."""
 
     stiffness: float = 2000.0
     friction: float = 500.0
     blend: float = 5e-4
+    model: str = "paper"
+    friction_coefficient: float = 0.8
+    slip_distance: float = 1e-4
 
     def __post_init__(self):
-        for name in ("stiffness", "blend"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"contact.{name} must be positive, got {v!r}")
+        if self.model not in CONTACT_MODELS:
+            raise ValueError(f"contact.model must be one of {CONTACT_MODELS}, got {self.model!r}")
+        if not (np.isfinite(self.stiffness) and self.stiffness > 0):
+            raise ValueError(f"contact.stiffness must be positive, got {self.stiffness!r}")
+        if not (np.isfinite(self.blend) and (self.blend > 0 or (self.blend == 0 and self.model == "coulomb"))):
+            raise ValueError(f"contact.blend must be positive (or 0 with model = 'coulomb'), got {self.blend!r}")
         if not (np.isfinite(self.friction) and self.friction >= 0):
             raise ValueError(f"contact.friction must be >= 0, got {self.friction!r}")
+        if not (np.isfinite(self.friction_coefficient) and self.friction_coefficient >= 0):
+            raise ValueError(f"contact.friction_coefficient must be >= 0, got {self.friction_coefficient!r}")
+        if not (np.isfinite(self.slip_distance) and self.slip_distance > 0):
+            raise ValueError(f"contact.slip_distance must be positive, got {self.slip_distance!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,8 +133,8 @@ class Robot:
             object.__setattr__(self, "body_length", float(np.ptp(self.mesh.points[:, 0])))
         if not (np.isfinite(self.body_length) and self.body_length > 0):
             raise ValueError(f"{self.source}: robot.body_length must be positive, got {self.body_length!r}")
-        if not (np.isfinite(self.cable_blend) and self.cable_blend > 0):
-            raise ValueError(f"{self.source}: cables.blend must be positive, got {self.cable_blend!r}")
+        if not (np.isfinite(self.cable_blend) and self.cable_blend >= 0):
+            raise ValueError(f"{self.source}: cables.blend must be >= 0 (0: half-quadratic), got {self.cable_blend!r}")
         # own read-only copies of the tendon points: the binding and the rest lengths are
         # derived from them and must not change behind the robot's back
         tendons = []

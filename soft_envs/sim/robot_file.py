@@ -21,15 +21,18 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     top_tolerance = 1e-4         # [m] nodes this close to the highest point are "top"
 
     [contact]                    # optional, defaults of ContactParams
+    model = "paper"              # "paper" (II-C, viscous-like) or "coulomb" (mu N bound)
     stiffness = 2000.0           # [N/m]
     friction = 500.0             # [1/m]
-    blend = 5e-4                 # [m]
+    blend = 5e-4                 # [m] C2 blend of the normal law (0: half-quadratic, coulomb)
+    friction_coefficient = 0.8   # Coulomb's mu (model = "coulomb")
+    slip_distance = 1e-4         # [m] offset from its stick anchor at which a node slides (coulomb)
 
     [fixed]                      # optional: clamped nodes
     nodes = [0, 1, 2]            # and/or box = [[x0, x1], [y0, y1], [z0, z1]] (mesh frame and units)
 
     [cables]
-    blend = 2e-4                 # [m] width of the one-sided quadratic's C2 blend
+    blend = 2e-4                 # [m] width of the one-sided quadratic's C2 blend (0: half-quadratic)
 
     [[tendons]]
     name = "fore_left_front_a"
@@ -71,7 +74,8 @@ _SCHEMA: dict[str, dict[str, tuple[type | tuple[type, ...], bool]]] = {
     "payload": {"mass": ((int, float), True), "nodes": ((str, list), False),
                 "top_tolerance": ((int, float), False)},
     "contact": {"stiffness": ((int, float), False), "friction": ((int, float), False),
-                "blend": ((int, float), False)},
+                "blend": ((int, float), False), "model": (str, False),
+                "friction_coefficient": ((int, float), False), "slip_distance": ((int, float), False)},
     "fixed": {"nodes": (list, False), "box": (list, False)},
     "cables": {"blend": ((int, float), False)},
 }
@@ -212,7 +216,7 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
                             float(m["u_max"]), float(m.get("spool_radius", 0.005))))
     mat = tables["material"]
     try:
-        contact = ContactParams(**{k: float(v) for k, v in tables["contact"].items()})
+        contact = ContactParams(**{k: (v if k == "model" else float(v)) for k, v in tables["contact"].items()})
     except ValueError as exc:
         raise ValueError(f"{src}: [contact] {exc}") from exc
     kwargs = dict(name=rt["name"], mesh=mesh, youngs_modulus=float(mat["youngs_modulus"]),

@@ -11,7 +11,10 @@ recurrence of eq. 10 for ``S_k = dx_k/dz``:
 with ``H_k = d^2 Phi_k / dx_k^2`` at the converged state, ``A_k = dR_k/dx_{k-1} = -2M/h^2 +
 d^2E/(dx_k dx_{k-1})`` (lagged terms: the friction law depends on ``x_{k-1}`` through the
 displacement and through the normal force ``N_{k-1}``), ``C = M/h^2``, ``G_k = dR_k/du_k`` (the
-energy terms' control Jacobians) and ``U_k = du_k/dz``. Eq. 11 is the first block (``S_{k-1} =
+energy terms' control Jacobians) and ``U_k = du_k/dz``. Terms with a history ``p`` (the
+Coulomb law's stick anchors, updated after each step by ``p_k = Pi(x_k, p_{k-1})``) add
+``D_k P_{k-1}`` with ``D_k = dR_k/dp_{k-1}`` to the bracket, and their history's derivative
+follows ``P_k = dPi/dx S_k + dPi/dp P_{k-1}``. Eq. 11 is the first block (``S_{k-1} =
 S_{k-2} = 0`` for a rollout that starts at rest). One multi-right-hand-side solve per step
 reuses the Newton factorisation of ``H_k``.
 
@@ -19,8 +22,12 @@ The adjoint (reverse) form gives ``dO/du`` of a scalar ``O = sum_k o_k(x_k)`` at
 backward pass, whatever the number of parameters:
 
 .. math::
-    H_j \lambda_j = -(\partial o/\partial x_j + A_{j+1}^T \lambda_{j+1} + C \lambda_{j+2}),
-    \qquad dO/du_k = \lambda_k^T G_k .
+    H_j \lambda_j = -(\partial o/\partial x_j + A_{j+1}^T \lambda_{j+1} + C \lambda_{j+2}
+                      - (\partial \Pi_j/\partial x_j)^T \mu_j),
+    \qquad \mu_{j-1} = -D_j^T \lambda_j + (\partial \Pi_j/\partial p_{j-1})^T \mu_j,
+    \qquad dO/du_k = \lambda_k^T G_k ,
+
+with ``mu`` the adjoints of the histories (``mu_K = 0``; absent without history).
 """
 from __future__ import annotations
 
@@ -50,18 +57,29 @@ class ForwardSensitivities:
         self.dcomdz = np.zeros((K + 1, 3, nz))
         self.dgammadz = np.zeros((K + 1, system.cables.n_tendons, nz))
         self.dxdz = np.zeros((K + 1, system.n_dof, nz)) if store_dxdz else None
+        self.P = None                               # dhistory_{k-1}/dz per term (x_0 is given: 0)
 
-    def step(self, k: int, solver, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray) -> None:
+    def step(self, k: int, solver, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray,
+             history: tuple) -> None:
         """Advance the recurrence by the step that took ``x_prev`` to ``x`` = state k+1 under
-        controls ``u = u_k``; ``solver`` holds the factorisation of the exact ``H`` at ``x``."""
+        controls ``u = u_k`` and the energy terms' ``history``; ``solver`` holds the
+        factorisation of the exact ``H`` at ``x``."""
         system = self.newton.system
         U = self.dudz[k]
+        nz = U.shape[1]
+        if self.P is None:
+            self.P = tuple(None if h is None else np.zeros((h.size, nz)) for h in history)
         rhs = self.newton.inertia[:, None] * (2.0 * self.S1 - self.S2)
-        rhs -= system.prev_product(x, x_prev, u, self.S1)
-        rhs -= system.control_jacobian(x, x_prev, u) @ U
+        rhs -= system.prev_product(x, x_prev, u, self.S1, history)
+        rhs -= system.control_jacobian(x, x_prev, u, history) @ U
+        if system.has_history:
+            d = np.zeros_like(rhs)
+            system.history_product(x, x_prev, u, history, self.P, d)
+            rhs -= d
         S = np.zeros_like(self.S1)
         S[system.free] = solver.solve(np.ascontiguousarray(rhs[system.free]))
-        nz = S.shape[1]
+        if system.has_history:
+            self.P = system.history_tangent(x, x_prev, history, S, self.P)
         self.dcomdz[k + 1] = (self.masses @ S.reshape(-1, 3 * nz)).reshape(3, nz) / self.total_mass
         cables = system.cables
         self.dgammadz[k + 1] = cables.deformation_jacobian(cables.length_gradients(x), S, U)
@@ -70,32 +88,44 @@ class ForwardSensitivities:
         self.S2, self.S1 = self.S1, S
 
 
-def adjoint_pass(newton, xs: np.ndarray, us: np.ndarray, dobj_dx: np.ndarray) -> np.ndarray:
+def adjoint_pass(newton, xs: np.ndarray, us: np.ndarray, dobj_dx: np.ndarray, history0=None) -> np.ndarray:
     """``dO/du`` (K, n_motors) for states ``xs`` (K+1, n, 3) of a rollout with controls ``us``
     (K, n_motors) and ``dobj_dx`` (K+1, n, 3) (the entry for x_0 is ignored: x_0 is given).
-    The rollout must have started at rest (``x_{-1} = x_0``)."""
+    The rollout must have started at rest (``x_{-1} = x_0``) with the terms' history
+    ``history0`` (default: at rest at x_0)."""
     system = newton.system
     K = len(us)
     n_dof = system.n_dof
     free = system.free
     inertia = newton.inertia
+    hists = [system.resolve_history(history0, xs[0])]        # the history each step starts with
+    for j in range(1, K):
+        hists.append(system.next_history(xs[j], xs[j - 1], hists[-1]))
     lam_next = np.zeros(n_dof)      # lambda_{j+1}
     lam_next2 = np.zeros(n_dof)     # lambda_{j+2}
+    mu = tuple(None if h is None else np.zeros(h.size) for h in hists[0])     # mu_K = 0
     out = np.zeros_like(us, dtype=np.float64)
     for j in range(K, 0, -1):
         xj = xs[j]
         xjm1 = xs[j - 1]
         xjm2 = xs[j - 2] if j >= 2 else xs[0]
+        h = hists[j - 1]
         rhs = dobj_dx[j].reshape(-1).copy()
         if j < K:
             # A_{j+1}^T lambda_{j+1} with A = -2M/h^2 + the lagged terms' cross derivative
             rhs += -2.0 * inertia * lam_next
-            system.prev_product_T(xs[j + 1], xj, us[j], lam_next, rhs)
+            system.prev_product_T(xs[j + 1], xj, us[j], lam_next, rhs, hists[j])
         if j + 1 < K:
             rhs += inertia * lam_next2
-        solver = newton.factorize_exact_at(xj, xjm1, xjm2, us[j - 1])
+        if system.has_history:
+            tx, th = system.history_tangent_T(xj, xjm1, h, mu)
+            rhs -= tx
+        solver = newton.factorize_exact_at(xj, xjm1, xjm2, us[j - 1], history=h)
         lam = np.zeros(n_dof)
         lam[free] = -solver.solve(np.ascontiguousarray(rhs[free]))
-        out[j - 1] = lam @ system.control_jacobian(xj, xjm1, us[j - 1])
+        out[j - 1] = lam @ system.control_jacobian(xj, xjm1, us[j - 1], h)
+        if system.has_history:
+            dT = system.history_product_T(xj, xjm1, us[j - 1], h, lam)
+            mu = tuple(None if a is None else b - a for a, b in zip(dT, th))
         lam_next2, lam_next = lam_next, lam
     return out

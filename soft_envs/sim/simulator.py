@@ -73,7 +73,7 @@ class Simulator:
         like a freshly constructed simulator)."""
         return {"robot": self.robot, "dt": self.dt, "gravity": np.array(self.gravity),
                 "control": self.control, "newton": self.newton.options,
-                "rest_cache": {k: v.copy() for k, v in self._rest_cache.items()}}
+                "rest_cache": dict(self._rest_cache)}
 
     def __setstate__(self, state: dict) -> None:
         self.__init__(state["robot"], dt=state["dt"], gravity=state["gravity"],
@@ -140,55 +140,90 @@ class Simulator:
 
         Computed as proximal-point iterations ``x_{j+1} = argmin E(x; x_prev = x_j) +
         |x - x_j|^2_M / 2`` (implicit steps of 1 s from rest), which converge to a state where
-        the friction term exerts no force, so a rollout started there stays still. With
-        lagged (viscous-like) friction a robot on a slope creeps, so the rest state of an
-        inclined simulator uses only the normal component of gravity.
+        the friction term exerts no force, so a rollout started there stays still. With the
+        paper's lagged (viscous-like) friction a robot on a slope creeps, so the rest state of
+        an inclined simulator then uses only the normal component of gravity. The Coulomb law
+        holds it: its rest state is under the full gravity, with the stick anchors carried
+        through the iterations (:meth:`rest_history` gives them, and rollouts from the rest
+        state start with them).
         """
+        return self._rest(u, tol, max_iter)[0].copy()
+
+    def rest_history(self, u=None, tol: float = 1e-9, max_iter: int = 200) -> tuple:
+        """The energy terms' history (stick anchors) of :meth:`rest_state` (all None when the
+        contact law keeps none)."""
+        return self._rest(u, tol, max_iter)[1]
+
+    def _rest(self, u, tol: float, max_iter: int) -> tuple[np.ndarray, tuple]:
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
         key = (tuple(u.tolist()), tol)
         if key in self._rest_cache:
-            return self._rest_cache[key].copy()
+            return self._rest_cache[key]
         g = self.gravity
-        normal_g = np.array([0.0, g[1], 0.0]) if self.robot.fixed_nodes.size == 0 else g
-        system = EnergySystem(self.robot, gravity=normal_g, control=self.control)
+        anchored = self.system.has_history
+        relax_g = g if (anchored or self.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])
+        system = EnergySystem(self.robot, gravity=relax_g, control=self.control)
         relax = NewtonSolver(system, 1.0, NewtonOptions(tol=min(tol, 1e-10), max_iter=100,
                                                         solver=self.newton.options.solver))
         x = self.initial_placement()
+        history = system.initial_history(x)
         cache = FactorCache()
         for _ in range(max_iter):
             try:
-                xn, _ = relax.step(x, x, u, cache=cache)
+                xn, _ = relax.step(x, x, u, cache=cache, history=history)
             except SimulationError as err:
                 raise SimulationError(f"rest_state of robot {self.robot.name!r} failed (u = {u.tolist()}, "
-                                      f"gravity = {normal_g.tolist()}): {err.reason}") from err
+                                      f"gravity = {relax_g.tolist()}): {err.reason}") from err
+            if anchored:
+                history = system.next_history(xn, x, history)
             moved = np.abs(xn - x).max()
             x = xn
             if moved <= tol:
                 break
         else:
+            hint = "; friction may not hold it on this slope (it slides)" if anchored and relax_g[[0, 2]].any() else ""
             raise SimulationError(f"rest_state of robot {self.robot.name!r} did not settle in {max_iter} "
                                   f"relaxation steps (last motion {moved:.2e} m; u = {u.tolist()}, "
-                                  f"gravity = {normal_g.tolist()}, tol = {tol})")
-        self._rest_cache[key] = x.copy()
-        return x
+                                  f"gravity = {relax_g.tolist()}, tol = {tol}){hint}")
+        for a in (x, *[h for h in history if h is not None]):
+            a.setflags(write=False)
+        self._rest_cache[key] = (x, history)
+        return self._rest_cache[key]
 
     def step(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None,
-             factor_cache: FactorCache | None = None) -> np.ndarray:
+             factor_cache: FactorCache | None = None, history: tuple | None = None) -> np.ndarray:
         """One implicit-Euler step: ``x_k`` from ``x_{k-1}``, ``x_{k-2}`` and ``u_k``. ``x_{k-3}``
         (optional) gives the Newton solver a better initial guess; the result is the same to
         within the Newton tolerance. ``factor_cache`` (a :class:`FactorCache` shared by
         consecutive steps) lets a step reuse the factorisation of the step before; without
-        it the step starts afresh and its result depends on its inputs only. Raises
-        :class:`SimulationError` on failure; the inputs are never modified."""
+        it the step starts afresh and its result depends on its inputs only. ``history`` is
+        the energy terms' lagged state (the Coulomb law's stick anchors): pass what
+        :meth:`next_history` returned after the previous step (default: at rest at
+        ``x_prev``, i.e. :meth:`initial_history`). Raises :class:`SimulationError` on failure;
+        the inputs are never modified."""
         u = self._check_u(u)
         x3 = None if x_prev3 is None else self._check_x(x_prev3, "x_prev3")
         x, _ = self.newton.step(self._check_x(x_prev, "x_prev"), self._check_x(x_prev2, "x_prev2"), u, k,
-                                x_prev3=x3, cache=factor_cache)
+                                x_prev3=x3, cache=factor_cache, history=history)
         return x
+
+    @property
+    def has_history(self) -> bool:
+        """Whether the energy keeps lagged state beyond x_prev (``contact.model = "coulomb"``:
+        stick anchors); steps then take a ``history``."""
+        return self.system.has_history
+
+    def initial_history(self, x0) -> tuple:
+        """The energy terms' history of the robot at rest at ``x0`` (anchors where it stands)."""
+        return self.system.initial_history(self._check_x(x0, "x0"))
+
+    def next_history(self, x, x_prev, history: tuple) -> tuple:
+        """The history after the step from ``x_prev`` to ``x`` that started with ``history``."""
+        return self.system.next_history(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), history)
 
     # ------------------------------------------------------------------ rollouts
     def rollout(self, u, x0=None, dudz=None, *, x_prev0=None, store_dxdz: bool = False,
-                check_bounds: bool = True) -> Trajectory:
+                check_bounds: bool = True, history0: tuple | None = None) -> Trajectory:
         """Simulate controls ``u`` (K, n_motors) from ``x0`` (default :meth:`rest_state`) with
         zero initial velocity (or ``x_{-1} = x_prev0``).
 
@@ -197,11 +232,15 @@ class Simulator:
         ``dgammadz`` always, ``dxdz`` if ``store_dxdz``. In length control, contractions
         outside a motor's range raise a ValueError unless ``check_bounds=False`` (finite
         differences at a bound). The rollout owns the factorisation its steps reuse, so its
-        result depends on its inputs only.
+        result depends on its inputs only. ``history0``: the energy terms' history at the start
+        (default: at rest at ``x0``); ``traj.info["history"]`` is the history at the end.
         """
         u = self._check_u(u, K=len(np.asarray(u)), check_bounds=check_bounds)
         K = len(u)
-        x0 = self.rest_state() if x0 is None else self._check_x(x0, "x0")
+        if x0 is None:
+            x0 = self.rest_state()
+            history0 = self.rest_history() if history0 is None else history0
+        x0 = self._check_x(x0, "x0")
         xm1 = x0 if x_prev0 is None else self._check_x(x_prev0, "x_prev0")
         sens = None
         if dudz is not None:
@@ -218,25 +257,30 @@ class Simulator:
         gam[0] = cables.deformation(x0, self.robot.u_rest)      # before the first control
         iters = np.zeros(K, dtype=np.int64)
         cache = FactorCache()
+        history = self.system.resolve_history(history0, x0)
         prev, prev2 = x0, xm1
         prev3 = x0 if x_prev0 is None else None      # at rest: x_{-2} = x_{-1} = x_0
         for k in range(K):
             x, info = self.newton.step(prev, prev2, u[k], k, need_exact=sens is not None, x_prev3=prev3,
-                                       cache=cache)
+                                       cache=cache, history=history)
             xs[k + 1] = x
             iters[k] = info.iterations
             gam[k + 1] = cables.deformation(x, u[k])
             if sens is not None:
-                sens.step(k, info.solver, x, prev, u[k])
+                sens.step(k, info.solver, x, prev, u[k], history)
+            if self.system.has_history:
+                history = self.system.next_history(x, prev, history)
             prev3, prev2, prev = prev2, prev, x
         masses = self.robot.node_masses
         com = np.einsum("kni,n->ki", xs, masses) / masses.sum()
-        traj = Trajectory(x=xs, com=com, cable_deformation=gam, u=u, newton_iterations=iters)
+        traj = Trajectory(x=xs, com=com, cable_deformation=gam, u=u, newton_iterations=iters,
+                          info={"history": history})
         if sens is not None:
             traj.dcomdz, traj.dgammadz, traj.dxdz = sens.dcomdz, sens.dgammadz, sens.dxdz
         return traj
 
-    def rollout_gradient(self, u, dobj_dx, x0=None, dudz=None, traj: Trajectory | None = None):
+    def rollout_gradient(self, u, dobj_dx, x0=None, dudz=None, traj: Trajectory | None = None,
+                         history0: tuple | None = None):
         """Adjoint gradient of a scalar objective ``O = sum_k o_k(x_k)`` of a rollout.
 
         ``dobj_dx`` (K+1, n, 3) holds ``do/dx_k`` (entry 0 ignored). Returns ``dO/du`` (K,
@@ -244,28 +288,32 @@ class Simulator:
         rollout to skip re-simulating it."""
         u = self._check_u(u, K=len(np.asarray(u)))
         if traj is None:
-            traj = self.rollout(u, x0=x0, check_bounds=False)
+            traj = self.rollout(u, x0=x0, check_bounds=False, history0=history0)
         dobj_dx = np.asarray(dobj_dx, dtype=np.float64)
         if dobj_dx.shape != traj.x.shape:
             raise ValueError(f"dobj_dx must have shape {traj.x.shape}, got {dobj_dx.shape}")
-        dOdu = adjoint_pass(self.newton, traj.x, u, dobj_dx)
+        dOdu = adjoint_pass(self.newton, traj.x, u, dobj_dx, history0)
         if dudz is None:
             return dOdu
         return np.einsum("km,kmz->z", dOdu, np.asarray(dudz, dtype=np.float64))
 
     # ------------------------------------------------------------------ energies (tests, FD)
-    def energy(self, x, x_prev, u) -> float:
-        """Potential energy E(x; u, x_prev): FEM + cables + contact/friction + gravity."""
-        return self.system.energy(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), self._check_u(u))
+    def energy(self, x, x_prev, u, history=None) -> float:
+        """Potential energy E(x; u, x_prev): FEM + cables + contact/friction + gravity
+        (``history``: see :meth:`step`)."""
+        return self.system.energy(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), self._check_u(u),
+                                  history)
 
-    def gradient(self, x, x_prev, u) -> np.ndarray:
+    def gradient(self, x, x_prev, u, history=None) -> np.ndarray:
         """dE/dx as (n, 3) (rows of fixed nodes included)."""
-        _, g, _ = self.system.assemble(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), self._check_u(u))
+        _, g, _ = self.system.assemble(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), self._check_u(u),
+                                       history=history)
         return g.reshape(-1, 3)
 
-    def hessian(self, x, x_prev, u) -> sp.csc_matrix:
+    def hessian(self, x, x_prev, u, history=None) -> sp.csc_matrix:
         """d^2E/dx^2 as a symmetric (3n, 3n) sparse matrix; rows/columns of fixed dofs are zero."""
-        _, _, h = self.system.assemble(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), self._check_u(u))
+        _, _, h = self.system.assemble(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), self._check_u(u),
+                                       history=history)
         Hf = self.system.pattern.full(h)
         P = sp.csr_matrix((np.ones(len(self.system.free)), (self.system.free, np.arange(len(self.system.free)))),
                           shape=(self.system.n_dof, len(self.system.free)))

@@ -16,6 +16,7 @@ import scipy.sparse as sp
 
 from .cables import Cables, CableTensions
 from .contact import GroundContact
+from .coulomb import CoulombContact
 from .elastic import Elastic
 from .gravity import Gravity
 from .terms import EnergyTerm
@@ -80,7 +81,9 @@ class EnergySystem:
     ``gravity`` is a 3-vector [m/s^2]; ``control`` is ``"length"`` (u = contracted cable length
     [m], paper eq. 3: :class:`~.cables.Cables`) or ``"tension"`` (u = cable tension [N] >= 0,
     paper appendix A: :class:`~.cables.CableTensions`). ``terms`` lists the terms in the order
-    they are summed: elastic, cables, contact, gravity."""
+    they are summed: elastic, cables, contact, gravity. Terms may keep a history (lagged state
+    beyond x_prev, the Coulomb law's stick anchors): the methods take ``history``, a tuple
+    aligned with the terms."""
 
     def __init__(self, robot, gravity=(0.0, -9.81, 0.0), control: str = "length"):
         if control not in ("length", "tension"):
@@ -100,7 +103,7 @@ class EnergySystem:
         self.free = np.flatnonzero(~self.fixed_dof)
         self.elastic = Elastic(robot)
         self.cables = (Cables if control == "length" else CableTensions)(robot)
-        self.contact = GroundContact(robot)
+        self.contact = GroundContact(robot) if robot.contact.model == "paper" else CoulombContact(robot)
         self.terms: list[EnergyTerm] = [self.elastic, self.cables, self.contact,
                                         Gravity(robot.node_masses, g)]
         blocks = [term.hessian_blocks() for term in self.terms]
@@ -111,54 +114,117 @@ class EnergySystem:
             start += len(bs)
         self._no_hess = np.zeros(1)          # placeholder for gradient-only assembly
 
+    # ------------------------------------------------------------------ history (lagged state)
+    @property
+    def has_history(self) -> bool:
+        """Whether a term keeps lagged state beyond x_prev (the Coulomb law's stick anchors)."""
+        return any(term.has_history for term in self.terms)
+
+    def initial_history(self, x0: np.ndarray) -> tuple:
+        """The terms' histories (a tuple aligned with :attr:`terms`, None for the terms without
+        one) of a body at rest at ``x0``."""
+        return tuple(term.initial_history(x0) for term in self.terms)
+
+    def next_history(self, x: np.ndarray, x_prev: np.ndarray, history: tuple) -> tuple:
+        """The histories after the step from ``x_prev`` to ``x``."""
+        return tuple(t.next_history(x, x_prev, h) if t.has_history else None
+                     for t, h in zip(self.terms, history))
+
+    def resolve_history(self, history, x_prev: np.ndarray) -> tuple:
+        """``history``, or when it is None the history of a body at rest at ``x_prev``."""
+        return self.initial_history(x_prev) if history is None else history
+
     # ------------------------------------------------------------------ E and its derivatives
-    def energy(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray) -> float:
-        """Potential energy E (no inertia); ``inf`` when an element is inverted."""
+    def energy(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray, history=None) -> float:
+        """Potential energy E (no inertia); ``inf`` when an element is inverted. ``history``
+        defaults to that of a body at rest at ``x_prev`` (see :meth:`resolve_history`)."""
+        history = self.resolve_history(history, x_prev)
         total = 0.0
-        for term in self.terms:
-            e = term.energy(x, x_prev, u)
+        for term, h in zip(self.terms, history):
+            e = term.energy(x, x_prev, u, h)
             if e == np.inf:
                 return np.inf
             total += e
         return total
 
-    def assemble(self, x, x_prev, u, project: bool = False, want_hess: bool = True):
+    def assemble(self, x, x_prev, u, project: bool = False, want_hess: bool = True, history=None):
         """``(E, grad (3n,), hdata (nnz + 1,))`` at ``x``. ``hdata[:nnz]`` are the values of the
         lower-triangular Hessian over the free dofs (see :attr:`pattern`); with
         ``want_hess=False`` hdata is None and only the energy and gradient are computed. With
         ``project`` every term's Hessian is replaced by a positive semi-definite one (the
         elastic term's is projected element by element, :mod:`.psd_projection`)."""
+        history = self.resolve_history(history, x_prev)
         grad = np.zeros(self.n_dof)
         hdata = np.zeros(self.pattern.nnz + 1) if want_hess else self._no_hess
         total = 0.0
-        for term in self.terms:
+        for term, h in zip(self.terms, history):
             if project and want_hess:
-                e = term.assemble_projected(x, x_prev, u, grad, hdata)
+                e = term.assemble_projected(x, x_prev, u, h, grad, hdata)
             else:
-                e = term.assemble(x, x_prev, u, grad, hdata, want_hess)
+                e = term.assemble(x, x_prev, u, h, grad, hdata, want_hess)
             if e == np.inf:
                 return np.inf, grad, (hdata if want_hess else None)
             total += e
         return total, grad, (hdata if want_hess else None)
 
-    def control_jacobian(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray) -> np.ndarray:
+    def control_jacobian(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray, history=None) -> np.ndarray:
         """``d(dE/dx)/du`` (3n, n_motors) (paper eq. 9's right-hand side, per step)."""
+        history = self.resolve_history(history, x_prev)
         G = np.zeros((self.n_dof, len(u)))
-        for term in self.terms:
-            term.add_control_jacobian(x, x_prev, u, G)
+        for term, h in zip(self.terms, history):
+            term.add_control_jacobian(x, x_prev, u, h, G)
         return G
 
-    def prev_product(self, x, x_prev, u, S: np.ndarray) -> np.ndarray:
+    def prev_product(self, x, x_prev, u, S: np.ndarray, history=None) -> np.ndarray:
         """``d(dE/dx)/dx_prev @ S`` (3n, nz): the lagged terms' part of paper eq. 10's B_k."""
+        history = self.resolve_history(history, x_prev)
         out = np.zeros_like(S)
-        for term in self.terms:
-            term.add_prev_product(x, x_prev, u, S, out)
+        for term, h in zip(self.terms, history):
+            term.add_prev_product(x, x_prev, u, h, S, out)
         return out
 
-    def prev_product_T(self, x, x_prev, u, lam: np.ndarray, out: np.ndarray) -> None:
+    def prev_product_T(self, x, x_prev, u, lam: np.ndarray, out: np.ndarray, history=None) -> None:
         """``out += (d(dE/dx)/dx_prev)^T @ lam`` (the adjoint of :meth:`prev_product`)."""
-        for term in self.terms:
-            term.add_prev_product_T(x, x_prev, u, lam, out)
+        history = self.resolve_history(history, x_prev)
+        for term, h in zip(self.terms, history):
+            term.add_prev_product_T(x, x_prev, u, h, lam, out)
+
+    def history_product(self, x, x_prev, u, history: tuple, P: tuple, out: np.ndarray) -> None:
+        """``out (3n, nz) += sum_t d(dE_t/dx)/dhist_t @ P_t`` (``P`` aligned with the terms)."""
+        for term, h, p in zip(self.terms, history, P):
+            if term.has_history:
+                term.add_history_product(x, x_prev, u, h, p, out)
+
+    def history_product_T(self, x, x_prev, u, history: tuple, lam: np.ndarray) -> tuple:
+        """Per term ``(d(dE_t/dx)/dhist_t)^T @ lam`` (flattened history; None without one)."""
+        out = []
+        for term, h in zip(self.terms, history):
+            if term.has_history:
+                o = np.zeros(h.size)
+                term.add_history_product_T(x, x_prev, u, h, lam, o)
+                out.append(o)
+            else:
+                out.append(None)
+        return tuple(out)
+
+    def history_tangent_T(self, x, x_prev, history: tuple, m: tuple) -> tuple:
+        """Transpose of :meth:`history_tangent` for the adjoints ``m`` of the next histories:
+        ``(out_x (3n,), per-term out_h)``."""
+        out_x = np.zeros(self.n_dof)
+        out_h = []
+        for term, h, mt in zip(self.terms, history, m):
+            if term.has_history:
+                o = np.zeros(h.size)
+                term.history_tangent_T(x, x_prev, h, mt, out_x, o)
+                out_h.append(o)
+            else:
+                out_h.append(None)
+        return out_x, tuple(out_h)
+
+    def history_tangent(self, x, x_prev, history: tuple, S: np.ndarray, P: tuple) -> tuple:
+        """``d next_history / dz`` per term from ``S = dx/dz`` and ``P = dhistory/dz``."""
+        return tuple(t.history_tangent(x, x_prev, h, S, p) if t.has_history else None
+                     for t, h, p in zip(self.terms, history, P))
 
     # ------------------------------------------------------------------ cables
     def cable_deformation(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
