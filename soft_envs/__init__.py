@@ -19,13 +19,20 @@ Importing the package registers the environments with Gymnasium when Gymnasium i
 ``gymnasium.make("soft_envs:SoftPuppy-v0")`` without the import). The environment classes are
 only imported when an environment is made.
 """
-__all__ = ["ENV_IDS", "MAX_EPISODE_STEPS"]
+__all__ = ["ENV_IDS", "ENV_KWARGS", "MAX_EPISODE_STEPS"]
 
-#: Environment ids registered by this package and their entry points.
+#: Environment ids registered by this package and their entry points. ``-v0`` uses the
+#: robots' contact law as shipped, the paper's (viscous-like friction, reproduces Table I);
+#: ``-v1`` the Coulomb law (:mod:`soft_envs.sim.coulomb`: feet that stick; Gymnasium's
+#: versioning convention: a new version when the dynamics change).
 ENV_IDS = {
     "SoftTripod-v0": "soft_envs.envs.tripod:SoftTripodEnv",
     "SoftPuppy-v0": "soft_envs.envs.puppy:SoftPuppyEnv",
+    "SoftTripod-v1": "soft_envs.envs.tripod:SoftTripodEnv",
+    "SoftPuppy-v1": "soft_envs.envs.puppy:SoftPuppyEnv",
 }
+#: Keyword arguments each id passes to its environment.
+ENV_KWARGS = {"SoftTripod-v1": {"contact": "coulomb"}, "SoftPuppy-v1": {"contact": "coulomb"}}
 
 #: Episode length of ``gymnasium.make`` (its ``TimeLimit`` wrapper), in environment steps: 300
 #: steps of 0.033 s are 10 s, about four of the paper's 72-step gait cycles. Pass
@@ -41,7 +48,8 @@ def _register_environments() -> None:
         return
     for env_id, entry_point in ENV_IDS.items():
         if env_id not in registry:    # re-imports (importlib.reload) must not re-register
-            register(id=env_id, entry_point=entry_point, max_episode_steps=MAX_EPISODE_STEPS)
+            register(id=env_id, entry_point=entry_point, max_episode_steps=MAX_EPISODE_STEPS,
+                     kwargs=dict(ENV_KWARGS.get(env_id, {})))
 
 
 _register_environments()

@@ -33,6 +33,9 @@ def _add_optimize(sub) -> None:
     p.add_argument("--heading", type=float, default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--turn", choices=["right", "left"], default="right", help="turn direction (task turn)")
     p.add_argument("--angle", type=float, default=20.0, help="slope [deg] (task incline)")
+    p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
+                   help="ground contact law: paper (II-C, viscous-like friction, Table I) or coulomb "
+                        "(friction bounded by mu N, feet that stick); default: the robot file's")
     sym = p.add_mutually_exclusive_group()
     sym.add_argument("--symmetry", dest="symmetry", action="store_true", default=None,
                      help="bilateral symmetry on (default for walk and incline)")

@@ -54,8 +54,9 @@ def run_optimize(args) -> int:
         warm.settings["source"] = str(args.warm_start)
     gait = GaitSpec.for_task(task, symmetry=args.symmetry, n_prep=args.prep_steps, n_cycle=args.cycle_steps,
                              n_keyframes=args.keyframes)
-    env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading)
-    print(f"{env.robot.summary()}; task {task}" + (f", slope {incline:g} deg" if incline else ""))
+    env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading, contact=args.contact)
+    print(f"{env.robot.summary()}; task {task}; {env.contact_model} contact law"
+          + (f", slope {incline:g} deg" if incline else ""))
     bar = None
     if not args.quiet:
         from tqdm import tqdm

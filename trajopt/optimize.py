@@ -41,7 +41,7 @@ TASKS = ("walk", "turn", "incline", "custom")
 DEFAULT_SPEED = {"tripod": 8.0, "puppy": 10.0}
 #: the settings a resumed run must share with the interrupted one (besides the task)
 RESUME_KEYS = ("n_prep", "n_cycle", "n_cycles", "n_keyframes", "symmetry", "speed_bl_per_min", "heading_deg",
-               "turn", "incline_deg")
+               "turn", "incline_deg", "contact")
 
 
 class GaitProblem:
@@ -119,7 +119,8 @@ def build_problem(env: GradientEnv, task: str, gait: GaitSpec, *, speed_bl_per_m
 def check_resume(resume: Result, task: str, settings: dict[str, Any]) -> None:
     """The one check that an interrupted run ``resume`` can be continued with ``settings``
     (the error names ``resume.settings["source"]``, its file, when set)."""
-    saved = {**resume.settings, **GaitSpec.from_settings(resume.settings).to_settings()}
+    saved = {**resume.settings, **GaitSpec.from_settings(resume.settings).to_settings(),
+             "contact": resume.settings.get("contact", "paper")}        # older results: the paper's law
     differ = {k: (saved.get(k), settings[k]) for k in RESUME_KEYS if saved.get(k) != settings[k]}
     if differ or resume.task != task:
         source = resume.settings.get("source")
@@ -266,7 +267,7 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
                 "incline_deg": float(env.incline_deg), "weights": weights.to_dict(),
                 "gauss_newton": asdict(options), "eval_cycles": eval_cycles,
                 "warm_start": warm_start.settings.get("source") if warm_start is not None else None,
-                "control": env.control_mode}
+                "control": env.control_mode, "contact": env.contact_model}
     if resume is not None:
         check_resume(resume, task, settings)
     problem = build_problem(env, task, gait, speed_bl_per_min=speed, heading_deg=heading_deg, turn=turn,

@@ -18,10 +18,12 @@ __all__ = ["env_for_result", "result_parameterization", "result_controls", "repl
 
 def env_for_result(res: Result) -> GradientEnv:
     """A bare environment with the physics ``res`` was made on: its robot (shipped name or
-    robot.toml path), slope, uphill heading and simulation time step ``res.dt``."""
+    robot.toml path), slope, uphill heading, contact law and simulation time step ``res.dt``
+    (results made before the contact law was recorded used the paper's law)."""
     s = res.settings
     return make_gradient_env(res.robot, incline_deg=float(s.get("incline_deg", 0.0)),
-                             heading_deg=float(s.get("heading_deg", 0.0)), timestep=res.dt)
+                             heading_deg=float(s.get("heading_deg", 0.0)), timestep=res.dt,
+                             contact=s.get("contact", "paper"))
 
 
 def result_parameterization(res: Result, robot: Any) -> GaitParameterization:

@@ -15,6 +15,7 @@ replays bit for bit, and a pickled copy steps exactly like the original.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections import deque
@@ -60,6 +61,14 @@ def _check_arguments(*, frame_skip: Any, timestep: float, gait_period: float, re
         raise ValueError(f"render_mode must be one of {list(_RENDER_MODES)} or None, got {render_mode!r}")
 
 
+def _with_contact(robot: Robot, contact: str | None) -> Robot:
+    """``robot`` with its contact law switched to ``contact`` ("paper" or "coulomb"; None keeps
+    the robot file's), the law's parameters as the robot file gives them."""
+    if contact is None or contact == robot.contact.model:
+        return robot
+    return robot.replace(contact=dataclasses.replace(robot.contact, model=contact))
+
+
 class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
     """A cable-driven soft robot on the ground plane (see the module docstring and the
     per-robot subclasses for the specification, keywords included)."""
@@ -88,6 +97,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         gait_period: float = PAPER_GAIT_PERIOD,
         observe_nodes: bool = False,
         domain_randomization: Mapping[str, tuple[float, float]] | bool | None = None,
+        contact: str | None = None,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -102,7 +112,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         _check_arguments(frame_skip=frame_skip, timestep=timestep, gait_period=gait_period,
                          reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
                          incline_deg=incline_deg, render_mode=render_mode)
-        self._base_robot = robot if isinstance(robot, Robot) else load_robot(robot)
+        self._base_robot = _with_contact(robot if isinstance(robot, Robot) else load_robot(robot), contact)
         if self._base_robot.n_motors == 0:
             raise ValueError(f"robot {self._base_robot.name!r} has no motors")
         self.frame_skip = int(frame_skip)
@@ -151,7 +161,8 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         u_rest = self._base_robot.u_rest
         x = self._sim.rest_state(u_rest)
         self._x0_reset, self._xm1_reset = x, x.copy()
-        self._restore(x, x.copy(), u_rest, 0, self._frame.com(x))
+        self._history_reset = self._sim.rest_history(u_rest)
+        self._restore(x, x.copy(), u_rest, 0, self._frame.com(x), history=self._history_reset)
 
     # ------------------------------------------------------------------ properties (hooks)
     @property
@@ -185,6 +196,11 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
     def incline_deg(self) -> float:
         """Ground slope [deg], rising along the target heading."""
         return self._incline_deg
+
+    @property
+    def contact_model(self) -> str:
+        """The ground contact law: ``"paper"`` or ``"coulomb"`` (see the ``contact`` keyword)."""
+        return self._base_robot.contact.model
 
     @property
     def gravity(self) -> np.ndarray:
@@ -230,10 +246,12 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         if s > 0:
             x0 = x_rest + self.np_random.uniform(-s, s, size=x_rest.shape)
             xm1 = x0 - self.np_random.uniform(-s, s, size=x_rest.shape)
+            history = self._sim.initial_history(x0)      # stick anchors (if any) where the feet are
         else:
             x0, xm1 = x_rest, x_rest.copy()
-        self._x0_reset, self._xm1_reset = x0.copy(), xm1.copy()
-        self._restore(x0, xm1, u_rest, 0, self._frame.com(x0), None if s > 0 else x0.copy())
+            history = self._sim.rest_history(u_rest)
+        self._x0_reset, self._xm1_reset, self._history_reset = x0.copy(), xm1.copy(), history
+        self._restore(x0, xm1, u_rest, 0, self._frame.com(x0), None if s > 0 else x0.copy(), history)
         if self.render_mode == "human":
             self.render()
         return self._get_obs(), self._get_info()
@@ -241,14 +259,16 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
     def step(self, action: Any):
         a = self._actuation.check_action(action)
         u_cmd = self._actuation.command(a)
-        x, xp, xp2, u = self._x, self._x_prev, self._x_prev2, self._u
+        x, xp, xp2, u, history = self._x, self._x_prev, self._x_prev2, self._u, self._history
         u_sub = np.empty((self.frame_skip, len(u)))
         cache = FactorCache()         # the sub-steps of this step share factorisations, no others
         try:
             for i in range(self.frame_skip):
                 u = self._actuation.follow(u, u_cmd)
                 xp2, xp, x = xp, x, self._sim.step(x, xp, u, k=self._n_sub + i, x_prev3=xp2,
-                                                   factor_cache=cache)
+                                                   factor_cache=cache, history=history)
+                if self._sim.has_history:
+                    history = self._sim.next_history(x, xp, history)
                 u_sub[i] = u
         except SimulationError as err:     # keep the state of before the step
             info = self._get_info()
@@ -256,7 +276,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
                         sim_failure=str(err))
             return self._get_obs(), 0.0, True, False, info
         com_before, yaw_before = self._com, self._yaw
-        self._restore(x, xp, u, self._n_sub + self.frame_skip, self._com_start, xp2)
+        self._restore(x, xp, u, self._n_sub + self.frame_skip, self._com_start, xp2, history)
         forward_velocity = float((self._com - com_before) @ self._heading) / self.dt / self._body_length
         yaw_rate = wrap_angle(self._yaw - yaw_before) / self.dt
         reward, reward_info = self._task.reward(forward_velocity, yaw_rate, a, self.is_healthy, self._body_length)
@@ -274,11 +294,13 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         return float(self._base_robot.body_length)
 
     def _restore(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray, n_sub: int,
-                 com_start: np.ndarray, x_prev2: np.ndarray | None = None) -> None:
+                 com_start: np.ndarray, x_prev2: np.ndarray | None = None, history: tuple | None = None) -> None:
         """Set the dynamic state and recompute the quantities derived from it. ``x_prev2``
-        (the state before ``x_prev``, or None) only improves the Newton solver's first guess."""
+        (the state before ``x_prev``, or None) only improves the Newton solver's first guess;
+        ``history`` is the contact law's lagged state (stick anchors; default: at rest at x)."""
         self._x, self._x_prev, self._u, self._n_sub = x, x_prev, u, int(n_sub)
         self._x_prev2 = x_prev2
+        self._history = self._sim.initial_history(x) if history is None else history
         self._com_start = np.array(com_start, dtype=np.float64)
         self._com = self._frame.com(x)
         self._rot = self._frame.rotation(x)
@@ -332,22 +354,25 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         ``dudz`` (K, M, nz) is given (see :meth:`Simulator.rollout`). ``u`` is applied as given:
         no action clipping and no motor speed limit. The environment's state is not touched."""
         return self._sim.rollout(u, x0=self._x0_reset, dudz=dudz, x_prev0=self._xm1_reset,
-                                 store_dxdz=store_dxdz)
+                                 store_dxdz=store_dxdz, history0=self._history_reset)
 
     def get_state(self) -> dict[str, Any]:
         """A copy of everything a step depends on: positions ``x`` and ``x_prev`` (n, 3),
         applied contractions ``u`` (M,), simulation steps since reset ``sim_steps``, the start
         COM ``com_start`` (3,) and the ``domain`` parameters; also ``x_prev2`` (n, 3) or None,
         the state before ``x_prev``, which only improves the solver's first guess (the next
-        state is the same to within the Newton tolerance without it)."""
+        state is the same to within the Newton tolerance without it); and ``history``, the
+        contact law's lagged state (the Coulomb law's stick anchors: a list with one (c, 2)
+        array; None entries for terms without history)."""
         return {"x": self._x.copy(), "x_prev": self._x_prev.copy(), "u": self._u.copy(),
                 "sim_steps": self._n_sub, "com_start": self._com_start.copy(), "domain": dict(self._domain),
-                "x_prev2": None if self._x_prev2 is None else self._x_prev2.copy()}
+                "x_prev2": None if self._x_prev2 is None else self._x_prev2.copy(),
+                "history": [None if h is None else np.array(h) for h in self._history]}
 
     def set_state(self, state: Mapping[str, Any]) -> None:
         """Restore a state from :meth:`get_state` (``x`` required; ``x_prev`` defaults to ``x``,
-        i.e. at rest, ``x_prev2`` to ``x`` at rest and to None otherwise, other keys to their
-        current values)."""
+        i.e. at rest, ``x_prev2`` to ``x`` at rest and to None otherwise, ``history`` to the
+        stick anchors of a robot at rest at ``x``, other keys to their current values)."""
         if "domain" in state:
             self._set_domain(state["domain"])
         n = self._sim.n_nodes
@@ -362,9 +387,30 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         for name, v, shape in checks:
             if v.shape != shape or not np.isfinite(v).all():
                 raise ValueError(f"state[{name!r}] must be a finite array of shape {shape}, got {v.shape}")
+        history = self._check_history(state.get("history"), x)
         self._trail.clear()
         self._restore(x, xp, u, int(state.get("sim_steps", self._n_sub)),
-                      state.get("com_start", self._com_start), xp2)
+                      state.get("com_start", self._com_start), xp2, history)
+
+    def _check_history(self, history, x: np.ndarray) -> tuple:
+        """A state's ``history`` as the simulator's tuple (default: at rest at x)."""
+        expected = self._sim.initial_history(x)
+        if history is None:
+            return expected
+        if len(history) != len(expected):
+            raise ValueError(f"state['history'] must have {len(expected)} entries, got {len(history)}")
+        out = []
+        for i, (h, e) in enumerate(zip(history, expected)):
+            if e is None or h is None:
+                if (e is None) != (h is None):
+                    raise ValueError(f"state['history'][{i}] must be {'None' if e is None else 'an array'}")
+                out.append(None)
+                continue
+            h = np.array(h, dtype=np.float64)
+            if h.shape != e.shape or not np.isfinite(h).all():
+                raise ValueError(f"state['history'][{i}] must be a finite array of shape {e.shape}, got {h.shape}")
+            out.append(h)
+        return tuple(out)
 
     def com(self) -> np.ndarray:
         """Current centre of mass (3,) [m]."""

@@ -5,7 +5,8 @@ at every reset draw a factor uniformly from each range (keys in sorted order, fr
 environment's ``np_random``) and multiply the nominal robot's parameter by it. Keys:
 
 ========================  =====================================================================
-``friction``              ground friction weight ``robot.contact.friction``
+``friction``              ground friction of the robot's contact law: the paper law's weight
+                          ``robot.contact.friction``, the Coulomb law's ``friction_coefficient``
 ``contact_stiffness``     ground penalty stiffness ``robot.contact.stiffness``
 ``youngs_modulus``        Young's modulus of the foam
 ``density``               foam density (body mass)
@@ -74,7 +75,8 @@ def randomized_robot(base: Robot, factors: Mapping[str, float]) -> Robot:
         return base
     contact = base.contact
     if "friction" in f or "contact_stiffness" in f:
-        contact = dataclasses.replace(contact, friction=contact.friction * f.get("friction", 1.0),
+        name = "friction" if contact.model == "paper" else "friction_coefficient"
+        contact = dataclasses.replace(contact, **{name: getattr(contact, name) * f.get("friction", 1.0)},
                                       stiffness=contact.stiffness * f.get("contact_stiffness", 1.0))
     return base.replace(contact=contact,
                         youngs_modulus=base.youngs_modulus * f.get("youngs_modulus", 1.0),

@@ -49,6 +49,9 @@ class GradientEnv(Protocol):
     def incline_deg(self) -> float: ...     # ground slope [deg]
 
     @property
+    def contact_model(self) -> str: ...     # "paper" (II-C, viscous-like friction) or "coulomb"
+
+    @property
     def gravity(self) -> np.ndarray: ...    # (3,) [m/s^2]
 
     def rollout(self, u: np.ndarray, dudz: np.ndarray | None = None, *,
@@ -70,35 +73,37 @@ class GradientEnv(Protocol):
 
 
 #: The members of :class:`GradientEnv`, checked by :func:`as_gradient_env`.
-GRADIENT_ENV_MEMBERS = ("robot", "timestep", "control_mode", "incline_deg", "gravity", "rollout",
+GRADIENT_ENV_MEMBERS = ("robot", "timestep", "control_mode", "incline_deg", "contact_model", "gravity", "rollout",
                         "reset_state", "get_state", "set_state", "com", "cable_deformation", "cable_tension")
 
 
 def make_gradient_env(robot: str | os.PathLike | Robot = "puppy", *, incline_deg: float = 0.0,
-                      heading_deg: float = 0.0, timestep: float = PAPER_TIMESTEP) -> SoftRobotEnv:
+                      heading_deg: float = 0.0, timestep: float = PAPER_TIMESTEP,
+                      contact: str | None = None) -> SoftRobotEnv:
     """A bare environment for trajectory optimisation, reset without noise: its rollouts start
     at the exact rest state with the motors at ``robot.u_rest``.
 
     ``robot``: a shipped robot name (``"tripod"``, ``"puppy"``: their registered classes), a
     robot.toml path or a :class:`~soft_envs.sim.Robot`; the ground slopes by ``incline_deg``,
     rising along ``heading_deg`` (degrees from +x towards +z); ``timestep`` is the simulation
-    time step [s]."""
+    time step [s]; ``contact`` the contact law ("paper", "coulomb"; None: the robot file's)."""
     from .puppy import SoftPuppyEnv
     from .tripod import SoftTripodEnv
     shipped = {"tripod": SoftTripodEnv, "puppy": SoftPuppyEnv}
     cls = shipped.get(robot, SoftRobotEnv) if isinstance(robot, str) else SoftRobotEnv
     env = cls(robot, incline_deg=incline_deg, target_heading_deg=heading_deg, timestep=timestep,
-              reset_noise_scale=0.0)
+              reset_noise_scale=0.0, contact=contact)
     env.reset(seed=0)
     return env
 
 
-def as_gradient_env(env_or_robot: Any, *, incline_deg: float = 0.0, heading_deg: float = 0.0) -> GradientEnv:
+def as_gradient_env(env_or_robot: Any, *, incline_deg: float = 0.0, heading_deg: float = 0.0,
+                    contact: str | None = None) -> GradientEnv:
     """The :class:`GradientEnv` of a (wrapped) environment, i.e. its ``unwrapped`` object, or
     :func:`make_gradient_env` of a :class:`~soft_envs.sim.Robot`, a robot name or a robot.toml
     path. TypeError when the environment lacks a member of the protocol."""
     if isinstance(env_or_robot, (Robot, str, os.PathLike)):
-        return make_gradient_env(env_or_robot, incline_deg=incline_deg, heading_deg=heading_deg)
+        return make_gradient_env(env_or_robot, incline_deg=incline_deg, heading_deg=heading_deg, contact=contact)
     target = getattr(env_or_robot, "unwrapped", env_or_robot)
     missing = [name for name in GRADIENT_ENV_MEMBERS if not hasattr(target, name)]
     if missing:

@@ -1,4 +1,4 @@
-"""``SoftPuppy-v0``: the eight-motor quadruped Puppy of Bern et al. (RSS 2019), section IV-B."""
+"""``SoftPuppy-v0`` / ``SoftPuppy-v1``: the eight-motor quadruped Puppy of Bern et al. (RSS 2019), section IV-B."""
 from __future__ import annotations
 
 import os
@@ -147,6 +147,7 @@ class SoftPuppyEnv(SoftRobotEnv):
     | `gait_period`              | **float**          | `2.376`        | period [s] of the gait-phase observation (the paper's cycle: 72 steps) |
     | `observe_nodes`            | **bool**           | `False`        | append all node positions relative to the COM to the observation |
     | `domain_randomization`     | **dict \| bool \| None** | `None`   | multiplicative factors drawn uniformly at each reset (from `np_random`, keys in sorted order) for `friction`, `contact_stiffness`, `youngs_modulus`, `density`, `payload_mass`, as `{key: (low, high)}`, e.g. `{"friction": (0.7, 1.3)}`; `True`: `soft_envs.envs.DEFAULT_DOMAIN_RANDOMIZATION` = friction (0.7, 1.3), youngs_modulus (0.8, 1.2), density (0.9, 1.1), payload_mass (0.9, 1.1); `None` or `False`: the nominal robot. `env.unwrapped.domain_parameters` holds the episode's factors |
+    | `contact`                  | **str \| None**   | `None`         | ground contact law: `"paper"` (paper II-C: viscous-like lagged friction, what Table I was made with; the robot file's default), `"coulomb"` (Coulomb friction bounded by `friction_coefficient` x the normal force, feet held by stick anchors: `soft_envs.sim.coulomb`), or `None` for the robot file's `[contact] model`. `SoftPuppy-v1` passes `"coulomb"` |
     | `render_mode`              | **str \| None**    | `None`         | `"rgb_array"` (uint8 frames, offscreen matplotlib, no OpenGL) or `"human"` (matplotlib window) |
     | `width`, `height`          | **int**            | `480`, `360`   | frame size in pixels |
     | `camera_config`            | **dict \| None**   | `None`         | extra keyword arguments of `soft_envs.render.Renderer` (`elevation`, `azimuth`, `distance`, ...) |
@@ -166,6 +167,10 @@ class SoftPuppyEnv(SoftRobotEnv):
       MuJoCo environments (it was the simulation step, now `env.unwrapped.timestep`; the two are
       equal at the default `frame_skip=1`), and `domain_randomization=True` selects the
       default ranges.
+    * v1: the Coulomb contact law (`contact="coulomb"`: friction bounded by mu N with
+      mu = 0.8, feet that stick; the `friction` factor of domain randomisation scales mu).
+      Observations, actions and rewards as in v0. The stick anchors are part of the state
+      (`get_state()["history"]`).
     """
 
     def __init__(self, robot: str | os.PathLike | Robot = "puppy", **kwargs: Any):

@@ -41,7 +41,7 @@ class ContactParams:
     blend: float = 5e-4
     model: str = "paper"
     friction_coefficient: float = 0.8
-    slip_distance: float = 1e-4
+    slip_distance: float = 3e-4
 
     def __post_init__(self):
         if self.model not in CONTACT_MODELS:

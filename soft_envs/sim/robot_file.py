@@ -26,7 +26,7 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     friction = 500.0             # [1/m]
     blend = 5e-4                 # [m] C2 blend of the normal law (0: half-quadratic, coulomb)
     friction_coefficient = 0.8   # Coulomb's mu (model = "coulomb")
-    slip_distance = 1e-4         # [m] offset from its stick anchor at which a node slides (coulomb)
+    slip_distance = 3e-4         # [m] offset from its stick anchor at which a node slides (coulomb)
 
     [fixed]                      # optional: clamped nodes
     nodes = [0, 1, 2]            # and/or box = [[x0, x1], [y0, y1], [z0, z1]] (mesh frame and units)
