@@ -1,18 +1,18 @@
-"""Gait optimisation benchmark and the paper's tasks (issue: trajopt).
+"""Gait optimisation benchmark and the paper's tasks under either contact law.
 
 Runs, in one go: Tripod walk; Puppy walk (symmetry on); Puppy turn right (symmetry off,
-warm-started from the walk); Puppy incline (slope of INCLINE_DEG = 20 degrees, re-optimised
-from the seeds) and, for comparison, the flat-ground Puppy gait played on that slope. (With
-this lagged, viscous-like friction the simulated Puppy does not fall on a 10-degree slope; it
-is only slower, so the comparison is made where re-optimising matters.) Prints per task: mesh size,
+warm-started from the walk); Puppy incline at 10 and 20 degrees (re-optimised from the seeds)
+and, for comparison, the flat-ground Puppy gait played on those slopes. ``--contact paper``
+(default; the law Table I was made with) or ``coulomb``. Prints per task: mesh size,
 parameters, Gauss-Newton iterations, mean time per iteration (line search included), total
 optimisation time, simulation steps spent, and the evaluation over 10 cycles (speed in body
 lengths per minute along the target direction, heading change, upright), next to the paper's
 Table I (simulation: Tripod 6.1, Puppy 8.6 BL/min). Results go to benchmarks/results/.
-Run: python benchmarks/bench_trajopt.py   (a few minutes)
+Run: python benchmarks/bench_trajopt.py [--contact coulomb]   (several minutes)
 """
 from __future__ import annotations
 
+import argparse
 import time
 from pathlib import Path
 
@@ -26,7 +26,7 @@ from trajopt.gait import GaitSpec
 from trajopt.parameterization import GaitParameterization
 
 OUT = Path(__file__).with_name("results")
-INCLINE_DEG = 20.0
+INCLINES_DEG = (10.0, 20.0)
 EVAL_CYCLES = 10
 PAPER = {"tripod": 6.1, "puppy": 8.6}
 
@@ -41,38 +41,42 @@ def row(task: str, robot_name: str, hooks, res, wall: float) -> dict:
             "heading_change_deg": ev["heading_change_deg"], "upright_10_cycles": ev["upright"]}
 
 
-def optimise(task: str, robot_name: str, **kw):
-    hooks = make_gradient_env(robot_name, incline_deg=kw.pop("incline_deg", 0.0))
+def optimise(task: str, robot_name: str, contact: str, **kw):
+    incline = kw.pop("incline_deg", 0.0)
+    hooks = make_gradient_env(robot_name, incline_deg=incline, contact=contact)
     t0 = time.perf_counter()
     res = optimize_gait(hooks, task, eval_cycles=EVAL_CYCLES, robot_spec=robot_name,
                         options=GaussNewtonOptions(max_iter=kw.pop("max_iter", 10)), **kw)
     wall = time.perf_counter() - t0
-    res.save(OUT / f"{robot_name}_{task}.npz")
+    res.save(OUT / f"{robot_name}_{task}{f'_{incline:g}deg' if incline else ''}_{contact}.npz")
     return hooks, res, wall
 
 
-def main() -> None:
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--contact", choices=["paper", "coulomb"], default="paper")
+    contact = p.parse_args(argv).contact
     rows = []
-    hooks, res, wall = optimise("walk", "tripod")
+    hooks, res, wall = optimise("walk", "tripod", contact)
     rows.append(row("tripod walk", "tripod", hooks, res, wall))
-    hooks, walk, wall = optimise("walk", "puppy")
+    hooks, walk, wall = optimise("walk", "puppy", contact)
     rows.append(row("puppy walk", "puppy", hooks, walk, wall))
-    walk.settings["source"] = str(OUT / "puppy_walk.npz")
-    hooks, res, wall = optimise("turn", "puppy", warm_start=walk)
+    walk.settings["source"] = str(OUT / f"puppy_walk_{contact}.npz")
+    hooks, res, wall = optimise("turn", "puppy", contact, warm_start=walk)
     rows.append(row("puppy turn (warm)", "puppy", hooks, res, wall))
-    # re-optimised from the seeds (paper IV-B: "reoptimize for a walking trajectory")
-    hooks, res, wall = optimise("incline", "puppy", incline_deg=INCLINE_DEG)
-    rows.append(row(f"puppy incline {INCLINE_DEG:g} deg", "puppy", hooks, res, wall))
-    # the flat-ground gait on the slope
-    s = walk.settings
-    param = GaitParameterization.for_robot(hooks.robot, GaitSpec.from_settings(s))
-    u = param.controls(np.asarray(walk.z), EVAL_CYCLES)
-    ev = evaluate_controls(hooks, u, n_prep=param.n_prep, n_cycle=param.n_cycle)
-    rows.append({"task": f"puppy flat gait on {INCLINE_DEG:g} deg", "nodes": hooks.robot.mesh.n_nodes,
-                 "nz": len(walk.z), "iterations": 0, "s_per_iteration": 0.0, "total_s": 0.0, "sim_steps": 0,
-                 "speed_bl_min": ev["speed_bl_per_min"], "paper_bl_min": float("nan"),
-                 "heading_change_deg": ev["heading_change_deg"], "upright_10_cycles": ev["upright"]})
-    report("trajopt: paper tasks", rows)
+    for incline in INCLINES_DEG:
+        # re-optimised from the seeds (paper IV-B: "reoptimize for a walking trajectory")
+        hooks, res, wall = optimise("incline", "puppy", contact, incline_deg=incline)
+        rows.append(row(f"puppy incline {incline:g} deg", "puppy", hooks, res, wall))
+        # the flat-ground gait on the slope
+        param = GaitParameterization.for_robot(hooks.robot, GaitSpec.from_settings(walk.settings))
+        u = param.controls(np.asarray(walk.z), EVAL_CYCLES)
+        ev = evaluate_controls(hooks, u, n_prep=param.n_prep, n_cycle=param.n_cycle)
+        rows.append({"task": f"puppy flat gait on {incline:g} deg", "nodes": hooks.robot.mesh.n_nodes,
+                     "nz": len(walk.z), "iterations": 0, "s_per_iteration": 0.0, "total_s": 0.0, "sim_steps": 0,
+                     "speed_bl_min": ev["speed_bl_per_min"], "paper_bl_min": float("nan"),
+                     "heading_change_deg": ev["heading_change_deg"], "upright_10_cycles": ev["upright"]})
+    report(f"trajopt: paper tasks, {contact} contact law", rows)
     puppy = rows[1]
     print(f"puppy walk: {puppy['s_per_iteration']:.2f} s per Gauss-Newton iteration (target <= 5 s), "
           f"{puppy['total_s']:.1f} s in all (target <= 60 s)")
