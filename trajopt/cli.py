@@ -9,6 +9,7 @@
     trajopt plot results/tripod_walk.npz --out plots/
     trajopt play results/tripod_walk.npz --hardware hw.toml [--dry-run]
     trajopt rl train tripod --algo ppo --timesteps 20000 --out runs/
+    trajopt sweep examples/sweep_speeds.toml --out sweeps/speeds [--workers N] [--address auto]
 """
 from __future__ import annotations
 
@@ -72,6 +73,11 @@ def _add_result_commands(sub) -> None:
     p.set_defaults(func=_cmd_plot)
 
 
+def _add_sweep(sub) -> None:
+    from .sweep.cli import add_sweep_parser     # imports Ray only when a sweep runs
+    add_sweep_parser(sub)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="trajopt", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -87,6 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
         add_rl_parser(sub)
     except ImportError:
         pass
+    _add_sweep(sub)
     return parser
 
 
