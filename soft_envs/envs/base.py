@@ -27,6 +27,7 @@ from gymnasium import spaces
 
 from ..sim import Robot, SimulationError, Simulator, Trajectory, incline_gravity, load_robot
 from .domain import parse_domain_randomization, randomized_robot, sample_factors
+from .threads import limit_threads_in_worker
 from ..sim.kinematics import BodyFrame, heading_vector, tilt_deg_of, wrap_angle, yaw_of
 from .viewer import EnvViewer, RenderingMixin
 
@@ -88,6 +89,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
+        limit_threads_in_worker()      # a vector-env worker: one BLAS/numba thread (threads.py)
         self._base_robot = robot if isinstance(robot, Robot) else load_robot(robot)
         if self._base_robot.n_motors == 0:
             raise ValueError(f"robot {self._base_robot.name!r} has no motors")
