@@ -122,14 +122,29 @@ def _single(steps: int = VEC_STEPS, kind: str = "random", queue=None, index: int
     acts = _actions(env, steps + 10, kind, index)
     for a in acts[:10]:
         env.step(a)
+    cpu = np.empty(steps)
     t0 = time.perf_counter()
-    for a in acts[10:]:
+    for k, a in enumerate(acts[10:]):
+        c = time.thread_time()
         env.step(a)
+        cpu[k] = time.thread_time() - c
     rate = steps / (time.perf_counter() - t0)
     env.close()
     if queue is not None:
         queue.put(rate)
+    _STEP_CPU[kind] = cpu
     return rate
+
+
+_STEP_CPU: dict[str, np.ndarray] = {}
+
+
+def lockstep_factor(cpu: np.ndarray) -> float:
+    """E[max(t1, t2)] / E[t] for two environments stepped in lockstep, each step's CPU time
+    drawn from one environment's (first half paired with the second half): a synchronous
+    vector step waits for the slower environment, so 2 / factor bounds its speed-up."""
+    h = len(cpu) // 2
+    return float(np.maximum(cpu[:h], cpu[h:2 * h]).mean() / cpu[:2 * h].mean())
 
 
 def _vector(kind: str, actions: str, n: int = 2, steps: int = VEC_STEPS) -> dict:
@@ -218,6 +233,12 @@ def bench_vector(actions: str = "random") -> list[dict]:
     report(f"vector environments, {VEC_ENV}, 2 envs, {actions} actions ({VEC_STEPS} steps per env, best of "
            f"{VEC_ROUNDS} alternating rounds; load average {load0[0]:.2f} at the start, "
            f"{os.getloadavg()[0]:.2f} at the end, {os.cpu_count()} CPUs)", rows)
+    cpu = _STEP_CPU[actions]
+    f = lockstep_factor(cpu)
+    print(f"{actions} actions: one environment's step takes {1e3 * cpu.mean():.2f} ms CPU (sd {1e3 * cpu.std():.2f}); "
+          f"two in lockstep wait for the slower: E[max]/E = {f:.3f}, so synchronous stepping gives at most "
+          f"{2 / f:.2f}x; the main process of the async vector env spends "
+          f"{best['async']['main_cpu_ms_per_step']:.2f} ms CPU per vector step")
     for r in rows[1:]:
         print(f"{actions} actions, {r['vector env']}: {r['env steps/s']:.0f} env steps/s vs one environment's {single:.0f}: "
               f"{r['x one env']:.2f}x (target >= 1.7x)")

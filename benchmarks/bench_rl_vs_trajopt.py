@@ -213,12 +213,23 @@ def findings(robot: str, rows: list[dict]) -> list[str]:
     return out
 
 
+def _column(r: dict, rows: list[dict]) -> str:
+    if r["kind"] != "trajopt":
+        return f"{r['method']}, seeds {' / '.join(map(str, r['seeds']))}"
+    same = sorted(t["target_speed"] for t in rows if t["kind"] == "trajopt" and t["n_cycle"] == r["n_cycle"])
+    rank = "" if len(same) == 1 else (", default target" if r["target_speed"] == same[0] else ", higher target")
+    return f"trajopt, {r['n_cycle']}-step cycle{rank}"
+
+
 def readme_section(results: dict[str, list[dict]]) -> str:
-    lines = ["| robot | " + " | ".join(r["method"] for r in next(iter(results.values()))) + " |",
-             "|---|" + "---|" * len(next(iter(results.values())))]
+    first = next(iter(results.values()))
+    lines = ["| robot | " + " | ".join(_column(r, first) for r in first) + " |", "|---|" + "---|" * len(first)]
     for robot, rows in results.items():
-        cells = [f"{_ms(r['speeds'])} BL/min, {int(np.mean(r['sim_steps'])):,} steps, "
-                 f"{np.mean(r['wall_time_s']):.0f} s" for r in rows]
+        cells = []
+        for r in rows:
+            target = f"target {r['target_speed']:g}: " if r["kind"] == "trajopt" else ""
+            cells.append(f"{target}{_ms(r['speeds'])} BL/min, {int(np.mean(r['sim_steps'])):,} steps, "
+                         f"{np.mean(r['wall_time_s']):.0f} s")
         lines.append(f"| {robot.capitalize()} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

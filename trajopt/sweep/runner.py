@@ -73,7 +73,11 @@ def start_ray(workers: int | None = None, address: str | None = None):
         return ray, False
     kwargs: dict[str, Any] = {"log_to_driver": False, "configure_logging": True, "logging_level": "ERROR"}
     if address:
-        ray.init(address=address, **kwargs)
+        try:
+            ray.init(address=address, **kwargs)
+        except (ConnectionError, RuntimeError, TimeoutError) as exc:
+            raise ValueError(f"--address {address}: cannot connect to a Ray cluster there ({exc}); start one "
+                             "with 'ray start --head' (see notes/ray.md) or leave --address out") from exc
     else:
         ray.init(num_cpus=int(workers or os.cpu_count() or 1), include_dashboard=False, **kwargs)
     return ray, True

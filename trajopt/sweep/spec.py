@@ -35,6 +35,7 @@ sweep file. Every problem is a ``ValueError`` naming the file and the field.
 """
 from __future__ import annotations
 
+import functools
 import itertools
 import os
 import re
@@ -141,8 +142,9 @@ def _table(block: dict, key: str, where: str) -> dict[str, Any]:
     return t
 
 
+@functools.lru_cache(maxsize=None)
 def _parsers(kind: str):
-    """The argparse parser of the command ``kind`` runs, with errors raised as ValueError."""
+    """The argparse parser of the command ``kind`` runs (its errors raise :class:`_ArgError`)."""
     from ..cli import build_parser
     parser = build_parser()
     for word in KINDS[kind][0]:
@@ -151,6 +153,7 @@ def _parsers(kind: str):
             raise ValueError(f"kind {kind!r} needs 'trajopt {' '.join(KINDS[kind][0])}', which is "
                              "not available here (pip install soft-envs[rl] for the RL kinds)")
         parser = sub.choices[word]
+    parser.error = _raise                                   # type: ignore[method-assign]
     return parser
 
 
@@ -183,7 +186,6 @@ def _validate_argv(run: Run, where: str) -> None:
                              f"(allowed: {positional}, {', '.join(opts)}, contact_<field> for optimize)")
     if positional not in run.params:
         raise ValueError(f"{where}: argument {positional!r} is missing (in args or grid)")
-    parser.error = _raise                                   # type: ignore[method-assign]
     try:
         parser.parse_args(run.argv()[len(KINDS[run.kind][0]):])
     except _ArgError as exc:
