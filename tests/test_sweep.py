@@ -142,11 +142,18 @@ def test_four_tiny_optimisations_write_results_and_summary(local_ray, tmp_path):
 
 
 def test_failed_run_is_reported_and_rerun_skips_finished_runs(local_ray, tmp_path):
-    text = tiny_block("ok{speed:g}", "speed = [3.0, 4.0, 5.0]") + tiny_block("broken", "_x = [0]", robot="no_such_robot.toml")
+    text = (tiny_block("ok{speed:g}", "speed = [3.0, 4.0, 5.0]") + tiny_block("broken", "_x = [0]", robot="no_such_robot.toml")
+            + '[[runs]]\nkind = "evaluate"\nname = "eval3"\n[runs.args]\nresult = "{out}/ok3/ok3.npz"\ncycles = 1\n')
     out = tmp_path / "out"
     spec = load_spec(write(tmp_path, text), out)
     outcome = run_sweep(spec, out)
-    assert outcome.count("done") == 3 and outcome.count("failed") == 1
+    assert outcome.count("done") == 4 and outcome.count("failed") == 1
+    # evaluations start after the optimisations they read
+    ev = json.loads((out / "eval3" / "evaluation.json").read_text())
+    assert outcome.statuses["eval3"]["started"] >= outcome.statuses["ok3"]["finished"]
+    optimised = outcome.statuses["ok3"]["metrics"]          # `trajopt evaluate` prints 3 decimals
+    assert ev["speed_bl_per_min"] == pytest.approx(optimised["speed_bl_per_min"], abs=6e-4)
+    assert ev["upright"] == optimised["upright"]
     reason = outcome.statuses["broken"]["reason"]
     assert "no_such_robot.toml" in reason and "not found" in reason
     write_summary(spec, outcome.statuses, out, plot=False)
@@ -154,7 +161,7 @@ def test_failed_run_is_reported_and_rerun_skips_finished_runs(local_ray, tmp_pat
     before = {name: digest(out / name) for name in ("ok3", "ok4", "ok5")}
 
     again = run_sweep(load_spec(spec.path, out), out)
-    assert sorted(again.skipped) == ["ok3", "ok4", "ok5"]
+    assert sorted(again.skipped) == ["eval3", "ok3", "ok4", "ok5"]
     assert again.statuses["broken"]["status"] == "failed"           # retried, fails again
     assert {name: digest(out / name) for name in before} == before   # finished runs untouched
     # a run directory made with other arguments is never overwritten
