@@ -183,9 +183,10 @@ def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path
     """Two tiny runs finish, then two long ones start: the worker of one is killed (recorded as
     failed with the reason), then the sweep gets SIGINT: it exits 130, the other long run is
     interrupted with its checkpoint saved for --resume, and the finished runs are untouched."""
-    long_args = TINY.replace("iterations = 1", "iterations = 40")
+    # the long runs: Puppy gaits on the paper's 72-step cycle, far from converged when stopped
+    long_args = "iterations = 100\nseeds = 1\ncycles = 1\n"
     text = (tiny_block("quick{speed:g}", "speed = [3.0, 4.0]")
-            + tiny_block("long{speed:g}", "speed = [5.0, 6.0]").replace(TINY, long_args))
+            + tiny_block("long{speed:g}", "speed = [5.0, 6.0]", robot="puppy").replace(TINY, long_args))
     out = tmp_path / "out"
     spec_path = write(tmp_path, text)
     address = local_ray.get_runtime_context().gcs_address
