@@ -177,7 +177,7 @@ def execute(run: Run, out: str | os.PathLike, threads: int | None = None) -> dic
 
     out = Path(out)
     run_dir = out / run.name
-    t0 = time.time()
+    t0, cpu0 = time.time(), time.process_time()
     status: dict[str, Any] = {"run": run.name, "kind": run.kind, "params": run.params, "cpus": run.cpus,
                               "options": run.options, "status": "running", "started": t0,
                               "host": platform.node(), "pid": os.getpid()}
@@ -217,7 +217,8 @@ def execute(run: Run, out: str | os.PathLike, threads: int | None = None) -> dic
                 traceback.print_exc(file=log)
                 status.update(status="failed", reason=_reason(exc))
     finally:
-        status.update(exit_code=code, finished=time.time(), wall_time_s=time.time() - t0)
+        status.update(exit_code=code, finished=time.time(), wall_time_s=time.time() - t0,
+                      cpu_time_s=time.process_time() - cpu0)     # this process (not its subprocesses)
         if status["status"] == "running":           # left by a BaseException we do not handle
             status.update(status="interrupted", reason="stopped before the run ended")
         write_status(run_dir, status)
