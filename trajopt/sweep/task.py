@@ -76,9 +76,12 @@ def _derived_robot(run: Run, run_dir: Path) -> Path:
     robot = str(run.params["robot"])
     if robot.endswith(".toml"):
         src = Path(robot)
-    else:
+    else:                                   # where load_robot finds shipped robots, in its order
+        import soft_envs
         from importlib.resources import files
-        src = Path(str(files("soft_envs.assets") / robot / "robot.toml"))
+        src = Path(soft_envs.__file__).resolve().parents[1] / "assets" / robot / "robot.toml"
+        if not src.is_file():
+            src = Path(str(files("soft_envs.assets") / robot / "robot.toml"))
     if not src.is_file():
         raise ValueError(f"robot {robot!r}: robot file {src} not found")
     doc = tomllib.loads(src.read_text())
