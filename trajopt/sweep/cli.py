@@ -53,6 +53,6 @@ def run_sweep_command(args) -> int:
         if st.get("status") == "failed":
             print(f"  failed: {name}: {st.get('reason')}")
     if outcome.interrupted:
-        print(f"interrupted: run the same command again to continue")
+        print("interrupted: run the same command again to continue")
         return 130
     return 1 if outcome.count("failed") else 0
