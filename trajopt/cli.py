@@ -11,6 +11,7 @@
     trajopt rl train tripod --algo ppo --timesteps 20000 --out runs/
     trajopt mesh body.stl --scale 0.001 --up +z --out my_robot/
     trajopt check my_robot/robot.toml
+    trajopt sweep examples/sweep_speeds.toml --out sweeps/speeds [--workers N] [--address auto]
 """
 from __future__ import annotations
 
@@ -112,6 +113,9 @@ def _add_robot_commands(sub) -> None:
                    help="PNG to write (default: <robot name>.png beside the robot.toml, or here)")
     p.add_argument("--no-picture", action="store_true", help="do not draw")
     p.set_defaults(func=_cmd_check)
+def _add_sweep(sub) -> None:
+    from .sweep.cli import add_sweep_parser     # imports Ray only when a sweep runs
+    add_sweep_parser(sub)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -130,6 +134,7 @@ def build_parser() -> argparse.ArgumentParser:
         add_rl_parser(sub)
     except ImportError:
         pass
+    _add_sweep(sub)
     return parser
 
 

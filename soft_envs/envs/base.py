@@ -31,6 +31,7 @@ from .actuation import Actuation
 from .domain import parse_domain_randomization, randomized_robot, sample_factors
 from .measure import BodyFrame, tilt_deg_of, wrap_angle, yaw_of
 from .task import LocomotionTask
+from .threads import limit_threads_in_worker
 from .viewer import EnvViewer, RenderingMixin
 
 __all__ = ["SoftRobotEnv", "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM"]
@@ -112,6 +113,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         _check_arguments(frame_skip=frame_skip, timestep=timestep, gait_period=gait_period,
                          reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
                          incline_deg=incline_deg, render_mode=render_mode)
+        limit_threads_in_worker()      # a vector-env worker: one BLAS/numba thread (threads.py)
         self._base_robot = _with_contact(robot if isinstance(robot, Robot) else load_robot(robot), contact)
         if self._base_robot.n_motors == 0:
             raise ValueError(f"robot {self._base_robot.name!r} has no motors")
