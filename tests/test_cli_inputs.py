@@ -51,6 +51,7 @@ def bad_argument_cases(result: str, tmp: str) -> list[tuple[list[str], str]]:
         ([*opt, "--cycle-steps", "0"], "--cycle-steps"), ([*opt, "--prep-steps", "-1"], "--prep-steps"),
         ([*opt, "--keyframes", "9"], "--keyframes 9 must be at most --cycle-steps 8"),
         (["evaluate", result, "--cycles", "0"], "--cycles"),
+        (["evaluate", result, "--cycles", "100000"], "--cycles"), ([*opt, "--name", "../x"], "--name"),
         (["render", result, "--every", "0", "--gif", f"{tmp}/a.gif"], "--every"),
         (["render", result, "--size", "0x0", "--gif", f"{tmp}/b.gif"], "--size"),
         (["render", result, "--size", "big", "--gif", f"{tmp}/c.gif"], "--size"),

@@ -15,7 +15,7 @@ from typing import Callable
 from .files import check_output_dir
 
 __all__ = ["integer", "positive_int", "nonnegative_int", "number", "positive_float", "nonnegative_float",
-           "slope_deg", "frame_size", "output_dir", "output_file"]
+           "slope_deg", "file_name", "frame_size", "output_dir", "output_file", "cycles", "steps"]
 
 
 def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
@@ -37,6 +37,10 @@ def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int
 
 positive_int = integer(1)
 nonnegative_int = integer(0)
+#: gait cycles played (an upper bound keeps a typo from allocating the machine's memory)
+cycles = integer(1, 1000)
+#: simulation steps of a phase
+steps = integer(1, 100_000)
 
 
 def number(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
@@ -68,6 +72,13 @@ def number(lo: float | None = None, hi: float | None = None, *, lo_open: bool = 
 positive_float = number(0.0, lo_open=True)
 nonnegative_float = number(0.0)
 slope_deg = number(-90.0, 90.0, lo_open=True, hi_open=True)
+
+
+def file_name(text: str) -> str:
+    """A plain file name: no directory part (that is what ``--out`` is for), not empty."""
+    if not text or text in (".", "..") or "/" in text or "\\" in text or "\0" in text:
+        raise argparse.ArgumentTypeError(f"must be a file name without a directory (use --out for that), got {text!r}")
+    return text
 
 
 def frame_size(text: str) -> tuple[int, int]:

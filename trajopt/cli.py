@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .argtypes import (frame_size, nonnegative_int, number, output_dir, output_file, positive_float,
-                       positive_int, slope_deg)
+from .argtypes import (cycles, file_name, frame_size, integer, number, output_dir, output_file, positive_float,
+                       positive_int, slope_deg, steps)
 from .files import RESULTS_DIR
 from .gait import DEFAULT_EVAL_CYCLES, GaitSpec
 
@@ -49,19 +49,19 @@ def _add_optimize(sub) -> None:
                      help="bilateral symmetry on (default for walk and incline)")
     sym.add_argument("--no-symmetry", dest="symmetry", action="store_false", help="symmetry off (default for turn)")
     p.add_argument("--warm-start", type=Path, default=None, help="start from this result's keyframes")
-    p.add_argument("--iterations", type=positive_int, default=10, help="Gauss-Newton iterations at most")
+    p.add_argument("--iterations", type=integer(1, 100_000), default=10, help="Gauss-Newton iterations at most")
     paper = GaitSpec()
-    p.add_argument("--keyframes", type=positive_int, default=paper.n_keyframes,
+    p.add_argument("--keyframes", type=steps, default=paper.n_keyframes,
                    help=f"spline keyframes per cycle (default {paper.n_keyframes}, the paper's)")
-    p.add_argument("--cycle-steps", type=positive_int, default=paper.n_cycle,
+    p.add_argument("--cycle-steps", type=steps, default=paper.n_cycle,
                    help=f"simulation steps per gait cycle (default {paper.n_cycle}, the paper's)")
-    p.add_argument("--prep-steps", type=nonnegative_int, default=paper.n_prep,
+    p.add_argument("--prep-steps", type=integer(0, 100_000), default=paper.n_prep,
                    help=f"simulation steps of the preparatory phase (default {paper.n_prep}, the paper's)")
-    p.add_argument("--seeds", type=nonnegative_int, default=8, help="random starting patterns tried (no warm start)")
-    p.add_argument("--cycles", type=positive_int, default=DEFAULT_EVAL_CYCLES,
-                   help="cycles played for the evaluation")
+    p.add_argument("--seeds", type=integer(0, 10_000), default=8,
+                   help="random starting patterns tried (no warm start)")
+    p.add_argument("--cycles", type=cycles, default=DEFAULT_EVAL_CYCLES, help="cycles played for the evaluation")
     p.add_argument("--out", type=output_dir, default=RESULTS_DIR, help=f"output directory (default {RESULTS_DIR}/)")
-    p.add_argument("--name", default=None, help="result file name (default ROBOT_TASK)")
+    p.add_argument("--name", type=file_name, default=None, help="result file name (default ROBOT_TASK)")
     p.add_argument("--resume", action="store_true",
                    help="continue the interrupted run of this name (from its NAME.partial.npz checkpoint)")
     p.add_argument("--overwrite", action="store_true",
@@ -74,7 +74,7 @@ def _add_optimize(sub) -> None:
 def _add_result_commands(sub) -> None:
     p = sub.add_parser("evaluate", help="re-simulate a result and report its speed")
     p.add_argument("result", type=Path)
-    p.add_argument("--cycles", type=positive_int, default=None, help="cycles to play (default: as optimised)")
+    p.add_argument("--cycles", type=cycles, default=None, help="cycles to play (default: as optimised)")
     p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
     p.set_defaults(func=_cmd_evaluate)
     n_cycles = GaitSpec().n_cycles
@@ -86,7 +86,7 @@ def _add_result_commands(sub) -> None:
                    help=f"animated GIF to write (default {RESULTS_DIR}/RESULT_NAME.gif when --mp4 is not given)")
     p.add_argument("--mp4", type=output_file, default=None,
                    help="MP4 video to write (needs the video extra: pip install 'soft-envs[video]')")
-    p.add_argument("--cycles", type=positive_int, default=n_cycles,
+    p.add_argument("--cycles", type=cycles, default=n_cycles,
                    help=f"gait cycles played after the prep phase (default {n_cycles}; RL results play "
                         "their own controls)")
     p.add_argument("--every", type=positive_int, default=2, help="render every n-th simulation step")
@@ -98,7 +98,7 @@ def _add_result_commands(sub) -> None:
     p.add_argument("result", type=Path)
     p.add_argument("--vtu", type=output_dir, default=None,
                    help=f"output directory (default {RESULTS_DIR}/paraview/RESULT_NAME/)")
-    p.add_argument("--cycles", type=positive_int, default=n_cycles,
+    p.add_argument("--cycles", type=cycles, default=n_cycles,
                    help=f"gait cycles played after the prep phase (default {n_cycles}; RL results play "
                         "their own controls)")
     p.add_argument("--overwrite", action="store_true", help=_OVERWRITE_HELP)

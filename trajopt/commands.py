@@ -66,6 +66,9 @@ def _plan(out: Path, partial: Path, args) -> tuple[Result | None, bool]:
     """``(resume, done)``: the interrupted run to continue (or None), and whether there is
     nothing to do (``--resume`` of a finished result). Refuses (ValueError, nothing written) to
     replace a finished result or an interrupted run's checkpoint without ``--overwrite``."""
+    for p in (out, partial):
+        if p.exists() and not p.is_file():
+            _refuse(p, "exists and is not a file", "choose another --name or --out")
     if args.resume:
         if partial.is_file():
             if out.is_file() and not args.overwrite:

@@ -7,7 +7,8 @@ Every file a ``trajopt`` command writes goes through :func:`atomic_output` (or
 atomic on POSIX and Windows) and the directory entry is flushed too. An exception removes the
 temporary; a process killed outright (``kill -9``, power loss) cannot, so every later write of the
 same target first removes the temporaries it recognises as stale (:func:`clean_stale_temporaries`):
-those of a process that no longer runs, and those of the older ``mkstemp`` naming
+those of a process that no longer runs (on Windows, where that cannot be asked safely, and for a
+reused process id: those older than a day), and those of the older ``mkstemp`` naming
 (``.NAME.XXXXXXXX.tmp``) after :data:`LEGACY_STALE_SECONDS`.
 
 This module needs only the standard library (``trajopt.hardware`` reads results through it).
@@ -42,7 +43,7 @@ def temporary_name(path: Path) -> Path:
 
 
 def _process_alive(pid: int) -> bool:
-    if pid == os.getpid():
+    if pid == os.getpid() or os.name == "nt":     # on Windows os.kill(pid, 0) would end the process
         return True
     try:
         os.kill(pid, 0)
@@ -65,7 +66,7 @@ def clean_stale_temporaries(path: Path) -> list[Path]:
     for entry in entries:
         m = _TEMP.match(entry.name)
         if m and m["name"] == path.name:
-            stale = not _process_alive(int(m["pid"]))
+            stale = not _process_alive(int(m["pid"])) or _age(entry, now) > LEGACY_STALE_SECONDS * 24
         else:
             m = _LEGACY.match(entry.name)
             stale = bool(m and m["name"] in (path.name, path.stem)) and _age(entry, now) > LEGACY_STALE_SECONDS

@@ -220,7 +220,9 @@ class Result:
         ev = self.evaluation
         speed = ev.get("speed_bl_per_min")
         parts = [f"{self.robot} {self.task}", f"{len(self.u)} steps x {len(self.motor_names)} motors"]
-        if speed is not None:
+        if "sim_failure" in ev:
+            parts.append(f"its evaluation's simulation failed ({ev['sim_failure']})")
+        elif speed is not None:
             parts.append(f"{speed:.2f} BL/min over {ev.get('cycles')} cycles")
             parts.append("upright" if ev.get("upright") else "FELL")
         if "heading_change_deg" in ev:

@@ -16,12 +16,14 @@ import json
 import sys
 from pathlib import Path
 
-from ..argtypes import nonnegative_float, nonnegative_int, number, output_dir, output_file, positive_int, slope_deg
+from ..argtypes import (cycles, file_name, integer, nonnegative_float, number, output_dir, output_file, positive_int,
+                        slope_deg)
 from ..files import RESULTS_DIR, refuse_existing
 from .envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOT_IDS, TRAIN_HORIZON
 from .hyperparams import ALGOS
 
 RUNS_DIR = RESULTS_DIR / "runs"
+SEED = integer(0, 2**32 - 1)          # what NumPy's legacy seeding accepts
 
 __all__ = ["add_rl_parser"]
 
@@ -38,10 +40,10 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("robot", choices=sorted(ROBOT_IDS), help="robot (environment SoftTripod-v0 / SoftPuppy-v0)")
     p.add_argument("--algo", choices=ALGOS, default="ppo")
     p.add_argument("--timesteps", type=positive_int, default=30_000, help="environment steps to train for")
-    p.add_argument("--seed", type=nonnegative_int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("--out", type=output_dir, default=RUNS_DIR,
                    help=f"parent directory of the run (default {RUNS_DIR}/)")
-    p.add_argument("--name", default=None, help="run directory name (default ROBOT_ALGO_seedS)")
+    p.add_argument("--name", type=file_name, default=None, help="run directory name (default ROBOT_ALGO_seedS)")
     p.add_argument("--n-envs", type=positive_int, default=None, help="parallel environments (default: CPU count)")
     p.add_argument("--vec-env", choices=["auto", "subproc", "dummy"], default="auto",
                    help="auto: SubprocVecEnv when n-envs > 1")
@@ -62,9 +64,9 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
 
     p = rsub.add_parser("evaluate", help="trajopt's metric (BL/min along the target, upright) for a policy")
     p.add_argument("model", type=Path, help="run directory, its model.zip or a checkpoint .zip")
-    p.add_argument("--cycles", type=positive_int, default=DEFAULT_EVAL_CYCLES,
+    p.add_argument("--cycles", type=cycles, default=DEFAULT_EVAL_CYCLES,
                    help=f"gait cycles of {GAIT.n_cycle} steps after {GAIT.n_prep} prep steps")
-    p.add_argument("--seed", type=nonnegative_int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("--reset-noise", type=nonnegative_float, default=0.0,
                    help="reset noise [m] (default 0: trajopt's start, the exact rest state)")
     p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
@@ -74,8 +76,8 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("model", type=Path, help="run directory, its model.zip or a checkpoint .zip")
     p.add_argument("--out", type=output_file, default=None,
                    help=f"result file (.npz, with a .json sibling; default {RESULTS_DIR}/RUN_NAME.npz)")
-    p.add_argument("--cycles", type=positive_int, default=DEFAULT_EVAL_CYCLES)
-    p.add_argument("--seed", type=nonnegative_int, default=0)
+    p.add_argument("--cycles", type=cycles, default=DEFAULT_EVAL_CYCLES)
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("--reset-noise", type=nonnegative_float, default=0.0)
     p.add_argument("--overwrite", action="store_true", help="replace an existing result file")
     p.set_defaults(func=_cmd_export)
