@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from .files import atomic_write_bytes
+from .gait import GaitSpec
 
 __all__ = ["Result", "ResultFileWarning", "atomic_write_bytes", "result_path", "partial_path", "FORMAT_VERSION"]
 
@@ -211,6 +212,10 @@ class Result:
             for key in ("n_prep", "n_cycle", "n_keyframes"):
                 if isinstance(s[key], bool) or not isinstance(s[key], int) or s[key] < 0:
                     raise ValueError(f"{src}: settings field {key!r} must be a non-negative integer, got {s[key]!r}")
+            try:
+                GaitSpec.from_settings(s)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"{src}: settings: {exc}") from None
             kf = np.asarray(s["keyframes"], dtype=object)
             if kf.shape != (M, s["n_keyframes"]):
                 raise ValueError(f"{src}: settings field 'keyframes' must have shape ({M}, {s['n_keyframes']}), "
