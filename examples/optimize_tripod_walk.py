@@ -30,7 +30,7 @@ ev = result.evaluation
 print(f"speed per cycle [BL/min]: {[round(v, 2) for v in ev['speed_per_cycle_bl_per_min']]} "
       f"(paper's Tripod: 6.1)")
 
-path = result.save("tripod_walk.npz")             # .npz + .json, written atomically
+path = result.save("results/tripod_walk_example.npz")   # .npz + .json (one unit), written atomically
 again = Result.load(path)
 print(f"saved {path}; keyframes per motor [mm]:")
 for name, kf in zip(again.motor_names, again.settings["keyframes"]):

@@ -7,7 +7,8 @@ With a trajopt result (e.g. from `trajopt optimize tripod --task walk --out resu
 is printed next to the policy's, measured the same way: mean COM speed along the target in
 body lengths per minute over 6 gait cycles of 72 steps after 24 prep steps.
 The same from the shell: `trajopt rl train tripod --algo ppo --timesteps 8000`, then
-`trajopt rl evaluate runs/tripod_ppo_seed0`.
+`trajopt rl evaluate results/runs/tripod_ppo_seed0`. This example's run is named
+`tripod_ppo_example` (results/runs/tripod_ppo_example), so it never collides with that command's.
 """
 import sys
 
@@ -18,7 +19,8 @@ def main() -> None:
     # 1. Train. Episodes are 168 steps (trajopt's horizon); the hyper-parameters are the documented
     #    defaults of trajopt/rl/hyperparams.py; n_envs defaults to the number of CPU cores.
     #    8000 steps take about a minute on two cores (the simulator does ~150 Tripod steps/s/core).
-    run = train("tripod", "ppo", timesteps=8000, seed=0, out="runs", progress_bar=True, overwrite=True)
+    run = train("tripod", "ppo", timesteps=8000, seed=0, out="results/runs", name="tripod_ppo_example",
+                progress_bar=True, overwrite=True)
     print(f"trained {run.timesteps} steps in {run.wall_time_s:.0f} s -> {run.run_dir}")
 
     # 2. Evaluate: deterministic policy, closed loop, from the exact rest state (like trajopt).
@@ -27,8 +29,8 @@ def main() -> None:
           f"(per cycle: {', '.join(f'{v:.1f}' for v in ev['speed_per_cycle_bl_per_min'])})")
 
     # 3. Export the policy's controls as a trajopt Result (render / play it like an optimised gait).
-    result = export_result(run.run_dir, "runs/tripod_ppo.npz")
-    print(f"exported: {result.summary()}  (try: trajopt render runs/tripod_ppo.npz --gif tripod_ppo.gif)")
+    result = export_result(run.run_dir, "results/tripod_ppo_example.npz")
+    print(f"exported: {result.summary()}  (try: trajopt render results/tripod_ppo_example.npz --overwrite)")
 
     # 4. Optional: a trajopt gait, measured the same way.
     if len(sys.argv) > 1:

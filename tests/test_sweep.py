@@ -57,7 +57,7 @@ def test_spec_expands_grids_names_and_arguments(tmp_path):
 @pytest.mark.parametrize("text, message", [
     ('[[runs]]\nkind = "optimise"\n', "runs[0].kind must be one of"),
     ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeeed = 3\n', "unknown argument 'speeed'"),
-    ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeed = "fast"\n', "invalid float value: 'fast'"),
+    ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeed = "fast"\n', "argument --speed: must be a finite number > 0, got 'fast'"),
     ('[[runs]]\nkind = "optimize"\n[runs.args]\nspeed = 3\n', "argument 'robot' is missing"),
     ('[[runs]]\nkind = "optimize"\nname = "{robot}_{sped}"\n[runs.args]\nrobot = "tripod"\n',
      "runs[0].name: {sped} is not a parameter"),
@@ -198,7 +198,7 @@ def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path
         done = lambda n: (read_status(out / n) or {}).get("status") == "done"   # noqa: E731
         _wait_for(lambda: done("quick3") and done("quick4"), 240, "the two tiny runs")
         before = {n: digest(out / n) for n in ("quick3", "quick4")}
-        _wait_for(lambda: all((out / n / f"{n}.npz").is_file() for n in ("long5", "long6")), 240,
+        _wait_for(lambda: all((out / n / f"{n}.partial.npz").is_file() for n in ("long5", "long6")), 240,
                   "the first checkpoints of the long runs")
         os.kill(read_status(out / "long5")["pid"], signal.SIGKILL)
         _wait_for(lambda: (read_status(out / "long5") or {}).get("status") == "failed", 60, "the killed run's status")
@@ -213,7 +213,7 @@ def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path
     assert killed["status"] == "failed" and "worker died" in killed["reason"]
     stopped = read_status(out / "long6")
     assert stopped["status"] == "interrupted", stopped
-    assert json.loads((out / "long6" / "long6.json").read_text())["status"] == "interrupted"
+    assert json.loads((out / "long6" / "long6.partial.json").read_text())["status"] == "interrupted"
     assert (out / "summary.csv").is_file()
     spec = load_spec(spec_path, out)
     todo, finished = plan(spec, out)

@@ -24,11 +24,12 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
+from gymnasium import logger, spaces
 
 from ..sim import FactorCache, Robot, SimulationError, Simulator, Trajectory, incline_gravity, load_robot
 from .actuation import Actuation
-from .domain import parse_domain_randomization, randomized_robot, sample_factors
+from .arguments import RENDER_MODES, check_env_arguments
+from .domain import draw_standing_robot, parse_domain_randomization, randomized_robot
 from .measure import BodyFrame, tilt_deg_of, wrap_angle, yaw_of
 from .task import LocomotionTask
 from .threads import limit_threads_in_worker
@@ -40,26 +41,7 @@ PAPER_TIMESTEP = 0.033              # [s] the paper's simulation time step h
 PAPER_GAIT_PERIOD = 72 * PAPER_TIMESTEP   # [s] the paper's gait cycle: 72 steps
 MOTOR_NO_LOAD_RPM = 100.0           # Pololu 298:1 micro metal gearmotor, no-load at 6 V
 _TRAIL_LENGTH = 3000                # COM trail points kept for rendering
-_RENDER_MODES = ("human", "rgb_array")
-
-
-def _check_arguments(*, frame_skip: Any, timestep: float, gait_period: float, reset_noise_scale: float,
-                     motor_speed_rpm: float | None, incline_deg: float, render_mode: str | None) -> None:
-    """Raise ValueError naming the first bad keyword of :class:`SoftRobotEnv` (the task's own
-    keywords are checked by :class:`LocomotionTask`)."""
-    if int(frame_skip) != frame_skip or frame_skip < 1:
-        raise ValueError(f"frame_skip must be a positive integer, got {frame_skip!r}")
-    for name, v in (("timestep", timestep), ("gait_period", gait_period)):
-        if not (math.isfinite(v) and v > 0):
-            raise ValueError(f"{name} must be positive, got {v!r}")
-    if not (math.isfinite(reset_noise_scale) and reset_noise_scale >= 0):
-        raise ValueError(f"reset_noise_scale must be >= 0, got {reset_noise_scale!r}")
-    if motor_speed_rpm is not None and not motor_speed_rpm > 0:
-        raise ValueError(f"motor_speed_rpm must be positive or None, got {motor_speed_rpm!r}")
-    if not abs(incline_deg) < 90:
-        raise ValueError(f"incline_deg must be in (-90, 90), got {incline_deg!r}")
-    if render_mode is not None and render_mode not in _RENDER_MODES:
-        raise ValueError(f"render_mode must be one of {list(_RENDER_MODES)} or None, got {render_mode!r}")
+_RENDER_MODES = RENDER_MODES
 
 
 def _with_contact(robot: Robot, contact: str | None) -> Robot:
@@ -110,9 +92,12 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
             ctrl_cost_weight=ctrl_cost_weight, healthy_reward=healthy_reward,
             terminate_when_unhealthy=terminate_when_unhealthy, healthy_tilt_deg=healthy_tilt_deg,
             healthy_height_fraction=healthy_height_fraction)
-        _check_arguments(frame_skip=frame_skip, timestep=timestep, gait_period=gait_period,
-                         reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
-                         incline_deg=incline_deg, render_mode=render_mode)
+        check_env_arguments(frame_skip=frame_skip, timestep=timestep, gait_period=gait_period,
+                            reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
+                            incline_deg=incline_deg, observe_nodes=observe_nodes, render_mode=render_mode,
+                            width=width, height=height, camera_config=camera_config)
+        if not isinstance(robot, (str, os.PathLike, Robot)):
+            raise ValueError(f"robot must be a shipped name, a robot.toml path or a Robot, got {type(robot).__name__}")
         limit_threads_in_worker()      # a vector-env worker: one BLAS/numba thread (threads.py)
         self._base_robot = _with_contact(robot if isinstance(robot, Robot) else load_robot(robot), contact)
         if self._base_robot.n_motors == 0:
@@ -131,6 +116,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         self._width, self._height = int(width), int(height)
         self._camera_config = dict(camera_config or {})
         self._viewer: EnvViewer | None = None
+        self._steps_beyond_terminated = 0        # steps after terminated=True (warned at the first)
         self._init_actuation(motor_speed_rpm)
         self._init_spaces()
         self._init_physics()
@@ -216,16 +202,23 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
 
     # ------------------------------------------------------------------ simulator management
     def _set_domain(self, factors: Mapping[str, float]) -> None:
-        """Use the robot with these factors; rebuild the simulator only if they changed."""
+        """Use the robot with these factors; rebuild the simulator only if they changed. A robot
+        that cannot stand at rest raises SimulationError and changes nothing."""
         factors = {k: float(v) for k, v in sorted(factors.items())}
         if self._sim is not None and factors == self._domain:
             return
         robot = randomized_robot(self._base_robot, factors)
-        self._sim = Simulator(robot, dt=self._timestep, gravity=self._gravity, control="length")
-        self._domain = factors
-        x_rest = self._sim.rest_state(robot.u_rest)
+        sim = Simulator(robot, dt=self._timestep, gravity=self._gravity, control="length")
+        x_rest = sim.rest_state(robot.u_rest)
+        self._sim, self._domain = sim, factors
         self._frame = BodyFrame(x_rest, robot.node_masses)
         self._rest_com_height = float(self._frame.com(x_rest)[1])
+
+    def _draw_domain(self) -> dict[str, Any]:
+        """Draw this episode's robot (:func:`~soft_envs.envs.domain.draw_standing_robot`: redraws
+        from ``np_random`` until it stands at rest, else the nominal robot); returns the ``info``
+        entries that report it."""
+        return draw_standing_robot(self._domain_ranges, self.np_random, self._set_domain)
 
     # ------------------------------------------------------------------ actions
     def action_to_control(self, action: Any) -> np.ndarray:
@@ -239,9 +232,13 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start an episode at rest (plus ``reset_noise_scale`` noise). With domain
+        randomisation the robot is drawn first (:meth:`_draw_domain`); ``info`` then also holds
+        ``domain_parameters`` (the factors), ``domain_draws`` and ``domain_fallback``. A reset
+        never raises for a drawn robot that cannot stand."""
         super().reset(seed=seed)
-        if self._domain_ranges is not None:
-            self._set_domain(sample_factors(self._domain_ranges, self.np_random))
+        self._steps_beyond_terminated = 0
+        domain_info = self._draw_domain() if self._domain_ranges is not None else {}
         u_rest = self.robot.u_rest
         x_rest = self._sim.rest_state(u_rest)
         s = self._reset_noise_scale
@@ -256,9 +253,10 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         self._restore(x0, xm1, u_rest, 0, self._frame.com(x0), None if s > 0 else x0.copy(), history)
         if self.render_mode == "human":
             self.render()
-        return self._get_obs(), self._get_info()
+        return self._get_obs(), {**self._get_info(), **domain_info}
 
     def step(self, action: Any):
+        self._warn_if_stepping_after_termination()
         a = self._actuation.check_action(action)
         u_cmd = self._actuation.command(a)
         x, xp, xp2, u, history = self._x, self._x_prev, self._x_prev2, self._u, self._history
@@ -273,6 +271,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
                     history = self._sim.next_history(x, xp, history)
                 u_sub[i] = u
         except SimulationError as err:     # keep the state of before the step
+            self._failed_state = self._x
             info = self._get_info()
             info.update(reward_forward=0.0, reward_ctrl=0.0, reward_survive=0.0,
                         sim_failure=str(err))
@@ -289,6 +288,19 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
             self.render()
         # truncation is left to the TimeLimit wrapper added by gymnasium.make
         return self._get_obs(), reward, terminated, False, info
+
+    def _warn_if_stepping_after_termination(self) -> None:
+        """Warn (once per episode, as Gymnasium's own environments do) when :meth:`step` follows
+        a step that returned ``terminated=True`` (unhealthy, or a failed simulation step)."""
+        terminated = (getattr(self, "_failed_state", None) is self._x
+                      or (self._n_sub > 0 and self._task.terminate_when_unhealthy and not self._healthy))
+        if not terminated:
+            return
+        if self._steps_beyond_terminated == 0:
+            logger.warn("You are calling 'step()' even though this environment has already returned terminated = "
+                        "True. You should always call 'reset()' once you receive 'terminated = True' -- any "
+                        "further steps are undefined behavior.")
+        self._steps_beyond_terminated += 1
 
     # ------------------------------------------------------------------ state and measurements
     @property

@@ -52,7 +52,7 @@ KINDS: dict[str, tuple[tuple[str, ...], str, frozenset[str]]] = {
     "optimize": (("optimize",), "robot", frozenset({"out", "name", "quiet", "resume"})),
     "rl-train": (("rl", "train"), "robot", frozenset({"out", "name", "no_progress", "overwrite", "verbose"})),
     "rl-evaluate": (("rl", "evaluate"), "model", frozenset({"json"})),
-    "evaluate": (("evaluate",), "result", frozenset()),
+    "evaluate": (("evaluate",), "result", frozenset({"json"})),
 }
 #: evaluations start once every producing run (phase 0) has ended
 PHASE = {"optimize": 0, "rl-train": 0, "rl-evaluate": 1, "evaluate": 1}

@@ -14,13 +14,12 @@ import io
 import json
 import os
 import platform
-import re
 import time
 import traceback
 from pathlib import Path
 from typing import Any
 
-from ..results import Result, atomic_write_bytes
+from ..results import Result, atomic_write_bytes, partial_path
 from .spec import Run
 
 __all__ = ["execute", "read_status", "write_status", "STATUS_NAME", "LOG_NAME", "result_path"]
@@ -95,7 +94,7 @@ def _derived_robot(run: Run, run_dir: Path) -> Path:
 
 
 def _resumable(path: Path) -> bool:
-    """An optimisation checkpoint left by an interrupted or killed run."""
+    """An optimisation checkpoint (``NAME.partial.npz``) left by an interrupted or killed run."""
     meta = path.with_suffix(".json")
     try:
         return path.is_file() and json.loads(meta.read_text()).get("status") in ("running", "interrupted")
@@ -108,13 +107,13 @@ def _argv(run: Run, out: Path, run_dir: Path) -> list[str]:
     argv = run.argv(robot_file)
     if run.kind == "optimize":
         argv += ["--out", str(run_dir), "--name", run.name, "--quiet"]
-        if _resumable(result_path(run, run_dir)):
+        if _resumable(partial_path(result_path(run, run_dir))):
             argv.append("--resume")
     elif run.kind == "rl-train":
         argv += ["--out", str(out), "--name", run.name, "--no-progress", "--overwrite"]
         if "n_envs" not in run.params:
             argv += ["--n-envs", str(run.cpus)]
-    elif run.kind == "rl-evaluate":
+    elif run.kind in ("rl-evaluate", "evaluate"):
         argv.append("--json")
     return argv
 
@@ -145,13 +144,10 @@ def _metrics(run: Run, run_dir: Path, stdout: str) -> dict[str, Any]:
         ev = json.loads(stdout[stdout.index("{"):])
         atomic_write_bytes(run_dir / EVALUATION_NAME, json.dumps(ev, indent=1).encode())
         m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"))
-    else:                                                  # evaluate: the printed table
-        speed = re.search(r"speed\s+(-?[\d.]+(?:e[-+]?\d+)?|nan) BL/min", stdout)
-        upright = re.search(r"upright\s+(True|False)", stdout)
-        ev = {"speed_bl_per_min": float(speed.group(1)) if speed else None,
-              "upright": (upright.group(1) == "True") if upright else None}
+    else:                                                  # evaluate --json: one JSON object
+        ev = json.loads(stdout[stdout.index("{"):])
         atomic_write_bytes(run_dir / EVALUATION_NAME, json.dumps(ev, indent=1).encode())
-        m.update(ev)
+        m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"))
     return m
 
 
