@@ -172,7 +172,7 @@ def test_domain_factors_are_drawn_from_the_seeded_generator():
     the factors can be predicted from the seed (and so are reproducible across processes)."""
     dr = {"youngs_modulus": (0.8, 1.2), "friction": (0.7, 1.3), "density": (0.9, 1.1)}
     env = gym.make("SoftTripod-v0", domain_randomization=dr)
-    base = env.unwrapped._base_robot
+    base = gym.make("SoftTripod-v0").unwrapped.robot                     # the nominal robot
     for seed in (3, 11):
         env.reset(seed=seed)
         rng, _ = seeding.np_random(seed)
