@@ -196,8 +196,8 @@ def main(argv: list[str] | None = None) -> int:
         for tests in sorted(suites):
             code, out, dt = run_tests(tmp, tests, a.timeout)
             if code != 0:
-                print(f"BASELINE FAILS ({' '.join(tests)}, exit {code}, {dt:.0f} s): fix the suite first\n{out[-3000:]}",
-                      file=sys.stderr)
+                print(f"BASELINE FAILS ({' '.join(tests)}, exit {code}, {dt:.0f} s): fix the suite first",
+                      out[-3000:], sep="\n", file=sys.stderr)
                 return 2
             print(f"  baseline {' '.join(tests)}: passed in {dt:.0f} s", file=sys.stderr)
         rows = []

@@ -36,9 +36,9 @@ EXPECTED = {
 NEEDS = {"rl_baseline.py": "stable_baselines3", "play_on_emulator.py": "serial"}
 
 
-def test_every_example_is_known():
-    """New examples run too (with the generic check); this lists them so that someone adds
-    their expected output here."""
+def test_expected_outputs_name_existing_examples():
+    """Every entry of EXPECTED is a script in examples/ (new examples without an entry run too,
+    with the generic check: add their expected output here)."""
     names = {p.name for p in EXAMPLES}
     assert names, "no examples found"
     assert not (set(EXPECTED) - names), f"EXPECTED names examples that no longer exist: {set(EXPECTED) - names}"
