@@ -113,7 +113,8 @@ def test_interrupt_then_resume_ends_where_an_uninterrupted_run_ends(tmp_path, mo
     part.status = "interrupted"
     part.save(tmp_path / "again.npz")
     assert optimize(tmp_path, "--iterations", "2", "--resume", "--name", "again", "--heading", "45") == 2
-    assert "--resume needs the settings" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "cannot resume: the settings differ" in err and "'heading_deg': (0.0, 45.0)" in err, err
 
 
 def test_evaluate_exit_codes(walk, tmp_path, monkeypatch, capsys):

@@ -32,9 +32,10 @@ def flying(env_id: str, velocity, *, yaw_rate: float = 0.0, **kw):
     u = env.unwrapped
     x = u.get_state()["x"] + [0.0, 1.0, 0.0]
     c = u.robot.com(x)
-    a = -yaw_rate * u.dt                                   # the previous state: rotated back, moved back
+    h = u.timestep                                         # one simulation step (u.dt is an env step)
+    a = -yaw_rate * h                                      # the previous state: rotated back, moved back
     rot = np.array([[math.cos(a), 0.0, -math.sin(a)], [0.0, 1.0, 0.0], [math.sin(a), 0.0, math.cos(a)]])
-    x_prev = (x - c) @ rot.T + c - np.asarray(velocity, float) * u.dt
+    x_prev = (x - c) @ rot.T + c - np.asarray(velocity, float) * h
     u.set_state({"x": x, "x_prev": x_prev, "sim_steps": 0})
     return env
 
@@ -45,12 +46,16 @@ def expected_ctrl_cost(action, weight=0.01) -> float:
     return weight * float(np.sum(((a + 1.0) / 2.0) ** 2))
 
 
+@pytest.mark.parametrize("frame_skip", [1, 3])
 @pytest.mark.parametrize("env_id, length", [("SoftTripod-v0", 0.14), ("SoftPuppy-v0", 0.13)])
-def test_walk_reward_terms_for_a_known_motion(env_id, length):
+def test_walk_reward_terms_for_a_known_motion(env_id, length, frame_skip):
     """3 cm/s forward: forward reward 10 * 0.03 / L per step, healthy reward 0.1, control cost
-    0.01 * sum(((a + 1) / 2)^2) of the commanded action, total their sum."""
+    0.01 * sum(((a + 1) / 2)^2) of the commanded action, total their sum. With ``frame_skip``
+    n the COM moves n v h in the n simulation steps of an env step of ``env.dt = n h``: the
+    velocity (and so the reward) is the same, and ``env.dt`` is n times the simulation step."""
     v = 0.03
-    env = flying(env_id, [v, 0.0, 0.0])
+    env = flying(env_id, [v, 0.0, 0.0], frame_skip=frame_skip)
+    assert env.unwrapped.dt == pytest.approx(frame_skip * DT, rel=1e-15) and env.unwrapped.timestep == DT
     n = env.action_space.shape[0]
     action = np.linspace(-1.0, 1.0, n).astype(np.float32)
     obs, reward, terminated, truncated, info = env.step(action)

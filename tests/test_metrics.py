@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from soft_envs.sim import Trajectory
-from trajopt.evaluation import evaluate_controls, mps_to_bl_per_min, zero_slack_controls
+from trajopt.evaluation import evaluate_controls, measure_gait, mps_to_bl_per_min, zero_slack_controls
 
 DT = 0.033
 BODY_LENGTH = 0.14
@@ -53,13 +53,14 @@ def rigid_trajectory(shift: np.ndarray, rotations: np.ndarray | None = None) -> 
                       newton_iterations=np.ones(n - 1, dtype=np.int64))
 
 
-class _Hooks:
-    """The least the metric needs: a robot (body length, node masses), dt, and a rollout that
-    returns the hand-built trajectory whatever the controls."""
+class _Env:
+    """The least the metric needs of a :class:`~soft_envs.envs.GradientEnv`: a robot (body
+    length, node masses), the simulation step ``timestep``, and a rollout that returns the
+    hand-built trajectory whatever the controls."""
 
     def __init__(self, traj: Trajectory):
         self.robot = SimpleNamespace(body_length=BODY_LENGTH, node_masses=MASSES, name="box")
-        self.dt = DT
+        self.timestep = DT
         self._traj = traj
 
     def rollout(self, u, dudz=None, **kw):
@@ -69,8 +70,7 @@ class _Hooks:
 
 def measure(traj: Trajectory, heading_deg: float = 0.0) -> dict:
     """The gait metric of a trajectory (prep N_PREP steps, cycles of N_CYCLE steps)."""
-    return evaluate_controls(_Hooks(traj), np.zeros((len(traj.x) - 1, 1)), n_prep=N_PREP, n_cycle=N_CYCLE,
-                             heading_deg_target=heading_deg)
+    return measure_gait(traj, _Env(traj), n_prep=N_PREP, n_cycle=N_CYCLE, heading_deg=heading_deg)
 
 
 def walk(velocity, prep_velocity=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -176,9 +176,18 @@ def test_a_sinking_com_is_not_upright(drop_fraction, upright):
 
 
 def test_too_short_a_rollout_is_refused():
+    short = rigid_trajectory(np.zeros((N_PREP + 5, 3)))
     with pytest.raises(ValueError, match="at least one full cycle"):
-        evaluate_controls(_Hooks(rigid_trajectory(np.zeros((N_PREP + 5, 3)))), np.zeros((N_PREP + 4, 1)),
-                          n_prep=N_PREP, n_cycle=N_CYCLE)
+        evaluate_controls(_Env(short), np.zeros((N_PREP + 4, 1)), n_prep=N_PREP, n_cycle=N_CYCLE)
+    with pytest.raises(ValueError, match="at least one full cycle"):
+        measure_gait(short, _Env(short), n_prep=N_PREP, n_cycle=N_CYCLE)
+
+
+def test_evaluate_controls_measures_the_rollout_of_its_controls():
+    """``evaluate_controls`` = ``env.rollout(u)`` then :func:`measure_gait`, the same numbers."""
+    traj = rigid_trajectory(walk([0.004, 0.0, 0.001]))
+    played = evaluate_controls(_Env(traj), np.zeros((K, 1)), n_prep=N_PREP, n_cycle=N_CYCLE, heading_deg=10.0)
+    assert played == measure(traj, heading_deg=10.0)
 
 
 # ----------------------------------------------------------------------------- zero slack

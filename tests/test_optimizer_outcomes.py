@@ -14,10 +14,9 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
 
-from trajopt import GaussNewtonOptions, gauss_newton, optimize_gait
-from trajopt.hooks import SimulatorHooks
-
-from .conftest import shipped
+from soft_envs.envs import make_gradient_env
+from trajopt import GaitSpec, GaussNewtonOptions, optimize_gait
+from trajopt.gauss_newton import gauss_newton
 
 #: options that stop only on the projected gradient (or stalling at machine precision)
 PRECISE = GaussNewtonOptions(max_iter=100, ftol=0.0, xtol=0.0, gtol=1e-13)
@@ -142,16 +141,19 @@ def test_damping_starts_at_lambda0_and_drops_after_full_steps():
 
 
 # ----------------------------------------------------------------------------- optimize_gait
+SHORT = GaitSpec(n_prep=4, n_cycle=12)          # 4 + 2 x 12 steps
+
+
 @pytest.fixture(scope="module")
-def tripod_hooks():
-    return SimulatorHooks(shipped("tripod")[0])
+def tripod_env():
+    return make_gradient_env("tripod")
 
 
-def test_optimize_gait_short_horizon_accepts_a_step_and_strictly_decreases(tripod_hooks):
+def test_optimize_gait_short_horizon_accepts_a_step_and_strictly_decreases(tripod_env):
     """Two Gauss-Newton iterations on a 4 + 2 x 12 step horizon: at least one accepted step,
     each accepted step strictly lowers the objective, and the final objective is below the
     starting one."""
-    res = optimize_gait(tripod_hooks, "walk", n_prep=4, n_cycle=12, n_seeds=1, eval_cycles=1,
+    res = optimize_gait(tripod_env, "walk", gait=SHORT, n_seeds=1, eval_cycles=1,
                         options=GaussNewtonOptions(max_iter=2, ftol=0.0), robot_spec="tripod")
     h = res.history
     assert len(h) == 2 and any(e["accepted"] for e in h), h
@@ -164,16 +166,15 @@ def test_optimize_gait_short_horizon_accepts_a_step_and_strictly_decreases(tripo
     assert h[-1]["sim_steps_total"] >= 2 * (4 + 2 * 12)       # at least one rollout per iteration
 
 
-def test_custom_target_is_used_as_given(tripod_hooks):
+def test_custom_target_is_used_as_given(tripod_env):
     """task="custom": the target array is the objective's target, unchanged, and one accepted
     step brings the COM path closer to it (the COM term drops)."""
-    n_prep, n_cycle = 4, 12
-    K = n_prep + 2 * n_cycle
-    x0, _ = tripod_hooks.reset_state()
-    start = tripod_hooks.robot.com(x0)[[0, 2]]
-    t = np.arange(K + 1) * tripod_hooks.dt
+    K = SHORT.n_steps()
+    x0, _ = tripod_env.reset_state()
+    start = tripod_env.robot.com(x0)[[0, 2]]
+    t = np.arange(K + 1) * tripod_env.timestep
     target = start + np.outer(t, [0.0, 0.01])                 # 1 cm/s to the right (+z)
-    res = optimize_gait(tripod_hooks, "custom", target=target, n_prep=n_prep, n_cycle=n_cycle, n_seeds=1,
+    res = optimize_gait(tripod_env, "custom", target=target, gait=SHORT, n_seeds=1,
                         eval_cycles=1, options=GaussNewtonOptions(max_iter=2, ftol=0.0), robot_spec="tripod")
     assert res.task == "custom"
     np.testing.assert_array_equal(res.target, target)
@@ -181,6 +182,6 @@ def test_custom_target_is_used_as_given(tripod_hooks):
     assert accepted, res.history
     assert accepted[0]["terms_after"]["com"] < accepted[0]["terms"]["com"]
     with pytest.raises(ValueError, match="target"):
-        optimize_gait(tripod_hooks, "custom", n_prep=n_prep, n_cycle=n_cycle)
+        optimize_gait(tripod_env, "custom", gait=SHORT)
     with pytest.raises(ValueError, match=r"shape \(29, 2\)"):
-        optimize_gait(tripod_hooks, "custom", target=target[:-1], n_prep=n_prep, n_cycle=n_cycle)
+        optimize_gait(tripod_env, "custom", target=target[:-1], gait=SHORT)
