@@ -55,7 +55,8 @@ def main() -> None:
     #    encoder reset -- the robot is assumed to be at its assembly pose, u = 0),
     #    streams one position command per motor per step, reads the encoders back
     #    and logs commanded vs measured counts, then stops the motors.
-    log_path = Path(tempfile.gettempdir()) / "play_on_emulator.csv"
+    log_dir = Path(tempfile.mkdtemp(prefix="play_on_emulator_"))   # playback never overwrites a log
+    log_path = log_dir / "play.csv"
     with RoboClawEmulator(addresses=(0x80,)) as emulator:
         summary = play_trajectory(u_post, dt, ["front", "back"], config,
                                   port_override=emulator.port, log_path=log_path)
@@ -71,7 +72,8 @@ def main() -> None:
     with RoboClawEmulator(addresses=(0x80,)) as emulator:
         emulator.jam(1)  # channel M1 = 'front'
         try:
-            play_trajectory(u_post, dt, ["front", "back"], config, port_override=emulator.port, log_path=log_path)
+            play_trajectory(u_post, dt, ["front", "back"], config, port_override=emulator.port,
+                            log_path=log_dir / "play_jammed.csv")
         except TrackingError as exc:
             print(f"aborted: {exc}")
             print(exc.stop_report)  # type: ignore[attr-defined]
