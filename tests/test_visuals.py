@@ -66,10 +66,6 @@ def test_gif_has_expected_frame_count(tmp_path, tripod_frames):
     r = Renderer(robot.mesh.surface, width=96, height=72, body_length=robot.body_length)
     path = write_animation((r.render(x) for x in traj.x[::4]), tmp_path / "a.gif", fps=10)
     assert Image.open(path).n_frames == len(traj.x[::4])
-    try:
-        write_animation([r.render(traj.x[0])] * 2, tmp_path / "a.mp4", fps=10)
-    except RuntimeError as err:
-        assert "imageio" in str(err)
 
 
 def test_boundary_faces_of_cube_split():
@@ -146,5 +142,5 @@ def test_cli_render_plot_export(tmp_path):
     assert len(list((tmp_path / "plots").glob("*.png"))) == 4
     assert main(["export", str(path), "--vtu", str(tmp_path / "vtu"), "--cycles", "1"]) == 0
     assert len(list((tmp_path / "vtu").glob("r_0*.vtu"))) == 4 + 12 + 1
-    assert main(["evaluate", str(path), "--cycles", "1"]) in (0, 1)
+    assert main(["evaluate", str(path), "--cycles", "1"]) == 0          # upright (1 would be: fell)
     assert main(["evaluate", str(tmp_path / "missing.npz")]) == 2
