@@ -190,18 +190,22 @@ class Simulator:
                                                         solver=self.newton.options.solver))
         x = self.initial_placement()
         history = system.initial_history(x)
-        sens = (ForwardSensitivities(relax, self.robot.node_masses, np.zeros((max_iter, self.n_motors, 0)),
-                                     params=params, x0=x) if params else None)
+        sens = exact = None
+        if params:      # its own solver for the exact Hessians: the relaxation's path stays that of rest_state
+            exact = NewtonSolver(system, 1.0, relax.options)
+            sens = ForwardSensitivities(exact, self.robot.node_masses, np.zeros((max_iter, self.n_motors, 0)),
+                                        params=params, x0=x)
         cache = FactorCache()
         for j in range(max_iter):
             try:
-                xn, info = relax.step(x, x, u, cache=cache, history=history, need_exact=sens is not None)
+                xn, _ = relax.step(x, x, u, cache=cache, history=history)
+                if sens is not None:
+                    sens.hold()
+                    sens.step(j, exact.factorize_exact_at(xn, x, x, u, history=history), xn, x, u, history,
+                              x_prev2=x)
             except SimulationError as err:
                 raise SimulationError(f"rest_state of robot {self.robot.name!r} failed (u = {u.tolist()}, "
                                       f"gravity = {relax_g.tolist()}): {err.reason}") from err
-            if sens is not None:
-                sens.hold()
-                sens.step(j, info.solver, xn, x, u, history, x_prev2=x)
             if anchored:
                 history = system.next_history(xn, x, history)
             moved = np.abs(xn - x).max()
