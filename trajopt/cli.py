@@ -209,7 +209,7 @@ def _cmd_calibrate(args) -> int:
 
 
 def _cmd_robustness(args) -> int:
-    from .robustness import run_robustness
+    from .robustness_report import run_robustness
     return run_robustness(args)
 
 
