@@ -372,8 +372,8 @@ def _analyse(prob: _Problem, v: np.ndarray, start: np.ndarray, r0: np.ndarray, p
     if prob.camera:
         R = Rotation.from_rotvec(v[prob.np:prob.np + 3]).as_matrix() @ prob.A0
         pose = {"rotation_camera_to_robot": R.tolist(), "translation_m": v[prob.np + 3:].tolist()}
-    return CalibrationFit(names, start, theta, std, corr, rms(r0), rms(r), per_marker, N // 3, nfev, message, warns, pose,
-                          predicted_before, _to_measurement_frame(prob, v)(after))
+    return CalibrationFit(names, start, theta, std, corr, rms(r0), rms(r), per_marker, N // 3, nfev, message, warns,
+                          pose, predicted_before, _to_measurement_frame(prob, v)(after))
 
 
 def _to_measurement_frame(prob: _Problem, v: np.ndarray):

@@ -75,11 +75,13 @@ def _output_toml(out: Path, source: Path) -> Path:
 def write_calibrated_robot(source: Path, target: Path, robot, names, values) -> Path:
     """Write ``target``: the robot file ``source`` (comments and layout kept, through tomlkit)
     with the parameters ``names`` set to ``values`` and its mesh path made relative to the new
-    file; checked by loading it back."""
+    file (absolute when the two share no folder but the root); checked by loading it back."""
     import tomlkit
     doc = tomlkit.parse(source.read_text())
     mesh = (source.parent / str(doc["robot"]["mesh"])).resolve()
-    doc["robot"]["mesh"] = os.path.relpath(mesh, target.parent.resolve())
+    here = target.parent.resolve()
+    near = os.path.commonpath([mesh, here]) != os.path.sep          # relative unless only / is shared
+    doc["robot"]["mesh"] = os.path.relpath(mesh, here) if near else str(mesh)
     place = {"youngs_modulus": ("material", "youngs_modulus"), "poisson_ratio": ("material", "poisson_ratio"),
              "density": ("material", "density"), "payload_mass": ("payload", "mass"),
              "contact_stiffness": ("contact", "stiffness"), "friction": ("contact", "friction"),
@@ -147,7 +149,8 @@ def _inputs(args) -> tuple[Any, MarkerSet, MarkerData, tuple[str, ...], Any]:
     tracks = read_tracks(args.markers, markers.names)
     s = res.settings
     data = MarkerData.from_tracks(tracks, robot, markers, u, float(res.dt), frame=args.frame,
-                                  incline_deg=float(s.get("incline_deg", 0.0)), heading_deg=float(s.get("heading_deg", 0.0)))
+                                  incline_deg=float(s.get("incline_deg", 0.0)),
+                                  heading_deg=float(s.get("heading_deg", 0.0)))
     return robot, markers, data, names, tracks
 
 

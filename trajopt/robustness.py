@@ -39,7 +39,6 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Iterator
 
@@ -96,7 +95,8 @@ def perturbed_slope(incline_deg: float, uphill_deg: float, slope_deg: float, dir
         a, h = math.radians(a), math.radians(h)
         return -np.array([math.sin(a) * math.cos(h), math.cos(a), math.sin(a) * math.sin(h)])
     d = np.array([math.cos(math.radians(direction_deg)), 0.0, math.sin(math.radians(direction_deg))])
-    g = Rotation.from_rotvec(math.radians(slope_deg) * np.cross([0.0, 1.0, 0.0], d)).apply(down(incline_deg, uphill_deg))
+    tilt = Rotation.from_rotvec(math.radians(slope_deg) * np.cross([0.0, 1.0, 0.0], d))
+    g = tilt.apply(down(incline_deg, uphill_deg))
     incline = math.degrees(math.acos(min(1.0, -g[1])))
     horizontal = -g[[0, 2]]
     uphill = math.degrees(math.atan2(horizontal[1], horizontal[0])) if np.hypot(*horizontal) > 1e-12 else 0.0

@@ -150,7 +150,8 @@ def run_robustness(args) -> int:
     print(f"  nominal speed      {report['nominal'].get('speed_bl_per_min', float('nan')):.2f} BL/min "
           f"(upright {report['nominal'].get('upright')})")
     print(f"  perturbed speed    median {q['median']:.2f}, 5th-95th percentile {q['p5']:.2f} - {q['p95']:.2f} BL/min")
-    print(f"  upright            {100 * report['upright_fraction']:.0f} % of {len(samples)} ({report['failed']} failed)")
+    print(f"  upright            {100 * report['upright_fraction']:.0f} % of {len(samples)} "
+          f"({report['failed']} failed)")
     print(f"  heading drift      median {d['median_abs']:.2f}, 95th percentile {d['p95_abs']:.2f} deg/cycle")
     for w in report["worst"]:
         keys = ", ".join(f"{k} {w[k]:.3g}" for k in PERTURBATIONS)
