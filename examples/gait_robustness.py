@@ -26,9 +26,9 @@ if QUICK or not gait_file.is_file():
     robot = load_robot("tripod")
     spec = GaitSpec(n_prep=4, n_cycle=12, n_cycles=1, n_keyframes=2, symmetry=False) if QUICK else GaitSpec()
     param = GaitParameterization.for_robot(robot, spec)
-    # keyframes [m]: "front" pulls while "back" releases, then the other way round
-    kf = np.zeros((robot.n_motors, spec.n_keyframes))
-    kf[0, ::2], kf[1, 1::2] = 0.012, 0.012
+    # keyframes [m] of (front, back): lift the middle leg, swing it forward, put it down, push back
+    pattern = [[1, 1], [1, 0], [0, 0], [0, 1]] if spec.n_keyframes == 4 else [[1, 0], [0, 1]]
+    kf = 0.014 * np.array(pattern, dtype=float).T           # about 2.8 BL/min on the paper's law
     z = param.z_from_keyframes(kf)
     u = param.controls(z)
     settings = {**spec.to_settings(), "keyframes": kf.tolist(), "heading_deg": 0.0, "incline_deg": 0.0}

@@ -3,6 +3,7 @@ slopes in any direction, the report and its files, resuming, the in-process fall
 ``--workers`` and picklable samples."""
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import pickle
@@ -74,7 +75,10 @@ def test_perturbed_slope_composes_tilts(incline, uphill, slope, direction):
         assert np.isclose(a, incline - slope) and np.isclose(h, uphill)
 
 
-def test_robustness_command_report_resume_and_fallback(tmp_path, capsys):
+def test_robustness_command_report_resume_and_fallback(tmp_path, capsys, monkeypatch):
+    """Without Ray, ``--workers 2`` runs in-process and says so."""
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "ray" else real(name, *a))
     result = tiny_result(tmp_path)
     out = tmp_path / "rob"
     args = ["robustness", str(result), "--samples", "3", "--cycles", "1", "--out", str(out), "--seed", "5",
@@ -114,3 +118,20 @@ def test_samples_are_independent_picklable_calls(tmp_path):
         assert a[k] == b[k]
     n = run_sample(nominal)
     assert n["index"] == -1 and "friction" not in n
+
+
+def test_samples_on_ray_equal_the_in_process_ones(tmp_path):
+    """With Ray and ``trajopt sweep`` installed, ``--workers`` maps the same calls on Ray."""
+    ray = pytest.importorskip("ray")
+    if importlib.util.find_spec("trajopt.sweep") is None:
+        pytest.skip("trajopt sweep (the Ray runner) is not installed")
+    res = Result.load(tiny_result(tmp_path))
+    _, jobs = robustness_jobs(res, 1, 2, seed=3)
+    try:
+        results, where = map_samples(jobs, workers=2)
+        on_ray = sorted(results, key=lambda s: s["index"])
+    finally:
+        ray.shutdown()
+    assert where == "on Ray with 2 workers"
+    for a, b in zip(on_ray, (run_sample(j) for j in jobs)):
+        assert a["speed_bl_per_min"] == b["speed_bl_per_min"] and a["upright"] == b["upright"]

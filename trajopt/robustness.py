@@ -4,7 +4,8 @@
 phase and C cycles) N times, each under perturbations drawn from :data:`PERTURBATIONS`, and
 reports the speed distribution (median, 5th and 95th percentiles, in body lengths per minute),
 the fraction of replays that stay upright, the heading drift (degrees per cycle), the worst
-cases with their perturbations and a plot, beside the nominal replay (the gait as optimised,
+cases with their perturbations, the rank correlation of the speed with each perturbation (and
+with the extra slope's component along the gait's heading) and a plot, beside the nominal replay (the gait as optimised,
 which ``trajopt evaluate`` reports).
 
 ==========================  ==============================  =========================================
@@ -48,8 +49,8 @@ from soft_envs.envs import SimulationError, load_robot, make_gradient_env, param
 
 from .evaluation import measure_gait
 
-__all__ = ["PERTURBATIONS", "SampleJob", "draw_perturbation", "applied_controls", "perturbed_slope",
-           "run_sample", "map_samples", "summarize"]
+__all__ = ["PERTURBATIONS", "DERIVED_NAMES", "SampleJob", "draw_perturbation", "applied_controls",
+           "perturbed_slope", "run_sample", "map_samples", "summarize"]
 
 #: name -> (kind, low, high); kind "factor" (uniform), "log" (log-uniform factor) or "value"
 PERTURBATIONS = MappingProxyType({
@@ -58,6 +59,10 @@ PERTURBATIONS = MappingProxyType({
     "cable_stiffness": ("log", 0.5, 2.0), "motor_lag_s": ("value", 0.0, 0.1),
     "motor_speed_rpm": ("value", 60.0, 140.0), "timing_jitter_s": ("value", 0.0, 0.010),
     "slope_deg": ("value", 0.0, 10.0), "slope_direction_deg": ("value", 0.0, 360.0)})
+
+#: what the report relates the speed to: the perturbations and the slope along the gait's heading
+DERIVED_NAMES = (*PERTURBATIONS, "slope_along_heading_deg")
+
 
 def draw_perturbation(seed: int, index: int) -> dict[str, float]:
     """The perturbation of sample ``index`` (its own generator ``default_rng([seed, index])``)."""
@@ -137,6 +142,9 @@ def run_sample(job: SampleJob) -> dict[str, Any]:
         rng = np.random.default_rng([job.seed, job.index, 1])
         u = applied_controls(u, job.dt, robot.u_rest, robot.u_bounds, [m.spool_radius for m in robot.motors], p, rng)
     out: dict[str, Any] = {"index": job.index, **(p or {})}
+    if p is not None:          # the part of the extra slope that the gait climbs (> 0) or descends
+        out["slope_along_heading_deg"] = p["slope_deg"] * math.cos(math.radians(p["slope_direction_deg"]
+                                                                               - job.heading_deg))
     try:
         env = make_gradient_env(robot, incline_deg=incline, heading_deg=uphill, timestep=job.dt)
         traj = env.rollout(u)
@@ -192,10 +200,11 @@ def summarize(nominal: dict, samples: list[dict], n_worst: int = 3) -> dict[str,
     order = np.argsort(np.where(ok, speed, -np.inf), kind="stable")
     worst = [{k: v for k, v in samples[i].items() if k != "wall_time_s"} for i in order[:n_worst]]
     corr = {}
-    for name in PERTURBATIONS:
-        x = np.array([s[name] for s in samples])
-        if ok.sum() > 2 and np.ptp(x[ok]) > 0 and np.ptp(speed[ok]) > 0:
-            corr[name] = float(spearmanr(x[ok], speed[ok]).statistic)
+    for name in DERIVED_NAMES:
+        x = np.array([s.get(name, np.nan) for s in samples], dtype=float)
+        use = ok & np.isfinite(x)
+        if use.sum() > 2 and np.ptp(x[use]) > 0 and np.ptp(speed[use]) > 0:
+            corr[name] = float(spearmanr(x[use], speed[use]).statistic)
     return {"nominal": {k: nominal[k] for k in ("speed_bl_per_min", "upright", "heading_drift_deg_per_cycle",
                                                 "max_tilt_deg") if k in nominal},
             "samples": len(samples), "failed": int((~ok).sum()),

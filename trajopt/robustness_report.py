@@ -20,7 +20,8 @@ import numpy as np
 
 from .replay import env_for_result, result_controls
 from .results import Result, atomic_write_bytes
-from .robustness import PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample, summarize
+from .robustness import (DERIVED_NAMES, PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample,
+                         summarize)
 
 __all__ = ["run_robustness", "plot_robustness", "robustness_jobs"]
 
@@ -81,8 +82,8 @@ def plot_robustness(report: dict, samples: list[dict], path: Path) -> Path:
     import matplotlib.pyplot as plt
     speed = np.array([s["speed_bl_per_min"] for s in samples], dtype=float)
     up = np.array([bool(s["upright"]) for s in samples])
-    names = list(PERTURBATIONS)
-    fig, axes = plt.subplots(3, 4, figsize=(14, 9))
+    names = list(DERIVED_NAMES)
+    fig, axes = plt.subplots(3, 5, figsize=(17, 9))
     ax = axes.flat[0]
     ok = np.isfinite(speed)
     ax.hist(speed[ok], bins=max(5, min(30, ok.sum() // 3)), color="0.6")
@@ -95,7 +96,7 @@ def plot_robustness(report: dict, samples: list[dict], path: Path) -> Path:
     ax.set_title(f"{len(samples)} replays, {100 * report['upright_fraction']:.0f} % upright")
     ax.legend(fontsize=7)
     for ax, name in zip(axes.flat[1:], names):
-        x = np.array([s[name] for s in samples])
+        x = np.array([s.get(name, np.nan) for s in samples], dtype=float)
         ax.scatter(x[up & ok], speed[up & ok], s=8, color="C0", label="upright")
         ax.scatter(x[~up & ok], speed[~up & ok], s=8, color="C3", marker="x", label="fell")
         ax.axhline(nominal, color="C3", lw=1)
@@ -103,6 +104,8 @@ def plot_robustness(report: dict, samples: list[dict], path: Path) -> Path:
         ax.set_title(f"{name}" + (f" (rank corr. {rho:+.2f})" if rho is not None else ""), fontsize=9)
         ax.set_ylabel("BL/min", fontsize=8)
     axes.flat[1].legend(fontsize=7)
+    for ax in axes.flat[1 + len(names):]:
+        ax.axis("off")
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)
@@ -112,7 +115,7 @@ def plot_robustness(report: dict, samples: list[dict], path: Path) -> Path:
 
 
 def _write_csv(path: Path, samples: list[dict]) -> None:
-    cols = ["index", *PERTURBATIONS, "speed_bl_per_min", "upright", "heading_drift_deg_per_cycle", "max_tilt_deg",
+    cols = ["index", *DERIVED_NAMES, "speed_bl_per_min", "upright", "heading_drift_deg_per_cycle", "max_tilt_deg",
             "sim_failure"]
     buf = io.StringIO()
     w = csv.DictWriter(buf, cols, extrasaction="ignore", lineterminator="\n")
