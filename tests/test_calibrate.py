@@ -187,7 +187,8 @@ def test_calibrate_command_recovers_hidden_parameters_paper_law(tmp_path, capsys
 def test_calibration_coulomb_missing_samples_other_rate_camera_frame():
     """Coulomb law (E, nu and mu hidden 25 %, 20 % and 25 % off), 8 markers, 0.5 mm noise,
     tracks at 50 Hz with 20 % of the samples missing, in a camera frame (rotated by 40 degrees
-    and moved by half a metre): recovered within 5 % with the camera's pose."""
+    and moved by half a metre): recovered within 5 % with the camera's pose (measured: -0.72 %,
+    +0.08 %, -0.79 %; rotation within 2e-4, translation within 0.12 mm; 37 rollouts)."""
     robot = load_robot("tripod")
     robot = robot.replace(contact=dataclasses.replace(robot.contact, model="coulomb"))
     names = ["youngs_modulus", "poisson_ratio", "friction_coefficient"]
