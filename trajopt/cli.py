@@ -12,6 +12,8 @@
     trajopt mesh body.stl --scale 0.001 --up +z --out my_robot/
     trajopt check my_robot/robot.toml
     trajopt sweep examples/sweep_speeds.toml --out sweeps/speeds [--workers N] [--address auto]
+    trajopt calibrate tripod --markers tracks.csv --controls results/tripod_walk.npz --fit youngs_modulus,friction --out calib/
+    trajopt robustness results/tripod_walk.npz --samples 64 --cycles 4 --out robustness/
 
 Everything the commands write goes under results/ by default (RESULTS_DIR). A file that exists
 is never replaced without --overwrite; a result is only used with the robot it was made for
@@ -158,12 +160,38 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
 
 
+def _add_identification_commands(sub) -> None:
+    p = sub.add_parser("calibrate", help="fit physical parameters to tracked markers (writes a new robot.toml)")
+    p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
+    p.add_argument("--markers", type=Path, required=True, help="tracks CSV: t,marker,x,y,z [s, m]")
+    p.add_argument("--controls", type=Path, required=True, help="the result whose controls were played")
+    p.add_argument("--fit", required=True, help="comma-separated parameters, e.g. youngs_modulus,poisson_ratio,friction")
+    p.add_argument("--out", type=Path, required=True, help="output directory (robot.toml, calibration.json, tracks.png)")
+    p.add_argument("--marker-points", type=Path, default=None,
+                   help="CSV marker,x,y,z of rest positions [m, robot frame] (default: the robot's [[markers]])")
+    p.add_argument("--frame", choices=["robot", "camera"], default="robot",
+                   help="frame of the tracks; camera: a rigid transform is fitted too")
+    p.add_argument("--play", choices=["u_post", "u"], default="u_post",
+                   help="which controls of the result were played (u_post: what trajopt play streams)")
+    p.add_argument("--max-evaluations", type=int, default=30, help="rollouts per fitting stage at most")
+    p.set_defaults(func=_cmd_calibrate)
+    p = sub.add_parser("robustness", help="replay a gait under perturbed physics and report its speed spread")
+    p.add_argument("result", type=Path)
+    p.add_argument("--samples", type=int, default=32, help="perturbed replays")
+    p.add_argument("--cycles", type=int, default=4, help="gait cycles per replay")
+    p.add_argument("--out", type=Path, required=True, help="output directory (report.json, samples.csv, robustness.png)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the perturbations")
+    p.add_argument("--workers", type=int, default=1, help="parallel workers (Ray, when installed with trajopt sweep)")
+    p.set_defaults(func=_cmd_robustness)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="trajopt", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     _add_optimize(sub)
     _add_result_commands(sub)
     _add_robot_commands(sub)
+    _add_identification_commands(sub)
     try:
         from .hardware.cli import add_play_parser
         add_play_parser(sub)
@@ -247,6 +275,16 @@ def _cmd_mesh(args) -> int:
 def _cmd_check(args) -> int:
     from .robot_commands import run_check
     return run_check(args)
+
+
+def _cmd_calibrate(args) -> int:
+    from .calibrate_command import run_calibrate
+    return run_calibrate(args)
+
+
+def _cmd_robustness(args) -> int:
+    from .robustness_report import run_robustness
+    return run_robustness(args)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -370,6 +370,12 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         return self._sim.rollout(u, x0=self._x0_reset, dudz=dudz, x_prev0=self._xm1_reset,
                                  store_dxdz=store_dxdz, history0=self._history_reset)
 
+    def rollout_parameters(self, u: np.ndarray, parameters) -> Trajectory:
+        """:meth:`rollout` from the rest state with sensitivities to physical ``parameters``
+        (``traj.dxdtheta``; see :func:`soft_envs.envs.identification.parameter_rollout`)."""
+        from .identification import parameter_rollout
+        return parameter_rollout(self, u, parameters)
+
     def get_state(self) -> dict[str, Any]:
         """A copy of everything a step depends on: positions ``x`` and ``x_prev`` (n, 3),
         applied contractions ``u`` (M,), simulation steps since reset ``sim_steps``, the start

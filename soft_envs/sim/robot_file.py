@@ -40,6 +40,10 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     stiffness = 1e5              # [N/m]
     # rest_length = 0.045        # assembly length alpha0 [m]; default: rest polyline length
 
+    [[markers]]                  # optional: tracked points (trajopt calibrate), bound like tendon points
+    name = "nose"
+    point = [0.13, 0.03, 0.02]   # mesh frame, inside the body or on its surface
+
     [[motors]]
     name = "fore_left_front"
     tendons = ["fore_left_front_a", "fore_left_front_b"]
@@ -67,7 +71,7 @@ from typing import Any
 import numpy as np
 
 from .mesh import TetMesh, load_mesh
-from .robot import ContactParams, Motor, Robot, Tendon
+from .robot import ContactParams, Marker, Motor, Robot, Tendon
 
 __all__ = ["load_robot", "asset_path", "robot_fingerprint", "robot_file_path", "SHIPPED_ROBOTS"]
 
@@ -89,6 +93,7 @@ _SCHEMA: dict[str, dict[str, tuple[type | tuple[type, ...], bool]]] = {
 }
 _TENDON = {"name": (str, True), "points": (list, True), "stiffness": ((int, float), False),
            "rest_length": ((int, float), False)}
+_MARKER = {"name": (str, True), "point": (list, True)}
 _MOTOR = {"name": (str, True), "tendons": (list, True), "mirror": (str, False),
           "u_min": ((int, float), False), "u_max": ((int, float), True),
           "spool_radius": ((int, float), False)}
@@ -243,7 +248,7 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
     path = robot_file_path(name_or_path)
     src = str(path)
     doc = _read_toml(path)
-    allowed = set(_SCHEMA) | {"tendons", "motors"}
+    allowed = set(_SCHEMA) | {"tendons", "motors", "markers"}
     for key in doc:
         if key not in allowed:
             raise ValueError(f"{src}: unknown table [{key}] (allowed: {', '.join(sorted(allowed))})")
@@ -311,6 +316,7 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
             raise ValueError(f"{src}: motors[{i}].tendons must be a list of tendon names")
         motors.append(Motor(m["name"], tuple(m["tendons"]), m.get("mirror"), float(m.get("u_min", 0.0)),
                             float(m["u_max"]), float(m.get("spool_radius", 0.005))))
+    markers = _markers(doc.get("markers", []), to_sim, src)
     mat = tables["material"]
     try:
         contact = ContactParams(**{k: (v if k == "model" else float(v)) for k, v in tables["contact"].items()})
@@ -322,13 +328,30 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
                   payload_nodes=payload_nodes if float(pay.get("mass", 0.0)) > 0 else np.zeros(0, np.int64),
                   fixed_nodes=fixed_nodes, contact=contact,
                   body_length=float(rt["body_length"]) if "body_length" in rt else None,
-                  cable_blend=float(tables["cables"].get("blend", 2e-4)), source=src)
+                  cable_blend=float(tables["cables"].get("blend", 2e-4)), source=src, markers=markers)
     kwargs.update(overrides)
     try:
         return Robot(**kwargs)
     except ValueError as exc:
         msg = str(exc)
         raise ValueError(msg if msg.startswith(src) else f"{src}: {msg}") from exc
+
+
+def _markers(raw: Any, to_sim, src: str) -> tuple[Marker, ...]:
+    """The ``[[markers]]`` tables as markers in the simulation frame."""
+    if not isinstance(raw, list):
+        raise ValueError(f"{src}: markers must be an array of tables [[markers]]")
+    out = []
+    for i, m in enumerate(raw):
+        _check_table(m, _MARKER, f"markers[{i}]", src)
+        try:
+            p = to_sim(np.asarray(m["point"], dtype=np.float64))
+        except (ValueError, TypeError):
+            p = np.zeros(0)
+        if p.shape != (3,):
+            raise ValueError(f"{src}: markers[{i}] ({m['name']!r}).point must be [x, y, z]")
+        out.append(Marker(m["name"], p))
+    return tuple(out)
 
 
 def _index_list(values: Any, where: str, n: int, src: str) -> np.ndarray:
