@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from soft_envs.envs import cable_points, make_gradient_env, strain_energy_density
+from soft_envs.envs import cable_points, compile_ahead, make_gradient_env, strain_energy_density
 
 from .evaluation import evaluate_result
 from .gait import GaitSpec
@@ -54,7 +54,8 @@ def run_optimize(args) -> int:
         warm.settings["source"] = str(args.warm_start)
     gait = GaitSpec.for_task(task, symmetry=args.symmetry, n_prep=args.prep_steps, n_cycle=args.cycle_steps,
                              n_keyframes=args.keyframes)
-    env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading)
+    with compile_ahead(args.robot):            # first run on a machine: numba compiles meanwhile
+        env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading)
     print(f"{env.robot.summary()}; task {task}" + (f", slope {incline:g} deg" if incline else ""))
     bar = None
     if not args.quiet:
@@ -122,14 +123,16 @@ def run_render(args) -> int:
     env, u, traj = replay(res, args.cycles)
     robot = env.robot
     w, h = (int(v) for v in args.size.lower().split("x"))
-    renderer = Renderer(robot.mesh.surface, width=w, height=h, body_length=robot.body_length)
+    steps = range(0, len(traj.x), max(args.every, 1))
+    tensions = [env.cable_tension(traj.x[k], u[min(max(k - 1, 0), len(u) - 1)]) for k in steps]
+    top = max([float(np.max(t)) for t in tensions if len(t)] + [1e-3])      # one colour scale for the film
+    renderer = Renderer(robot.mesh.surface, width=w, height=h, body_length=robot.body_length, tension_max=top,
+                        legend=True, scale_bar=True)
     frames = []
-    for k in range(0, len(traj.x), max(args.every, 1)):
-        uk = u[min(max(k - 1, 0), len(u) - 1)]
-        tension = env.cable_tension(traj.x[k], uk)
+    for k, tension in zip(steps, tensions):
         cables = [(pts, float(t)) for pts, t in zip(cable_points(robot, traj.x[k]), tension)]
-        frames.append(renderer.render(traj.x[k], cables=cables, com_trail=traj.com[:k + 1],
-                                      gravity=env.gravity, title=f"t = {k * env.timestep:.2f} s"))
+        frames.append(renderer.render(traj.x[k], cables=cables, com_trail=traj.com[:k + 1], gravity=env.gravity,
+                                      title=f"{robot.name}, {res.task}: t = {k * env.timestep:.2f} s"))
     fps = 1.0 / (env.timestep * max(args.every, 1))
     for path in (args.gif, args.mp4):
         if path is not None:
@@ -156,13 +159,15 @@ def run_plot(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     stem = Path(args.result).stem
-    x0, _ = env_for_result(res).reset_state()
+    env = env_for_result(res)
+    x0, _ = env.reset_state()
     s = res.settings
     ext = args.format
     written = [plots.plot_com_topdown(res.com, res.target, out / f"{stem}_com.{ext}", body_outline=x0,
                                       prep_steps=s.get("n_prep"))]
     written.append(plots.plot_controls(res.u, res.dt, res.motor_names, out / f"{stem}_controls.{ext}",
-                                       n_prep=s.get("n_prep"), n_cycle=s.get("n_cycle"), u_post=res.u_post))
+                                       n_prep=s.get("n_prep"), n_cycle=s.get("n_cycle"), u_post=res.u_post,
+                                       mirror_map=env.robot.mirror_map))
     if res.history:
         written.append(plots.plot_convergence(res.history, out / f"{stem}_convergence.{ext}"))
     speeds = res.evaluation.get("speed_per_cycle_bl_per_min")

@@ -5,11 +5,13 @@ This layer turns the physics of :mod:`soft_envs.sim` into Gymnasium environments
 :class:`SoftRobotEnv`, registered on ``import soft_envs``) and offers ``trajopt`` its one way into
 the physics: the :class:`GradientEnv` protocol (rollouts with exact sensitivities, the robot, the
 simulation time step, the slope) with :func:`make_gradient_env` / :func:`as_gradient_env`, plus the
-re-exports below (the failure exception, body-frame measurements, cable points, strain energy).
+re-exports below (the failure exception, body-frame measurements, cable points, strain energy,
+compiling the kernels ahead of a first run).
 It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`; never
 ``trajopt``.
 """
 from ..sim import Robot, SimulationError, Trajectory, load_robot
+from ..sim.warmup import compile_ahead
 from .base import MOTOR_NO_LOAD_RPM, PAPER_GAIT_PERIOD, PAPER_TIMESTEP, SoftRobotEnv
 from .domain import DEFAULT_DOMAIN_RANDOMIZATION
 from .measure import (BodyFrame, cable_points, heading_vector, strain_energy_density, tilt_deg_of, wrap_angle,
@@ -21,4 +23,5 @@ from .tripod import SoftTripodEnv
 __all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv", "make_gradient_env",
            "as_gradient_env", "Robot", "Trajectory", "SimulationError", "load_robot", "BodyFrame", "yaw_of",
            "tilt_deg_of", "wrap_angle", "heading_vector", "cable_points", "strain_energy_density",
-           "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION"]
+           "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION",
+           "compile_ahead"]
