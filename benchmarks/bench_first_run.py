@@ -1,12 +1,13 @@
 """First run on a fresh install: ``trajopt optimize ROBOT --task walk`` on a cold numba cache.
 
 Each run is a fresh ``trajopt`` process with an empty ``NUMBA_CACHE_DIR`` (a new temporary
-folder, so no cache of this checkout is touched), alternately with the kernels compiled ahead
-in a child process (``soft_envs.sim.warmup.compile_ahead``, the default) and without
-(``SOFT_ENVS_COMPILE_AHEAD=0``: numba compiles each kernel on first use); then once more on the
-warm cache the last run left. Prints wall time and CPU time (the process and its children) per
-run, the medians and the cold/warm ratios. On a shared machine the wall times vary with the
-load: compare the runs of one invocation.
+folder, so no cache of this checkout is touched), alternately with the largest kernel compiled
+ahead in a child process (``SOFT_ENVS_COMPILE_AHEAD=1``; by default only when a core is idle, see
+``soft_envs.sim.warmup.compile_ahead``) and without (``=0``: numba compiles each kernel on first
+use); then once more on the warm cache the last run left. Prints wall time and CPU time (the
+process and its children) per run, the medians and the cold/warm ratios. The child only helps
+when a core is idle: on a loaded machine it takes CPU time from the main process and the wall
+times say little (the load average is printed with each run).
 
 Run: python benchmarks/bench_first_run.py [--robot tripod] [--repeat 2] [--iterations 10]
 """
@@ -41,7 +42,7 @@ def run(robot: str, iterations: int, cache: str, ahead: bool, out: str) -> dict:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     said = "compiling the simulator's kernels" in proc.stdout
-    return {"wall_s": wall, "cpu_s": cpu, "said_compiling": said}
+    return {"wall_s": wall, "cpu_s": cpu, "said_compiling": said, "load_1min": os.getloadavg()[0]}
 
 
 def main() -> None:

@@ -55,8 +55,7 @@ def add_tension_colorbar(fig: Figure, cmap: Colormap, vmax: float, *, fontsize: 
     mappable = ScalarMappable(norm=Normalize(vmin=0.0, vmax=vmax), cmap=cmap)
     cax = fig.add_axes((0.60, 0.06, 0.34, 0.03))
     bar = fig.colorbar(mappable, cax=cax, orientation="horizontal")
-    bar.set_label(TENSION_LABEL, fontsize=fontsize, labelpad=2, path_effects=_HALO)
-    cax.xaxis.set_label_position("top")
+    cax.set_title(TENSION_LABEL, fontsize=fontsize, pad=2, path_effects=_HALO)   # above; ticks below
     cax.tick_params(labelsize=fontsize, length=2, pad=1)
     for t in cax.get_xticklabels():
         t.set_path_effects(_HALO)

@@ -163,7 +163,7 @@ def test_legend_colour_bar_and_scale_bar_explain_the_frame(block):
     legend = ax.get_legend()
     assert [t.get_text() for t in legend.get_texts()] == list(LEGEND_LABELS)
     grey, red = (np.round(255 * np.array(h.get_color()[:3])) for h in legend.legend_handles)
-    assert cax.get_xlabel() == TENSION_LABEL and cax.get_xlim() == (0.0, 8.0)
+    assert cax.get_title() == TENSION_LABEL and cax.get_xlim() == (0.0, 8.0)
     # colours on the image: the colour bar's right end is the taut cable's colour, the slack
     # cable is the legend's grey
     box = cax.get_window_extent()
@@ -203,6 +203,8 @@ def test_colour_bar_follows_the_frames_tension_without_a_fixed_scale(block):
     assert r.overlay_figure.axes[1].get_xlim() == (0.0, 3.0)
     b = r.render(block[0], cables=[(cable, 5.5)])
     assert r.overlay_figure.axes[1].get_xlim() == (0.0, 5.5)
+    title = r.overlay_figure.axes[1].title                              # the label stays above the bar
+    assert title.get_window_extent().y0 >= r.overlay_figure.axes[1].get_window_extent().y1
     box = r.overlay_figure.axes[1].get_window_extent()                  # the tick labels below the bar changed
     below = (slice(int(H - box.y0), H), slice(int(box.x0), int(box.x1)))
     assert not np.array_equal(a[below], b[below])

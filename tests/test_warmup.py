@@ -24,13 +24,27 @@ def test_nothing_happens_when_the_kernels_are_cached(bar_robot, monkeypatch):
     assert compiling is False and started == [] and out.getvalue() == ""
 
 
-def test_switched_off_by_the_environment(monkeypatch):
+@pytest.mark.parametrize("switch, idle", [("0", True), ("auto", False)], ids=["switched-off", "busy-machine"])
+def test_no_child_when_switched_off_or_no_core_is_idle(monkeypatch, switch, idle):
+    """A cold cache is still announced; the kernels are then compiled on first use."""
     monkeypatch.setattr(warmup, "kernels_cached", lambda: False)
-    monkeypatch.setenv(warmup.ENV_SWITCH, "0")
+    monkeypatch.setattr(warmup, "idle_core", lambda: idle)
+    monkeypatch.setenv(warmup.ENV_SWITCH, switch)
+    started = []
+    monkeypatch.setattr(warmup.subprocess, "Popen", lambda *a, **k: started.append(a))
     out = io.StringIO()
     with warmup.compile_ahead("tripod", out) as compiling:
         pass
-    assert compiling is False and out.getvalue() == ""
+    assert compiling is False and started == []
+    assert out.getvalue().startswith("compiling the simulator's kernels (first run only")
+
+
+def test_idle_core_compares_the_cores_with_the_load(monkeypatch):
+    monkeypatch.setattr(warmup.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(warmup.os, "getloadavg", lambda: (0.9, 0.0, 0.0))
+    assert warmup.idle_core()
+    monkeypatch.setattr(warmup.os, "getloadavg", lambda: (1.2, 0.0, 0.0))
+    assert not warmup.idle_core()
 
 
 def _spy_popen(monkeypatch) -> list:
@@ -49,6 +63,7 @@ def test_a_cold_cache_is_announced_and_compiled_in_a_child(monkeypatch):
     """As on a first run (the cache is taken for empty): the user is told, a child process
     compiles the kernels while the block runs, and the block's end waits for it."""
     monkeypatch.setattr(warmup, "kernels_cached", lambda: False)
+    monkeypatch.setenv(warmup.ENV_SWITCH, "1")
     children = _spy_popen(monkeypatch)
     out = io.StringIO()
     with warmup.compile_ahead("tripod", out) as compiling:
@@ -62,6 +77,7 @@ def test_a_cold_cache_is_announced_and_compiled_in_a_child(monkeypatch):
 
 def test_a_failing_child_is_reported_and_the_caller_goes_on(monkeypatch):
     monkeypatch.setattr(warmup, "kernels_cached", lambda: False)
+    monkeypatch.setenv(warmup.ENV_SWITCH, "1")
     out = io.StringIO()
     with warmup.compile_ahead("no_such_robot", out):
         pass
@@ -72,6 +88,7 @@ def test_a_failing_child_is_reported_and_the_caller_goes_on(monkeypatch):
 
 def test_the_child_is_stopped_when_the_block_fails(monkeypatch):
     monkeypatch.setattr(warmup, "kernels_cached", lambda: False)
+    monkeypatch.setenv(warmup.ENV_SWITCH, "1")
     children = _spy_popen(monkeypatch)
     with pytest.raises(KeyboardInterrupt):
         with warmup.compile_ahead("tripod", io.StringIO()):

@@ -6,10 +6,12 @@ sources, or ``$NUMBA_CACHE_DIR``); later runs load them in milliseconds.
 
 The largest kernel, the elastic term's projected Hessian (the Newton solver's fallback, almost
 half of the compile time), is first needed only when a step's exact Hessian is not positive
-definite, typically during a gait optimisation's seed search. :func:`compile_ahead` compiles it
-in a child process (a thread would share the interpreter lock with the caller, and numba
-compiles mostly in Python) while the caller sets up its simulation, which compiles the kernels
-of a plain step at the same time on another core: the two compile disjoint sets of kernels.
+definite, typically during a gait optimisation's seed search. :func:`compile_ahead` says that
+the kernels are being compiled and, when a core is idle, compiles that one in a child process
+(a thread would share the interpreter lock with the caller, and numba compiles mostly in
+Python) while the caller sets up its simulation, which compiles the kernels of a plain step at
+the same time on another core: the two compile disjoint sets of kernels. On a busy machine a
+child only takes CPU time from the caller, so none is started there.
 
 ``python -m soft_envs.sim.warmup [ROBOT]`` compiles every kernel once, e.g. after installing.
 """
@@ -27,7 +29,7 @@ from typing import Iterator, TextIO
 
 import numpy as np
 
-__all__ = ["compile_kernels", "kernels_cached", "compile_ahead"]
+__all__ = ["compile_kernels", "kernels_cached", "compile_ahead", "idle_core"]
 
 #: kernels whose cache entries tell whether the simulator has been compiled on this machine
 _SENTINELS = (("soft_envs.sim.materials", "fem_assemble"),
@@ -35,8 +37,23 @@ _SENTINELS = (("soft_envs.sim.materials", "fem_assemble"),
               ("soft_envs.sim.cables", "cable_length_gradients"))
 #: longest wait for the child [s] (it takes ~15 s of CPU time); past it the caller goes on
 _WAIT = 300.0
-#: set to "0" to compile in the caller's process only, as numba does by default
+#: "0": compile in the caller's process only, as numba does by default; "1": always start the
+#: child; unset or "auto": start it when a core is idle (a busy machine gains nothing from it)
 ENV_SWITCH = "SOFT_ENVS_COMPILE_AHEAD"
+
+
+def idle_core() -> bool:
+    """Whether a core is free for a child process: the cores this process may use minus the
+    1-minute load average is at least one (without a load average: two cores or more)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:                                 # not Linux
+        cores = os.cpu_count() or 1
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):                      # Windows
+        return cores >= 2
+    return cores - load >= 1.0
 
 
 def kernels_cached() -> bool:
@@ -83,17 +100,22 @@ def compile_kernels(robot, *, dt: float = 0.033, gravity=(0.0, -9.81, 0.0), cont
 def compile_ahead(robot_spec: str | os.PathLike, out: TextIO | None = None) -> Iterator[bool]:
     """Around the set-up of a simulation of ``robot_spec`` (a shipped robot's name or a
     robot.toml path): when numba's cache lacks the simulator's kernels, say so on ``out``
-    (default stdout) and compile them in a child process (:func:`compile_kernels`) while the
-    block runs; on leaving the block, wait for the child, so the kernels are in the cache when
-    the caller first needs them. Yields whether it compiles. Nothing happens when the kernels
-    are cached or ``$SOFT_ENVS_COMPILE_AHEAD`` is ``0``; if the child fails, the caller
-    compiles what it needs itself, as without this."""
-    if os.environ.get(ENV_SWITCH, "1") == "0" or kernels_cached():
+    (default stdout) and, when a core is idle (:func:`idle_core`; ``$SOFT_ENVS_COMPILE_AHEAD``
+    ``1`` always, ``0`` never), compile the largest of them in a child process
+    (:func:`compile_kernels` without ``everything``) while the block runs; on leaving the
+    block, wait for the child, so the kernel is in the cache when the caller first needs it.
+    Yields whether a child compiles. Nothing is said or started when the kernels are cached;
+    if the child fails, the caller compiles what it needs itself, as without this."""
+    if kernels_cached():
         yield False
         return
     out = out or sys.stdout
     print("compiling the simulator's kernels (first run only: numba caches them for the next runs)...",
           file=out, flush=True)
+    switch = os.environ.get(ENV_SWITCH, "auto")
+    if switch == "0" or (switch != "1" and not idle_core()):
+        yield False
+        return
     t0 = time.perf_counter()
     with tempfile.TemporaryFile() as log:
         child = subprocess.Popen([sys.executable, "-m", "soft_envs.sim.warmup", str(robot_spec), "--ahead"],
