@@ -46,7 +46,7 @@ def bad_argument_cases(result: str, tmp: str) -> list[tuple[list[str], str]]:
         ([*opt, "--keyframes", "0"], "--keyframes"), ([*opt, "--speed", "nan"], "--speed"),
         ([*opt, "--speed", "-1"], "--speed"), ([*opt, "--heading", "nan"], "--heading"),
         ([*opt, "--heading", "inf"], "--heading"), ([*opt, "--iterations", "-3"], "--iterations"),
-        ([*opt, "--iterations", "0"], "--iterations"), ([*opt, "--angle", "95"], "--angle"),
+        ([*opt, "--iterations", "1.5"], "--iterations"), ([*opt, "--angle", "95"], "--angle"),
         ([*opt, "--seeds", "-1"], "--seeds"), ([*opt, "--cycles", "0"], "--cycles"),
         ([*opt, "--cycle-steps", "0"], "--cycle-steps"), ([*opt, "--prep-steps", "-1"], "--prep-steps"),
         ([*opt, "--keyframes", "9"], "--keyframes 9 must be at most --cycle-steps 8"),

@@ -99,19 +99,20 @@ def test_interrupt_then_resume_ends_where_an_uninterrupted_run_ends(tmp_path, mo
     monkeypatch.setattr(commands, "optimize_gait", interrupted_after_one)
     assert optimize(tmp_path, "--iterations", "2") == 130
     monkeypatch.setattr(commands, "optimize_gait", real)
-    part = Result.load(tmp_path / "tripod_walk.npz")
+    assert not (tmp_path / "tripod_walk.npz").exists()              # only finished runs get that name
+    part = Result.load(tmp_path / "tripod_walk.partial.npz")
     assert part.status == "interrupted" and [h["iteration"] for h in part.history] == [1]
     assert "--resume" in capsys.readouterr().err
     assert optimize(tmp_path, "--iterations", "2", "--resume") == 0
     assert "resuming" in capsys.readouterr().out
     done = Result.load(tmp_path / "tripod_walk.npz")
+    assert not (tmp_path / "tripod_walk.partial.npz").exists()       # the checkpoint is removed
     assert [h["iteration"] for h in done.history] == [h["iteration"] for h in straight.history] == [1, 2]
     np.testing.assert_allclose(done.z, straight.z, rtol=0, atol=1e-10)
     assert optimize(tmp_path, "--iterations", "2", "--resume") == 0
     assert "nothing to resume" in capsys.readouterr().out
-    (tmp_path / "again.npz").write_bytes((tmp_path / "tripod_walk.npz").read_bytes())
     part.status = "interrupted"
-    part.save(tmp_path / "again.npz")
+    part.save(tmp_path / "again.partial.npz")
     assert optimize(tmp_path, "--iterations", "2", "--resume", "--name", "again", "--heading", "45") == 2
     err = capsys.readouterr().err
     assert "cannot resume: the settings differ" in err and "'heading_deg': (0.0, 45.0)" in err, err
@@ -121,15 +122,18 @@ def test_evaluate_exit_codes(walk, tmp_path, monkeypatch, capsys):
     """0: upright (this gait is); 1: the robot fell (the metric says so); 2: bad input."""
     assert main(["evaluate", str(walk), "--cycles", "1"]) == 0
     out = capsys.readouterr().out
-    assert "upright" in out and "True" in out and "BL/min over 1 cycles" in out
+    assert "upright" in out and "yes" in out and "BL/min over 1 cycles" in out
     import trajopt.commands as commands
     real = commands.evaluate_result
-    monkeypatch.setattr(commands, "evaluate_result", lambda res, n=None: {**real(res, n), "upright": False})
+    monkeypatch.setattr(commands, "evaluate_result",
+                        lambda res, n=None, **kw: {**real(res, n, **kw), "upright": False})
     assert main(["evaluate", str(walk), "--cycles", "1"]) == 1
     monkeypatch.undo()
     assert main(["evaluate", str(tmp_path / "missing.npz")]) == 2
     assert "not found" in capsys.readouterr().err
-    assert main(["evaluate", str(walk), "--cycles", "0"]) == 2
+    with pytest.raises(SystemExit) as exit_:                       # argparse refuses it: exit code 2
+        main(["evaluate", str(walk), "--cycles", "0"])
+    assert exit_.value.code == 2
 
 
 def test_play_a_real_result_on_the_emulator(tmp_path, capsys):

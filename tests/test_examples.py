@@ -28,7 +28,14 @@ EXPECTED = {
     "gym_random_agent.py": [r"observation: 38 numbers", r"summed reward terms: \{'reward_forward'",
                             r"COM displacement: x [+-]\d+\.\d+ mm", r"saved a 480x360 frame to "],
     "optimize_tripod_walk.py": [r"iteration 1: objective \S+ -> \S+", r"speed per cycle \[BL/min\]: \[\S+\]",
-                                r"saved tripod_walk\.npz", r"front: \[", r"back: \["],
+                                r"saved results/tripod_walk_example\.npz", r"front: \[", r"back: \["],
+    "calibrate_from_markers.py": [r"\d+ samples of 8 markers over",
+                                  r"youngs_modulus +\d+ -> \d+ \+- \S+ Pa",
+                                  r"RMS marker error \d+\.\d+ mm -> \d+\.\d+ mm",
+                                  r"wrote results/calibration/fit/robot\.toml"],
+    "gait_robustness.py": [r"\d+ replays of \d+ cycles .*running in-process", r"nominal speed +[+-]?\d+\.\d+ BL/min",
+                           r"perturbed speed +median [+-]?\d+\.\d+, 5th-95th percentile",
+                           r"wrote results/robustness/report\.json"],
     "play_on_emulator.py": [r"robot 'tripod': motors \['front', 'back'\]",
                             r"30/30 steps sent in \d+\.\d+ s; .*motors confirmed stopped: front, back",
                             r"aborted: motor 'front' .*: tracking error \d+ counts",
@@ -43,7 +50,11 @@ EXPECTED = {
 }
 #: files (relative to the working directory) an example must leave behind
 WRITES = {
-    "optimize_tripod_walk.py": ["tripod_walk.npz", "tripod_walk.json"],
+    "optimize_tripod_walk.py": ["results/tripod_walk_example.npz", "results/tripod_walk_example.json"],
+    "calibrate_from_markers.py": ["results/calibration/fit/robot.toml", "results/calibration/fit/tracks.png",
+                                  "results/calibration/fit/calibration.json"],
+    "gait_robustness.py": ["results/robustness/report.json", "results/robustness/samples.csv",
+                           "results/robustness/robustness.png"],
     "rl_baseline.py": ["results/tripod_ppo_example.npz"],
     "robot_from_surface.py": ["results/quadruped/robot.toml", "results/quadruped/quadruped.vtu",
                               "results/quadruped/quadruped.png", "results/quadruped/quadruped_walk.npz",

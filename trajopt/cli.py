@@ -55,7 +55,8 @@ def _add_optimize(sub) -> None:
                      help="bilateral symmetry on (default for walk and incline)")
     sym.add_argument("--no-symmetry", dest="symmetry", action="store_false", help="symmetry off (default for turn)")
     p.add_argument("--warm-start", type=Path, default=None, help="start from this result's keyframes")
-    p.add_argument("--iterations", type=integer(1, 100_000), default=10, help="Gauss-Newton iterations at most")
+    p.add_argument("--iterations", type=integer(0, 100_000), default=10,
+                   help="Gauss-Newton iterations at most (0: evaluate the starting gait)")
     paper = GaitSpec()
     p.add_argument("--keyframes", type=steps, default=paper.n_keyframes,
                    help=f"spline keyframes per cycle (default {paper.n_keyframes}, the paper's)")

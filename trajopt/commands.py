@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from soft_envs.envs import make_gradient_env
+from soft_envs.envs import compile_ahead, make_gradient_env
 
 from .evaluation import evaluate_result
 from .files import RESULTS_DIR
@@ -139,7 +139,8 @@ def run_optimize(args) -> int:
     warm = Result.load(args.warm_start) if args.warm_start else None
     if warm is not None:
         warm.settings["source"] = str(args.warm_start)
-    env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading, contact=args.contact)
+    with compile_ahead(args.robot):            # first run on a machine: numba compiles meanwhile
+        env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading, contact=args.contact)
     print(f"{env.robot.summary()}; task {task}; {env.contact_model} contact law"
           + (f", slope {incline:g} deg" if incline else ""))
     print(f"writes {out} (+ .json) when it finishes; checkpoints in {partial} until then")

@@ -48,14 +48,16 @@ def run_render(args) -> int:
     env, u, traj = replay(res, args.cycles, ignore_robot_mismatch=args.ignore_robot_mismatch)
     robot = env.robot
     w, h = args.size
-    renderer = Renderer(robot.mesh.surface, width=w, height=h, body_length=robot.body_length)
+    steps = range(0, len(traj.x), args.every)
+    tensions = [env.cable_tension(traj.x[k], u[min(max(k - 1, 0), len(u) - 1)]) for k in steps]
+    top = max([float(np.max(t)) for t in tensions if len(t)] + [1e-3])      # one colour scale for the film
+    renderer = Renderer(robot.mesh.surface, width=w, height=h, body_length=robot.body_length, tension_max=top,
+                        legend=True, scale_bar=True)
     frames = []
-    for k in range(0, len(traj.x), args.every):
-        uk = u[min(max(k - 1, 0), len(u) - 1)]
-        tension = env.cable_tension(traj.x[k], uk)
+    for k, tension in zip(steps, tensions):
         cables = [(pts, float(t)) for pts, t in zip(cable_points(robot, traj.x[k]), tension)]
-        frames.append(renderer.render(traj.x[k], cables=cables, com_trail=traj.com[:k + 1],
-                                      gravity=env.gravity, title=f"t = {k * env.timestep:.2f} s"))
+        frames.append(renderer.render(traj.x[k], cables=cables, com_trail=traj.com[:k + 1], gravity=env.gravity,
+                                      title=f"{robot.name}, {res.task}: t = {k * env.timestep:.2f} s"))
     fps = 1.0 / (env.timestep * args.every)
     for path in outputs:
         with atomic_output(path) as tmp:
@@ -102,12 +104,14 @@ def run_plot(args) -> int:
     speeds = res.evaluation.get("speed_per_cycle_bl_per_min")
     wanted = ["com", "controls"] + (["convergence"] if res.history else []) + (["speed"] if speeds else [])
     refuse_existing([names[k] for k in wanted], args.overwrite)
-    x0, _ = env_for_result(res, ignore_robot_mismatch=args.ignore_robot_mismatch).reset_state()
+    env = env_for_result(res, ignore_robot_mismatch=args.ignore_robot_mismatch)
+    x0, _ = env.reset_state()
     s = res.settings
     draw = {
         "com": lambda p: plots.plot_com_topdown(res.com, res.target, p, body_outline=x0, prep_steps=s.get("n_prep")),
         "controls": lambda p: plots.plot_controls(res.u, res.dt, res.motor_names, p, n_prep=s.get("n_prep"),
-                                                  n_cycle=s.get("n_cycle"), u_post=res.u_post),
+                                                  n_cycle=s.get("n_cycle"), u_post=res.u_post,
+                                                  mirror_map=env.robot.mirror_map),
         "convergence": lambda p: plots.plot_convergence(res.history, p),
         "speed": lambda p: plots.plot_speed_per_cycle(np.asarray(speeds), p,
                                                       reference={"tripod": 6.1, "puppy": 8.6}.get(res.robot)),

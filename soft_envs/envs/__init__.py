@@ -7,12 +7,13 @@ the physics: the :class:`GradientEnv` protocol (rollouts with exact sensitivitie
 simulation time step, the slope) with :func:`make_gradient_env` / :func:`as_gradient_env`, plus the
 re-exports below (the failure exception, body-frame measurements, cable points, strain energy, the
 robot fingerprint that ties a result to its robot, the physical parameters and tracked markers of
-calibration).
+calibration, compiling the kernels ahead of a first run).
 It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`; never
 ``trajopt``.
 """
 from ..sim import Robot, SimulationError, Trajectory, load_robot
 from ..sim.robot_file import robot_fingerprint
+from ..sim.warmup import compile_ahead
 from .base import MOTOR_NO_LOAD_RPM, PAPER_GAIT_PERIOD, PAPER_TIMESTEP, SoftRobotEnv
 from .domain import DEFAULT_DOMAIN_RANDOMIZATION
 from .identification import (PHYSICAL_PARAMETERS, Marker, MarkerSet, check_parameters, parameter_values,
@@ -28,4 +29,5 @@ __all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv", "make
            "BodyFrame", "yaw_of",
            "tilt_deg_of", "wrap_angle", "heading_vector", "cable_points", "strain_energy_density",
            "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION",
-           "PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "check_parameters", "Marker", "MarkerSet"]
+           "PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "check_parameters", "Marker", "MarkerSet",
+           "compile_ahead"]

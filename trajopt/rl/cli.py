@@ -51,6 +51,8 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--episode-steps", type=positive_int, default=TRAIN_HORIZON,
                    help=f"max_episode_steps (default {TRAIN_HORIZON}, trajopt's horizon)")
     p.add_argument("--incline", type=slope_deg, default=0.0, help="ground slope [deg]")
+    p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
+                   help="ground contact law (paper: -v0's; coulomb: -v1's); default: the robot file's (paper)")
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--checkpoint-every", type=positive_int, default=None,
                    help="environment steps between checkpoints (default: a tenth of the budget)")
@@ -99,6 +101,8 @@ def _cmd_train(args) -> int:
             env_kwargs["incline_deg"] = args.incline
         if args.heading:
             env_kwargs["target_heading_deg"] = args.heading
+        if args.contact:
+            env_kwargs["contact"] = args.contact
         run = train(args.robot, args.algo, args.timesteps, args.seed, args.out, name=args.name,
                     n_envs=args.n_envs, vec_env=args.vec_env, frame_skip=args.frame_skip,
                     max_episode_steps=args.episode_steps, env_kwargs=env_kwargs,

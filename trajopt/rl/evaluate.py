@@ -241,7 +241,7 @@ def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLik
         "env_id": cfg.get("env_id"), "frame_skip": int(cfg["env"].get("frame_skip", 1)),
         "env_kwargs": env_kwargs, "reset_noise_scale": float(reset_noise_scale),
         "heading_deg": float(env_kwargs.get("target_heading_deg", 0.0)),
-        "incline_deg": float(env_kwargs.get("incline_deg", 0.0)),
+        "incline_deg": float(env_kwargs.get("incline_deg", 0.0)), "contact": base.contact_model,
         "motor_speed_rpm": env_kwargs.get("motor_speed_rpm", MOTOR_NO_LOAD_RPM),
         "control": base.control_mode, "source": str(policy.path),
     }
