@@ -1,4 +1,4 @@
-"""Central finite differences of every energy term's gradient and Hessian (rel. error <= 1e-5).
+"""Central finite differences of every energy term's gradient and Hessian (rel. error <= 1e-6).
 
 Each check perturbs x along random unit directions with h = 1e-7 m and compares
 (E(x + h d) - E(x - h d)) / 2h with grad . d, and the same for the gradient and the Hessian.
@@ -14,7 +14,7 @@ from soft_envs.sim.materials import element_energy, element_gradient_hessian, la
 
 from .conftest import small_robot
 
-RTOL = 1e-5
+RTOL = 1e-6
 H = 1e-7
 
 
@@ -147,7 +147,7 @@ def test_every_term_derivatives_match_finite_differences(case):
     of its gradient, the control Jacobian d(grad)/du vs differences in u, the lagged product
     d(grad)/dx_prev @ S (and its transpose) vs differences in x_prev, and for terms with a
     history (stick anchors) d(grad)/dhist @ P and d(next history)/dz vs differences, with
-    their transposes. Relative error <= RTOL = 1e-5 with h = 1e-7 (m or the control's unit)."""
+    their transposes. Relative error <= RTOL = 1e-6 with h = 1e-7 (m or the control's unit)."""
     sim, x, x_prev, u, rng = perturbed_state(case)
     system = sim.system
     n3 = system.n_dof

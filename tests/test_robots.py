@@ -201,3 +201,16 @@ def test_robot_keeps_its_own_tendon_points(bar_robot):
     with pytest.raises(ValueError, match="rest_length must be positive"):
         Robot.from_mesh(block_mesh(), youngs_modulus=1e5, poisson_ratio=0.3, density=100.0,
                         tendons=[dict(name="t", points=pts, rest_length=float("nan"))])
+
+
+@pytest.mark.parametrize("radius", [float("inf"), float("nan"), 0.0, -0.005])
+def test_a_spool_radius_that_is_not_finite_and_positive_is_refused(radius):
+    """``Robot.from_mesh`` checks what a robot.toml would: a spool radius of inf would turn
+    every motor command into an angle of 0."""
+    from soft_envs.sim import Robot
+    from .conftest import block_mesh
+    pts = np.array([[0.055, 0.015, 0.01], [0.005, 0.015, 0.01]])
+    with pytest.raises(ValueError, match=r"motors\[0\].*spool_radius must be a finite positive number"):
+        Robot.from_mesh(block_mesh(), youngs_modulus=1e5, poisson_ratio=0.3, density=100.0,
+                        tendons=[dict(name="t", points=pts, rest_length=0.05)],
+                        motors=[dict(name="m", tendons=["t"], spool_radius=radius)])

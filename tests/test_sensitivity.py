@@ -3,7 +3,8 @@ whole rollouts, and adjoint gradients against the forward mode.
 
 Newton tolerance for these checks: 1e-13 m per step (NewtonOptions(tol=1e-13)); perturbations of ~3e-8 m of contraction (3e-5 N of tension):
 central differences of them need states accurate to ~1e-12 m; larger ones meet the kinks of Q''
-at the ends of its C2 blend. Required relative error <= 1e-4.
+at the ends of its C2 blend. Required relative error <= 1e-4 for the paper's law (measured 5e-7 -
+3e-5: central differences across the kinks of its blends), <= 1e-6 for the Coulomb law.
 """
 from __future__ import annotations
 
@@ -124,7 +125,7 @@ def test_rollout_jacobian_with_coulomb_friction(name):
     dudz = 1e-3 * rng.normal(size=(K, robot.n_motors, 6))
     errs = rollout_jacobian_errors(sim, u0, dudz, x0=x0, n_dirs=2, h=3e-5, rng=rng,
                                    full_state=(name == "tripod"))
-    assert max(errs.values()) <= 1e-4, errs
+    assert max(errs.values()) <= 1e-6, errs     # the Coulomb law: measured 2e-7 - 8e-7
 
 
 def test_adjoint_gradient_with_coulomb_friction():

@@ -200,8 +200,8 @@ class Robot:
                     raise ValueError(f"{where}.tendons names unknown tendon {t!r} (known: {names})")
             if not (np.isfinite(m.u_min) and np.isfinite(m.u_max) and m.u_min < m.u_max):
                 raise ValueError(f"{where}: need finite u_min < u_max, got {m.u_min}, {m.u_max}")
-            if not m.spool_radius > 0:
-                raise ValueError(f"{where}.spool_radius must be positive, got {m.spool_radius}")
+            if not (np.isfinite(m.spool_radius) and m.spool_radius > 0):
+                raise ValueError(f"{where}.spool_radius must be a finite positive number, got {m.spool_radius}")
             if m.mirror is not None:
                 if m.mirror not in mnames:
                     raise ValueError(f"{where}.mirror names unknown motor {m.mirror!r}")

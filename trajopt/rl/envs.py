@@ -34,6 +34,8 @@ __all__ = ["ROBOT_IDS", "GAIT", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES", "DropHor
 
 #: robots of the RL baseline and their Gymnasium ids
 ROBOT_IDS = {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
+#: the ids of the Coulomb contact law (``contact="coulomb"``)
+COULOMB_IDS = {"tripod": "SoftTripod-v1", "puppy": "SoftPuppy-v1"}
 #: trajopt's gait (prep phase, cycle length, cycles optimised): the phases the policy is measured in
 GAIT = GaitSpec()
 #: 168 simulation steps: trajopt's optimisation horizon, the RL baseline's episode length
@@ -41,18 +43,20 @@ TRAIN_HORIZON = GAIT.n_steps()
 
 
 def robot_name(robot: str) -> str:
-    """``"tripod"`` for ``"tripod"`` or ``"SoftTripod-v0"`` (likewise the Puppy)."""
+    """``"tripod"`` for ``"tripod"``, ``"SoftTripod-v0"`` or ``"SoftTripod-v1"`` (likewise the Puppy)."""
     if robot in ROBOT_IDS:
         return robot
-    for name, id_ in ROBOT_IDS.items():
-        if robot == id_:
+    for name in ROBOT_IDS:
+        if robot in (ROBOT_IDS[name], COULOMB_IDS[name]):
             return name
     raise ValueError(f"robot must be one of {sorted(ROBOT_IDS)} (or their ids "
-                     f"{sorted(ROBOT_IDS.values())}), got {robot!r}")
+                     f"{sorted([*ROBOT_IDS.values(), *COULOMB_IDS.values()])}), got {robot!r}")
 
 
-def env_id(robot: str) -> str:
-    return ROBOT_IDS[robot_name(robot)]
+def env_id(robot: str, contact: str | None = None) -> str:
+    """The registered id of ``robot`` under the contact law ``contact`` (``"coulomb"``: ``-v1``;
+    ``"paper"`` or None: ``-v0``, the robot file's law)."""
+    return (COULOMB_IDS if contact == "coulomb" else ROBOT_IDS)[robot_name(robot)]
 
 
 class DropHorizontalPosition(gym.ObservationWrapper):
@@ -90,7 +94,7 @@ def make_env(robot: str, *, frame_skip: int = 1, max_episode_steps: int | None =
     kwargs["frame_skip"] = int(frame_skip)
     if max_episode_steps is not None:
         kwargs["max_episode_steps"] = int(max_episode_steps)
-    env = gym.make(env_id(robot), **kwargs)
+    env = gym.make(env_id(robot, kwargs.get("contact")), **kwargs)
     if drop_com_xz:
         env = DropHorizontalPosition(env)
     return env

@@ -147,6 +147,16 @@ def _prepare_run_dir(run_dir: Path, overwrite: bool) -> Path:
     return ckpt_dir
 
 
+def _save_atomically(model, venv, model_path: Path, vecnorm_path: Path) -> None:
+    """The final model and its VecNormalize statistics, each complete or not at all (a kill
+    during the save leaves the previous files)."""
+    from ..files import atomic_output
+    with atomic_output(model_path) as tmp, open(tmp, "wb") as fh:
+        model.save(fh)
+    with atomic_output(vecnorm_path) as tmp:
+        venv.save(str(tmp))
+
+
 def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_subproc, env_cfg, hp,
            vn_kwargs, checkpoint_every, frame_skip, progress_bar, verbose, log_stdout, callback) -> TrainRun:
     import torch
@@ -154,7 +164,8 @@ def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_su
     from stable_baselines3.common.logger import configure
 
     config: dict[str, Any] = {
-        "robot": robot, "env_id": env_id(robot), "algo": algo, "timesteps": timesteps,
+        "robot": robot, "env_id": env_id(robot, (env_cfg.get("env_kwargs") or {}).get("contact")),
+        "algo": algo, "timesteps": timesteps,
         "seed": int(seed), "n_envs": n_envs, "vec_env": "subproc" if use_subproc else "dummy",
         "env": env_cfg, "hyperparams": hp, "vecnormalize": vn_kwargs,
         "checkpoint_every": checkpoint_every, "status": "running",
@@ -189,8 +200,7 @@ def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_su
               file=sys.stderr)
     wall = time.perf_counter() - t0
     model_path = run_dir / MODEL_NAME
-    model.save(model_path)
-    venv.save(str(run_dir / VECNORM_NAME))
+    _save_atomically(model, venv, model_path, run_dir / VECNORM_NAME)
     done = int(model.num_timesteps)
     config.update(status=status, timesteps_done=done, sim_steps=done * int(frame_skip), wall_time_s=wall)
     write_config(run_dir, config)
