@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .gait import DEFAULT_EVAL_CYCLES, GaitSpec
+from .gait import DEFAULT_EVAL_CYCLES, TURN_KEYFRAMES, GaitSpec
 
 __all__ = ["main", "build_parser"]
 
@@ -35,7 +35,8 @@ def _add_optimize(sub) -> None:
     p.add_argument("--angle", type=float, default=20.0, help="slope [deg] (task incline)")
     p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
                    help="ground contact law: paper (II-C, viscous-like friction, Table I) or coulomb "
-                        "(friction bounded by mu N, feet that stick); default: the robot file's")
+                        "(friction bounded by mu N, feet that stick); default: the robot file's, coulomb "
+                        "for the turn (it pivots on a foot that sticks)")
     sym = p.add_mutually_exclusive_group()
     sym.add_argument("--symmetry", dest="symmetry", action="store_true", default=None,
                      help="bilateral symmetry on (default for walk and incline)")
@@ -43,8 +44,8 @@ def _add_optimize(sub) -> None:
     p.add_argument("--warm-start", type=Path, default=None, help="start from this result's keyframes")
     p.add_argument("--iterations", type=int, default=10, help="Gauss-Newton iterations at most")
     paper = GaitSpec()
-    p.add_argument("--keyframes", type=int, default=paper.n_keyframes,
-                   help=f"spline keyframes per cycle (default {paper.n_keyframes}, the paper's)")
+    p.add_argument("--keyframes", type=int, default=None,
+                   help=f"spline keyframes per cycle (default {paper.n_keyframes}, the paper's; turn {TURN_KEYFRAMES})")
     p.add_argument("--cycle-steps", type=int, default=paper.n_cycle,
                    help=f"simulation steps per gait cycle (default {paper.n_cycle}, the paper's)")
     p.add_argument("--prep-steps", type=int, default=paper.n_prep,

@@ -14,7 +14,7 @@ from soft_envs.envs import cable_points, make_gradient_env, strain_energy_densit
 from .evaluation import evaluate_result
 from .gait import GaitSpec
 from .gauss_newton import GaussNewtonOptions
-from .optimize import optimize_gait
+from .optimize import TASK_CONTACT, optimize_gait
 from .replay import env_for_result, replay
 from .results import Result
 
@@ -25,6 +25,20 @@ def _print_table(rows: list[tuple[str, str]]) -> None:
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
         print(f"  {k.ljust(w)}  {v}")
+
+
+def _heading_rows(task: str, ev: dict) -> list[tuple[str, str]]:
+    """The body's heading (yaw of the best-fit rotation of all nodes): over the evaluated cycles,
+    and for turns per cycle and over the optimised horizon with the COM's RMS distance from
+    the quarter circle."""
+    rows = [("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg over {ev['cycles']} cycles")]
+    if task == "turn" and "heading_per_cycle_deg" in ev:
+        rows.append(("heading per cycle", " ".join(f"{v:+.1f}" for v in ev["heading_per_cycle_deg"])))
+    if task == "turn" and "horizon_heading_change_deg" in ev:
+        rows.append(("heading, horizon", f"{ev['horizon_heading_change_deg']:+.1f} deg over the optimised "
+                                         f"{ev['horizon_steps']} steps; COM {ev['horizon_rms_to_target_bl']:.3f} "
+                                         "BL RMS from the target"))
+    return rows
 
 
 def _load_resume(out: Path) -> Result | None:
@@ -54,8 +68,10 @@ def run_optimize(args) -> int:
         warm.settings["source"] = str(args.warm_start)
     gait = GaitSpec.for_task(task, symmetry=args.symmetry, n_prep=args.prep_steps, n_cycle=args.cycle_steps,
                              n_keyframes=args.keyframes)
-    env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading, contact=args.contact)
+    contact = args.contact or TASK_CONTACT.get(task)          # the turn pivots on feet that stick
+    env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading, contact=contact)
     print(f"{env.robot.summary()}; task {task}; {env.contact_model} contact law"
+          + (f" (the {task}'s default; --contact paper for the paper's)" if contact and not args.contact else "")
           + (f", slope {incline:g} deg" if incline else ""))
     bar = None
     if not args.quiet:
@@ -96,7 +112,7 @@ def run_optimize(args) -> int:
         ("speed", f"{ev['speed_bl_per_min']:.2f} BL/min over {ev['cycles']} cycles "
                   f"(target {res.settings['speed_bl_per_min']:g})"),
         ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
-        ("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg"),
+        *_heading_rows(res.task, ev),
         ("upright", str(ev["upright"])),
         ("simulation steps", str(ev["optimization_sim_steps"])),
     ])
@@ -109,7 +125,7 @@ def run_evaluate(args) -> int:
     print(res.summary())
     _print_table([("speed", f"{ev['speed_bl_per_min']:.3f} BL/min over {ev['cycles']} cycles"),
                   ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
-                  ("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg"),
+                  *_heading_rows(res.task, ev),
                   ("max tilt", f"{ev.get('max_tilt_deg', float('nan')):.1f} deg"),
                   ("upright", str(ev["upright"]))])
     return 0 if ev["upright"] else 1
