@@ -112,6 +112,8 @@ def test_measure_gait_reports_heading_per_cycle_and_over_the_horizon():
     assert np.allclose(ev["heading_per_cycle_deg"], -90.0 * n_cycle / K)
     assert np.isclose(ev["horizon_heading_change_deg"], -90.0 * (n_prep + 2 * n_cycle) / K)
     assert ev["horizon_rms_to_target_bl"] < 1e-12 and ev["upright"]
+    chords = np.linalg.norm(target[n_prep + n_cycle::n_cycle] - target[n_prep:-n_cycle:n_cycle], axis=1)
+    assert np.isclose(ev["cycle_path_speed_bl_per_min"], chords.sum() / (K - n_prep) / dt * 60 / robot.body_length)
     shifted = measure_gait(traj, env, n_prep=n_prep, n_cycle=n_cycle, target=target + [0.0, 0.013])
     assert np.isclose(shifted["horizon_rms_to_target_bl"], 0.013 / robot.body_length)
     with pytest.raises(ValueError, match="target"):

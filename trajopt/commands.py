@@ -27,14 +27,21 @@ def _print_table(rows: list[tuple[str, str]]) -> None:
         print(f"  {k.ljust(w)}  {v}")
 
 
-def _heading_rows(task: str, ev: dict) -> list[tuple[str, str]]:
-    """The body's heading (yaw of the best-fit rotation of all nodes): over the evaluated cycles,
-    and for turns per cycle and over the optimised horizon with the COM's RMS distance from
-    the quarter circle."""
-    rows = [("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg over {ev['cycles']} cycles")]
-    if task == "turn" and "heading_per_cycle_deg" in ev:
-        rows.append(("heading per cycle", " ".join(f"{v:+.1f}" for v in ev["heading_per_cycle_deg"])))
-    if task == "turn" and "horizon_heading_change_deg" in ev:
+def _gait_rows(task: str, ev: dict, target_speed: float | None = None) -> list[tuple[str, str]]:
+    """Speed and heading (yaw of the best-fit rotation of all nodes) over the evaluated cycles.
+    A turn's speed is along its COM path sampled once per cycle (along a fixed direction it
+    averages out; every step's path adds the sway within a stride); it also shows its heading
+    per cycle and over the optimised horizon, with the COM's RMS distance from the circle."""
+    aim = f" (target {target_speed:g})" if target_speed is not None else ""
+    if task != "turn":
+        return [("speed", f"{ev['speed_bl_per_min']:.2f} BL/min over {ev['cycles']} cycles{aim}"),
+                ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
+                ("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg over {ev['cycles']} cycles")]
+    rows = [("speed", f"{ev.get('cycle_path_speed_bl_per_min', float('nan')):.2f} BL/min along the COM path "
+                      f"(cycle to cycle) over {ev['cycles']} cycles{aim}"),
+            ("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg over {ev['cycles']} cycles"),
+            ("heading per cycle", " ".join(f"{v:+.1f}" for v in ev.get("heading_per_cycle_deg", [])))]
+    if "horizon_heading_change_deg" in ev:
         rows.append(("heading, horizon", f"{ev['horizon_heading_change_deg']:+.1f} deg over the optimised "
                                          f"{ev['horizon_steps']} steps; COM {ev['horizon_rms_to_target_bl']:.3f} "
                                          "BL RMS from the target"))
@@ -109,10 +116,7 @@ def run_optimize(args) -> int:
         ("status", res.status),
         ("iterations", str(len(res.history))),
         ("objective", f"{ev['objective']:.5g}"),
-        ("speed", f"{ev['speed_bl_per_min']:.2f} BL/min over {ev['cycles']} cycles "
-                  f"(target {res.settings['speed_bl_per_min']:g})"),
-        ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
-        *_heading_rows(res.task, ev),
+        *_gait_rows(res.task, ev, res.settings["speed_bl_per_min"]),
         ("upright", str(ev["upright"])),
         ("simulation steps", str(ev["optimization_sim_steps"])),
     ])
@@ -123,9 +127,7 @@ def run_evaluate(args) -> int:
     res = Result.load(args.result)
     ev = evaluate_result(res, args.cycles)
     print(res.summary())
-    _print_table([("speed", f"{ev['speed_bl_per_min']:.3f} BL/min over {ev['cycles']} cycles"),
-                  ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
-                  *_heading_rows(res.task, ev),
+    _print_table([*_gait_rows(res.task, ev),
                   ("max tilt", f"{ev.get('max_tilt_deg', float('nan')):.1f} deg"),
                   ("upright", str(ev["upright"]))])
     return 0 if ev["upright"] else 1

@@ -71,7 +71,9 @@ def _horizon(com: np.ndarray, head: np.ndarray, target: np.ndarray, body_length:
 
 def measure_gait(traj: Any, env: GradientEnv, *, n_prep: int, n_cycle: int, heading_deg: float = 0.0,
                  max_tilt_deg: float = 60.0, target: np.ndarray | None = None) -> dict[str, Any]:
-    """Speed, per-cycle speeds, path speed, heading change (whole and per cycle), tilt and
+    """Speed, per-cycle speeds, path speeds (of every step, and of the COM sampled once per cycle,
+    which leaves out the sway within a stride: a turn's speed along its circle), heading change
+    (whole and per cycle), tilt and
     uprightness of a finished trajectory ``traj`` (anything with ``x`` (K+1, n, 3) and ``com``
     (K+1, 3) of simulation steps of ``env.timestep`` seconds, state 0 the start) of
     ``env.robot``: prep ``n_prep`` steps, then cycles of ``n_cycle`` steps, measured along
@@ -94,11 +96,13 @@ def measure_gait(traj: Any, env: GradientEnv, *, n_prep: int, n_cycle: int, head
     com_h = com[:, 1]
     upright = bool(tilt.max() <= max_tilt_deg and com_h.min() >= 0.5 * com_h[0])
     path = np.linalg.norm(np.diff(com[marks[0]:, [0, 2]], axis=0), axis=1).sum()
+    chords = np.linalg.norm(np.diff(com[marks][:, [0, 2]], axis=0), axis=1).sum()
     return {
         "cycles": int(n_cycles),
         "speed_bl_per_min": float(mean),
         "speed_per_cycle_bl_per_min": [float(v) for v in per_cycle],
         "path_speed_bl_per_min": mps_to_bl_per_min(path / (n_cycles * n_cycle * dt), bl),
+        "cycle_path_speed_bl_per_min": mps_to_bl_per_min(chords / (n_cycles * n_cycle * dt), bl),
         "heading_change_deg": float(np.degrees(head[-1] - head[0])),
         "heading_per_cycle_deg": [float(v) for v in np.degrees(np.diff(head[marks]))],
         "max_tilt_deg": float(tilt.max()),
