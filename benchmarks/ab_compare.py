@@ -7,7 +7,7 @@ Each round runs the same timing script once under each checkout (a subprocess wi
 checkout first on ``PYTHONPATH``), alternating A, B, A, B ..., so a slow spell of the shared
 machine hits both. Timed: a 168-step gait rollout of the Puppy and of the Tripod, the Puppy's
 rollout with exact sensitivities for nz = 32 parameters, and 300 random-action steps of
-``SoftTripod-v0``. Prints the best time of each over the rounds and the ratio B / A.
+``SoftTripod-v0``. Prints the best CPU time of each over the rounds and the ratio B / A.
 """
 from __future__ import annotations
 
@@ -33,10 +33,12 @@ def gait(robot, K=168, dt=0.033, period=72):
     return u
 
 def best(f, n=3):
+    # CPU time of this process (single-threaded: OMP_NUM_THREADS=1): much less sensitive than
+    # wall time to other processes sharing the cores
     f()
     out = []
     for _ in range(n):
-        t0 = time.perf_counter(); f(); out.append(time.perf_counter() - t0)
+        t0 = time.process_time(); f(); out.append(time.process_time() - t0)
     return min(out)
 
 res = {"module": sys_path_check}

@@ -9,10 +9,20 @@ For SoftTripod-v0 and SoftPuppy-v0 (``gymnasium.make`` with its default wrappers
 Targets from the issue: Tripod >= 1000 steps/s, Puppy >= 300 steps/s; env layer < 10 %.
 Each figure is the best of ``REPEATS`` runs of ``STEPS`` steps from the same seeded reset
 (the machine may be shared; the overhead share is measured inside each run, so it is robust).
-Run: python benchmarks/bench_envs.py
+
+Vector environments (issue #17), SoftTripod-v0 with 2 environments, measured alternately in one
+run (best of ``VEC_ROUNDS`` rounds): one environment in this process; ``gym.make_vec(...,
+vectorization_mode="async")``; SB3's ``SubprocVecEnv``; two plain processes each stepping one
+environment (the ceiling). Env steps/s of each, the ratio to one environment (target >= 1.7x
+on 2 cores), the CPU time per step in the workers and in the main process, and the load
+average (the machine may be shared: rerun when it is quiet).
+Run: python benchmarks/bench_envs.py [--vector-only]
 """
 from __future__ import annotations
 
+import argparse
+import multiprocessing
+import os
 import time
 
 import gymnasium as gym
@@ -83,7 +93,168 @@ def bench(env_id: str, kind: str) -> dict:
             "resets": best["resets"], "target_steps_per_s": TARGETS[env_id]}
 
 
+VEC_ENV = "SoftTripod-v0"
+VEC_STEPS = 200
+VEC_ROUNDS = 3
+
+
+def _cpu_s(pid: int) -> float:
+    with open(f"/proc/{pid}/stat") as fh:
+        fields = fh.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _actions(env, n: int, kind: str, index: int = 0) -> np.ndarray:
+    """``n`` actions: seeded uniform samples, or the smooth gait-like control shifted by a
+    quarter cycle per environment ``index`` (so the environments are in different phases)."""
+    if kind == "random":
+        env.action_space.seed(index)
+        return np.array([env.action_space.sample() for _ in range(n)])
+    base = env.unwrapped
+    shift = 18 * index
+    u = gait_controls(base.robot, K=n + shift, dt=base.dt)[shift:]
+    return base.control_to_action(u).astype(np.float32)
+
+
+def _single(steps: int = VEC_STEPS, kind: str = "random", queue=None, index: int = 0) -> float:
+    env = gym.make(VEC_ENV, max_episode_steps=10 ** 6)
+    env.reset(seed=index)
+    acts = _actions(env, steps + 10, kind, index)
+    for a in acts[:10]:
+        env.step(a)
+    cpu = np.empty(steps)
+    t0 = time.perf_counter()
+    for k, a in enumerate(acts[10:]):
+        c = time.thread_time()
+        env.step(a)
+        cpu[k] = time.thread_time() - c
+    rate = steps / (time.perf_counter() - t0)
+    env.close()
+    if queue is not None:
+        queue.put(rate)
+    _STEP_CPU[kind] = cpu
+    return rate
+
+
+_STEP_CPU: dict[str, np.ndarray] = {}
+
+
+def lockstep_factor(cpu: np.ndarray) -> float:
+    """E[max(t1, t2)] / E[t] for two environments stepped in lockstep, each step's CPU time
+    drawn from one environment's (first half paired with the second half): a synchronous
+    vector step waits for the slower environment, so 2 / factor bounds its speed-up."""
+    h = len(cpu) // 2
+    return float(np.maximum(cpu[:h], cpu[h:2 * h]).mean() / cpu[:2 * h].mean())
+
+
+def _vector(kind: str, actions: str, n: int = 2, steps: int = VEC_STEPS) -> dict:
+    """``kind``: "async" or "sb3"; a "-pools" suffix leaves the workers' thread pools as the
+    libraries size them (``SOFT_ENVS_WORKER_THREADS=0``), for comparison."""
+    old = os.environ.get("SOFT_ENVS_WORKER_THREADS")
+    if kind.endswith("-pools"):
+        os.environ["SOFT_ENVS_WORKER_THREADS"] = "0"       # read by the workers' environments
+        kind = kind[:-len("-pools")]
+    try:
+        return _vector_run(kind, actions, n, steps)
+    finally:
+        if old is None:
+            os.environ.pop("SOFT_ENVS_WORKER_THREADS", None)
+        else:
+            os.environ["SOFT_ENVS_WORKER_THREADS"] = old
+
+
+def _vector_run(kind: str, actions: str, n: int, steps: int) -> dict:
+    probe = gym.make(VEC_ENV)
+    acts = np.stack([_actions(probe, steps + 10, actions, i) for i in range(n)], axis=1)
+    probe.close()
+    if kind == "async":
+        venv = gym.make_vec(VEC_ENV, num_envs=n, vectorization_mode="async", max_episode_steps=10 ** 6)
+        venv.reset(seed=0)
+    else:
+        from functools import partial
+        from stable_baselines3.common.vec_env import SubprocVecEnv
+        venv = SubprocVecEnv([partial(gym.make, f"soft_envs:{VEC_ENV}", max_episode_steps=10 ** 6)] * n)
+        venv.seed(0)
+        venv.reset()
+    step, pids = venv.step, [p.pid for p in venv.processes]
+    for a in acts[:10]:
+        step(a)
+    c0, m0, t0 = [_cpu_s(p) for p in pids], time.process_time(), time.perf_counter()
+    for a in acts[10:]:
+        step(a)
+    wall = time.perf_counter() - t0
+    worker_ms = [1e3 * (_cpu_s(p) - c) / steps for p, c in zip(pids, c0)]
+    threads = [len(os.listdir(f"/proc/{p}/task")) for p in pids]
+    out = {"steps_per_s": n * steps / wall, "worker_cpu_ms_per_step": float(np.mean(worker_ms)),
+           "main_cpu_ms_per_step": 1e3 * (time.process_time() - m0) / steps, "worker_threads": max(threads)}
+    venv.close()
+    return out
+
+
+def _processes(actions: str, n: int = 2) -> float:
+    ctx = multiprocessing.get_context("fork")
+    q = ctx.Queue()
+    procs = [ctx.Process(target=_single, args=(VEC_STEPS, actions, q, i)) for i in range(n)]
+    for p in procs:
+        p.start()
+    rates = [q.get() for _ in procs]
+    for p in procs:
+        p.join()
+    return float(sum(rates))
+
+
+def bench_vector(actions: str = "random") -> list[dict]:
+    """Alternating rounds; best figure of each kind."""
+    try:
+        import stable_baselines3  # noqa: F401
+        kinds = ["async", "async-pools", "sb3", "sb3-pools"]
+    except ImportError:
+        kinds = ["async", "async-pools"]
+    load0 = os.getloadavg()
+    best: dict[str, dict] = {}
+    for _ in range(VEC_ROUNDS):
+        for kind in ["single", *kinds, "processes"]:
+            if kind == "single":
+                r = {"steps_per_s": _single(kind=actions)}
+            elif kind == "processes":
+                r = {"steps_per_s": _processes(actions)}
+            else:
+                r = _vector(kind, actions)
+            if kind not in best or r["steps_per_s"] > best[kind]["steps_per_s"]:
+                best[kind] = r
+    single = best["single"]["steps_per_s"]
+    labels = {"single": "one environment", "async": 'gym.make_vec(num_envs=2, "async")',
+              "async-pools": "  same, worker thread pools untouched", "sb3": "SB3 SubprocVecEnv(2)",
+              "sb3-pools": "  same, worker thread pools untouched", "processes": "two plain processes"}
+    rows = [{"vector env": labels[k], "env steps/s": v["steps_per_s"], "x one env": v["steps_per_s"] / single,
+             "worker CPU ms/step": v.get("worker_cpu_ms_per_step", float("nan")),
+             "main CPU ms/step": v.get("main_cpu_ms_per_step", float("nan")),
+             "worker threads": v.get("worker_threads", "")} for k, v in best.items()]
+    report(f"vector environments, {VEC_ENV}, 2 envs, {actions} actions ({VEC_STEPS} steps per env, best of "
+           f"{VEC_ROUNDS} alternating rounds; load average {load0[0]:.2f} at the start, "
+           f"{os.getloadavg()[0]:.2f} at the end, {os.cpu_count()} CPUs)", rows)
+    cpu = _STEP_CPU[actions]
+    f = lockstep_factor(cpu)
+    print(f"{actions} actions: one environment's step takes {1e3 * cpu.mean():.2f} ms CPU (sd {1e3 * cpu.std():.2f}); "
+          f"two in lockstep wait for the slower: E[max]/E = {f:.3f}, so synchronous stepping gives at most "
+          f"{2 / f:.2f}x; the main process of the async vector env spends "
+          f"{best['async']['main_cpu_ms_per_step']:.2f} ms CPU per vector step")
+    for r in rows[1:]:
+        print(f"{actions} actions, {r['vector env']}: {r['env steps/s']:.0f} env steps/s vs one environment's {single:.0f}: "
+              f"{r['x one env']:.2f}x (target >= 1.7x)")
+    return rows
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--vector-only", action="store_true", help="only the vector-environment figures")
+    ap.add_argument("--actions", choices=["random", "smooth", "both"], default="both",
+                    help="actions of the vector-environment figures")
+    args = ap.parse_args()
+    for actions in (["random", "smooth"] if args.actions == "both" else [args.actions]):
+        bench_vector(actions)
+    if args.vector_only:
+        return
     integrator.NewtonSolver.step = _counting_newton_step
     rows = [bench(env_id, kind) for env_id in TARGETS for kind in ("random", "smooth")]
     report(f"environments: steps/s ({STEPS} steps, best of {REPEATS}, frame_skip 1, dt 0.033 s)", rows)

@@ -5,7 +5,10 @@ Run:  python examples/gym_random_agent.py [frame.png]
 What it shows: make the environment, reset it with a seed, step it with random actions, read
 the reward terms and the centre-of-mass displacement from ``info``, and save a rendered frame.
 A random policy does not walk; see examples/simulate_tripod.py and ``trajopt`` for gaits.
+
+SOFT_ENVS_QUICK=1 (the project's convention for CI) shrinks the work to a smoke test.
 """
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -16,6 +19,9 @@ from PIL import Image
 
 import soft_envs  # noqa: F401  -- importing the package registers SoftTripod-v0 and SoftPuppy-v0
 
+QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"      # CI smoke test: fewer steps
+N_STEPS = 10 if QUICK else 100
+
 # Actions are 8 motor commands in [-1, 1] (-1: cable released, +1: fully pulled in); the motors
 # follow them at their real speed limit. rgb_array rendering is offscreen (no display needed).
 env = gym.make("SoftPuppy-v0", render_mode="rgb_array")
@@ -24,7 +30,7 @@ env.action_space.seed(42)                         # ... and the random actions, 
 print(f"observation: {obs.shape[0]} numbers; parts: {env.unwrapped.observation_structure}")
 
 totals = {"reward_forward": 0.0, "reward_ctrl": 0.0, "reward_survive": 0.0}
-for step in range(100):                           # 100 steps of 0.033 s = 3.3 s of simulated time
+for step in range(N_STEPS):                       # 100 steps of 0.033 s = 3.3 s of simulated time
     action = env.action_space.sample()
     obs, reward, terminated, truncated, info = env.step(action)
     for key in totals:

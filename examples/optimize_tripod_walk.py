@@ -8,11 +8,19 @@ rollout with exact sensitivities (dx/dz of all 168 states) plus a short line sea
 your own works the same way: `optimize_gait("my_robot/robot.toml", task="walk")` builds a bare
 environment for it (`soft_envs.envs.make_gradient_env`); `gait=trajopt.GaitSpec(...)` changes the
 phase lengths and keyframes. The same thing from the shell: `trajopt optimize tripod --task walk`.
+
+SOFT_ENVS_QUICK=1 (the project's convention for CI) shrinks the work to a smoke test.
 """
+import os
+
 import gymnasium as gym
 
 import soft_envs  # noqa: F401  (registers SoftTripod-v0 and SoftPuppy-v0)
-from trajopt import GaussNewtonOptions, Result, optimize_gait
+from trajopt import GaitSpec, GaussNewtonOptions, Result, optimize_gait
+
+# CI smoke test: a 4 + 2 x 12 step horizon, one iteration, one seed, one evaluation cycle
+QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"
+size = dict(gait=GaitSpec(n_prep=4, n_cycle=12), n_seeds=1, eval_cycles=1) if QUICK else {}
 
 env = gym.make("SoftTripod-v0", reset_noise_scale=0.0)
 env.reset(seed=0)
@@ -24,13 +32,13 @@ def progress(entry, partial):
 
 
 result = optimize_gait(env, task="walk", speed_bl_per_min=8.0,
-                       options=GaussNewtonOptions(max_iter=6), callback=progress)
+                       options=GaussNewtonOptions(max_iter=1 if QUICK else 6), callback=progress, **size)
 print(result.summary())
 ev = result.evaluation
 print(f"speed per cycle [BL/min]: {[round(v, 2) for v in ev['speed_per_cycle_bl_per_min']]} "
       f"(paper's Tripod: 6.1)")
 
-path = result.save("tripod_walk.npz")             # .npz + .json, written atomically
+path = result.save("results/tripod_walk_example.npz")   # .npz + .json (one unit), written atomically
 again = Result.load(path)
 print(f"saved {path}; keyframes per motor [mm]:")
 for name, kf in zip(again.motor_names, again.settings["keyframes"]):

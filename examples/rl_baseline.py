@@ -7,32 +7,43 @@ With a trajopt result (e.g. from `trajopt optimize tripod --task walk --out resu
 is printed next to the policy's, measured the same way: mean COM speed along the target in
 body lengths per minute over 6 gait cycles of 72 steps after 24 prep steps.
 The same from the shell: `trajopt rl train tripod --algo ppo --timesteps 8000`, then
-`trajopt rl evaluate runs/tripod_ppo_seed0`.
+`trajopt rl evaluate results/runs/tripod_ppo_seed0`. This example's run is named
+`tripod_ppo_example` (results/runs/tripod_ppo_example), so it never collides with that command's.
+
+SOFT_ENVS_QUICK=1 (the project's convention for CI) shrinks the work to a smoke test.
 """
+import os
 import sys
 
 from trajopt.rl import evaluate_policy_metric, evaluate_trajopt_result, export_result, train
+
+# CI smoke test: 64 steps of PPO in one process with tiny batches, scored over one cycle
+QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"
+TRAIN = (dict(timesteps=64, n_envs=1, vec_env="dummy", progress_bar=False,
+              hyperparams=dict(n_steps=32, batch_size=32, n_epochs=1, policy_kwargs=dict(net_arch=[8])))
+         if QUICK else dict(timesteps=8000, progress_bar=True))
+CYCLES = dict(n_cycles=1) if QUICK else {}
 
 
 def main() -> None:
     # 1. Train. Episodes are 168 steps (trajopt's horizon); the hyper-parameters are the documented
     #    defaults of trajopt/rl/hyperparams.py; n_envs defaults to the number of CPU cores.
     #    8000 steps take about a minute on two cores (the simulator does ~150 Tripod steps/s/core).
-    run = train("tripod", "ppo", timesteps=8000, seed=0, out="runs", progress_bar=True, overwrite=True)
+    run = train("tripod", "ppo", seed=0, out="results/runs", name="tripod_ppo_example", overwrite=True, **TRAIN)
     print(f"trained {run.timesteps} steps in {run.wall_time_s:.0f} s -> {run.run_dir}")
 
     # 2. Evaluate: deterministic policy, closed loop, from the exact rest state (like trajopt).
-    ev = evaluate_policy_metric(run.run_dir)              # the same model and seed -> the same number
+    ev = evaluate_policy_metric(run.run_dir, **CYCLES)    # the same model and seed -> the same number
     print(f"PPO     : {ev['speed_bl_per_min']:6.2f} BL/min, upright: {ev['upright']} "
           f"(per cycle: {', '.join(f'{v:.1f}' for v in ev['speed_per_cycle_bl_per_min'])})")
 
     # 3. Export the policy's controls as a trajopt Result (render / play it like an optimised gait).
-    result = export_result(run.run_dir, "runs/tripod_ppo.npz")
-    print(f"exported: {result.summary()}  (try: trajopt render runs/tripod_ppo.npz --gif tripod_ppo.gif)")
+    result = export_result(run.run_dir, "results/tripod_ppo_example.npz", overwrite=True, **CYCLES)
+    print(f"exported: {result.summary()}  (try: trajopt render results/tripod_ppo_example.npz --overwrite)")
 
     # 4. Optional: a trajopt gait, measured the same way.
     if len(sys.argv) > 1:
-        tj = evaluate_trajopt_result(sys.argv[1])
+        tj = evaluate_trajopt_result(sys.argv[1], **CYCLES)
         print(f"trajopt : {tj['speed_bl_per_min']:6.2f} BL/min, upright: {tj['upright']}  ({sys.argv[1]})")
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from soft_envs.robot_check import check_robot, draw_robot
 from soft_envs.skeleton import make_robot
-from trajopt import GaussNewtonOptions, optimize_gait
+from trajopt import GaitSpec, GaussNewtonOptions, optimize_gait
 
 QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"
 SURFACE = Path(__file__).resolve().parent / "data" / "quadruped.obj"
@@ -53,7 +53,8 @@ def progress(entry, partial):
           f"{entry['objective_after']:.4g} ({entry['time']:.1f} s)")
 
 
-settings = (dict(n_cycle=24, n_prep=8, n_seeds=1, eval_cycles=1, options=GaussNewtonOptions(max_iter=1))
+settings = (dict(gait=GaitSpec(n_prep=8, n_cycle=24), n_seeds=1, eval_cycles=1,
+                 options=GaussNewtonOptions(max_iter=1))
             if QUICK else dict(n_seeds=8, eval_cycles=6, options=GaussNewtonOptions(max_iter=10)))
 result = optimize_gait(toml, task="walk", speed_bl_per_min=10.0, robot_spec=str(toml), callback=progress,
                        **settings)   # robot_spec: the saved result names robot.toml, so render/plot find it

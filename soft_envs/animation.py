@@ -61,13 +61,20 @@ def write_animation(frames: Iterable[np.ndarray], path: str | Path, fps: float) 
         if n == 0:
             raise ValueError("no frames given")
         return path
-    from PIL import Image
 
     first = next(stream, None)
     if first is None:
         raise ValueError("no frames given")
     path.parent.mkdir(parents=True, exist_ok=True)
-    rest = (Image.fromarray(f) for f in stream)
-    Image.fromarray(first).save(path, save_all=True, append_images=rest, duration=int(round(1000.0 / fps)),
-                                loop=0, optimize=False)
+    rest = (_palette_frame(f) for f in stream)
+    _palette_frame(first).save(path, save_all=True, append_images=rest, duration=int(round(1000.0 / fps)),
+                               loop=0, optimize=False)
     return path
+
+
+def _palette_frame(frame: np.ndarray):
+    """A GIF frame (256 colours) of an RGB frame. Octree quantisation keeps small saturated
+    areas (a red trail, a colour bar) their colour, where Pillow's default median cut turns the
+    red into pink and bands the colour bar; it is also several times faster."""
+    from PIL import Image
+    return Image.fromarray(frame).quantize(256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)

@@ -10,6 +10,11 @@ Conventions: SI units, ground plane ``y = ground_height`` with ``+y`` up, the
 robot faces ``+x`` at rest, ``(x, z)`` is the horizontal plane.  Node
 positions are ``(n_nodes, 3)`` arrays.
 
+Optional overlays make a frame explain itself (``legend=True``,
+``scale_bar=True``; :mod:`soft_envs.render_overlays`): a legend (grey = slack
+cable, red = centre-of-mass path on the ground), a colour bar of cable tension
+in newtons, and a scale bar in centimetres.
+
 Also provided: :func:`surface_triangles` (outward boundary faces of a tet
 mesh) and :func:`write_animation` (GIF via Pillow, MP4 via imageio-ffmpeg; from
 :mod:`soft_envs.animation`).
@@ -23,9 +28,10 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection, PolyCollection
-from matplotlib.colors import Normalize
+from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
 
+from . import render_overlays as overlays
 from .animation import write_animation
 from .sim.mesh import boundary_faces
 
@@ -36,6 +42,8 @@ _TILE_A = np.array([0.80, 0.80, 0.78])
 _TILE_B = np.array([0.68, 0.68, 0.66])
 _SHADOW = np.array([0.42, 0.42, 0.42])
 _SLACK = (0.55, 0.55, 0.55, 1.0)
+_TRAIL = (0.85, 0.2, 0.1, 1.0)
+_CABLE_WIDTH, _TRAIL_WIDTH = 2.2, 1.6
 _UP = np.array([0.0, 1.0, 0.0])
 
 #: boundary faces of a tet mesh, outward (the mesh module's function under the name used here)
@@ -50,7 +58,8 @@ class Renderer:
     so motion is visible), the robot's shadow (upward-facing triangles
     projected vertically onto the ground), the COM trail on the ground, the
     Lambert-shaded surface (back faces culled, depth-sorted), and the cables
-    *on top* of the body (x-ray style, so embedded cables stay visible).
+    *on top* of the body (x-ray style, so embedded cables stay visible),
+    coloured by tension (grey when slack); then the overlays asked for.
 
     Args:
         surface_tris: ``(m, 3)`` outward-oriented node indices.
@@ -68,9 +77,18 @@ class Renderer:
         tension_max: tension (N) mapped to the top of the colormap; ``None``
             normalises by the largest tension of each frame.
         slack_tension: tensions at or below this are drawn grey (slack).
-        cmap: Matplotlib colormap name for cable tension.
+        cmap: Matplotlib colormap name for cable tension (its 0.15-0.95 part
+            is used, so that a taut cable never looks like the grey of a
+            slack one).
         edges: draw thin triangle edges.
         backface_culling: skip triangles facing away from the camera.
+        legend: draw a legend (grey = slack cable, red = COM path on the
+            ground) and a colour bar of cable tension in newtons
+            (:mod:`soft_envs.render_overlays`).
+        scale_bar: draw a scale bar (a round length in cm), true at the depth
+            of the look-at point; its length in metres is
+            :attr:`scale_bar_length`. Frames smaller than 240 x 180 pixels
+            get neither overlay: it would cover the robot.
     """
 
     def __init__(
@@ -91,6 +109,8 @@ class Renderer:
         cmap: str = "plasma",
         edges: bool = True,
         backface_culling: bool = True,
+        legend: bool = False,
+        scale_bar: bool = False,
     ) -> None:
         tris = np.asarray(surface_tris)
         if tris.ndim != 2 or tris.shape[1] != 3 or not np.issubdtype(tris.dtype, np.integer):
@@ -120,7 +140,10 @@ class Renderer:
         self._light = light / np.linalg.norm(light)
         self.tension_max = tension_max
         self.slack_tension = float(slack_tension)
-        self._cmap = colormaps[cmap]
+        self._cmap = ListedColormap(colormaps[cmap](np.linspace(0.15, 0.95, 256)), name=f"{cmap}_cables")
+        self.legend, self.scale_bar = bool(legend), bool(scale_bar)
+        #: length [m] of the scale bar (None without one)
+        self.scale_bar_length: float | None = None
         self.edges = edges
         self.backface_culling = backface_culling
         self.tile_size = self.body_length / 2.0
@@ -139,9 +162,9 @@ class Renderer:
         ax.autoscale(False)
         self._ground = PolyCollection([], zorder=0, edgecolors="face", linewidths=0.3)
         self._shadow = PolyCollection([], zorder=1, facecolors=_SHADOW, edgecolors=_SHADOW, linewidths=0.6)
-        self._trail = LineCollection([], zorder=2, colors=[(0.85, 0.2, 0.1, 1.0)], linewidths=1.6)
+        self._trail = LineCollection([], zorder=2, colors=[_TRAIL], linewidths=_TRAIL_WIDTH)
         self._body = PolyCollection([], zorder=3, linewidths=0.25 if self.edges else 0.5)
-        self._cables = LineCollection([], zorder=4, linewidths=2.2, capstyle="round")
+        self._cables = LineCollection([], zorder=4, linewidths=_CABLE_WIDTH, capstyle="round")
         for coll in (self._ground, self._shadow, self._trail, self._body, self._cables):
             ax.add_collection(coll)
         self._gravity = ax.annotate(
@@ -150,8 +173,27 @@ class Renderer:
         )
         self._gravity_label = ax.text(0.06, 0.9, "g", transform=ax.transAxes, zorder=5, fontsize=10, color="0.15")
         self._title = ax.text(0.5, 0.97, "", transform=ax.transAxes, ha="center", va="top", zorder=5,
-                              fontsize=10, color="0.1")
+                              fontsize=overlays.font_size(self.height) * 10.0 / 7.0, color="0.1")   # 10 pt at 360 px
         self._ax = ax
+        self._overlay = None
+        if (self.legend or self.scale_bar) and overlays.fits(self.width, self.height):
+            self._overlay = overlays.OverlayLayer(
+                self.width, self.height, legend=self.legend, scale_bar=self.scale_bar,
+                pixels_per_metre=self._focal / self.distance, cmap=self._cmap, tension_max=self.tension_max or 1.0,
+                slack_color=_SLACK, trail_color=_TRAIL, cable_width=_CABLE_WIDTH, trail_width=_TRAIL_WIDTH)
+            self.scale_bar_length = self._overlay.scale_bar_length
+
+    @property
+    def figure(self) -> Figure:
+        """The Matplotlib figure the scene is drawn on (for inspection; reused by every
+        frame)."""
+        return self._fig
+
+    @property
+    def overlay_figure(self) -> Figure | None:
+        """The transparent figure of the legend, colour bar and scale bar laid over every frame
+        (None without overlays)."""
+        return None if self._overlay is None else self._overlay.figure
 
     # ----------------------------------------------------------------- camera
     def camera_target(self, x: np.ndarray) -> np.ndarray:
@@ -251,6 +293,8 @@ class Renderer:
             tensions = np.array([float(t) for _, t in cables])
             top = self.tension_max if self.tension_max is not None else max(float(tensions.max()), 1e-12)
             norm = Normalize(vmin=0.0, vmax=top, clip=True)
+            if self._overlay is not None:
+                self._overlay.set_tension_max(top)
             for i, (pts, tension) in enumerate(cables):
                 pts = np.asarray(pts, dtype=float)
                 if pts.ndim != 2 or pts.shape[1] != 3:
@@ -258,7 +302,7 @@ class Renderer:
                 if pts.shape[0] < 2:
                     continue
                 seg, _ = self._segments(pts, target)
-                colour = _SLACK if tensions[i] <= self.slack_tension else self._cmap(0.15 + 0.8 * norm(tensions[i]))
+                colour = _SLACK if tensions[i] <= self.slack_tension else self._cmap(norm(tensions[i]))
                 segs.append(seg)
                 cols.extend([colour] * len(seg))
         self._cables.set_segments(np.concatenate(segs) if segs else [])
@@ -339,4 +383,4 @@ class Renderer:
         out[...] = (_SKY * 255).astype(np.uint8)
         h, w = min(self.height, img.shape[0]), min(self.width, img.shape[1])
         out[:h, :w] = img[:h, :w]
-        return out
+        return out if self._overlay is None else self._overlay.over(out)

@@ -148,6 +148,68 @@ def test_cables_trail_gravity_and_title(renderer, block):
     assert not np.array_equal(lo, hi)
 
 
+def test_legend_colour_bar_and_scale_bar_explain_the_frame(block):
+    """The legend names the slack grey and the COM trail's red, the colour bar runs from 0 to
+    ``tension_max`` newtons in the colours the cables get, and the scale bar is as long on the
+    image as its length at the robot's depth."""
+    from soft_envs.render_overlays import LEGEND_LABELS, TENSION_LABEL
+    pts = block[0]
+    r = Renderer(block[2], width=W * 2, height=H * 2, body_length=0.1, tension_max=8.0, legend=True, scale_bar=True)
+    taut = np.array([[0.0, 0.02, 0.0], [0.1, 0.02, 0.0]])
+    slack = taut + [0.0, 0.0, 0.02]
+    frame = r.render(pts, cables=[(taut, 8.0), (slack, 0.0)])
+    assert len(r.figure.axes) == 1                                     # the scene; overlays on their own figure
+    ax, cax = r.overlay_figure.axes
+    legend = ax.get_legend()
+    assert [t.get_text() for t in legend.get_texts()] == list(LEGEND_LABELS)
+    grey, red = (np.round(255 * np.array(h.get_color()[:3])) for h in legend.legend_handles)
+    assert cax.get_title() == TENSION_LABEL and cax.get_xlim() == (0.0, 8.0)
+    # colours on the image: the colour bar's right end is the taut cable's colour, the slack
+    # cable is the legend's grey
+    box = cax.get_window_extent()
+    row = int(2 * H - 0.5 * (box.y0 + box.y1))
+    bar_end = frame[row, int(box.x1) - 3].astype(int)
+    bar_start = frame[row, int(box.x0) + 3].astype(int)
+    assert np.abs(bar_end - bar_start).max() > 100                     # a colour scale, not a blank box
+
+    def colour_on(line):
+        pix, _ = r.project(line.mean(axis=0), r.camera_target(pts))
+        return frame[int(round(pix[1])), int(round(pix[0]))].astype(int)
+
+    assert np.abs(colour_on(taut) - bar_end).max() <= 12
+    assert np.abs(colour_on(slack) - grey).max() <= 12
+    assert red[0] > 200 and red[1] < 80                                # the trail's colour, named
+    # scale bar: a round length, its dark pixels as long as that length seen at the robot
+    assert r.scale_bar_length == 0.02                                  # 5 cm would be > 22 % of the width
+    target = r.camera_target(pts)
+    forward = target - r.camera_position(target)
+    right = np.cross(forward, [0.0, 1.0, 0.0])
+    ends, _ = r.project(np.stack([target, target + 0.02 * right / np.linalg.norm(right)]), target)
+    expected = np.linalg.norm(ends[1] - ends[0])
+    dark = np.all(frame[int(0.85 * 2 * H):, : W] < 60, axis=2)
+    longest = max(np.diff(np.flatnonzero(np.diff(np.r_[0, d.astype(int), 0]))).max(initial=0) for d in dark)
+    assert abs(longest - expected) <= 3, (longest, expected)
+    # without the options nothing of it is drawn
+    plain = Renderer(block[2], width=W * 2, height=H * 2, body_length=0.1, tension_max=8.0)
+    assert plain.overlay_figure is None and plain.scale_bar_length is None
+    tiny = Renderer(block[2], width=96, height=72, body_length=0.1, legend=True, scale_bar=True)
+    assert tiny.overlay_figure is None and tiny.scale_bar_length is None     # would cover the robot
+
+
+def test_colour_bar_follows_the_frames_tension_without_a_fixed_scale(block):
+    r = Renderer(block[2], width=W, height=H, body_length=0.1, legend=True)
+    cable = np.array([[0.0, 0.02, 0.0], [0.1, 0.02, 0.0]])
+    a = r.render(block[0], cables=[(cable, 3.0)])
+    assert r.overlay_figure.axes[1].get_xlim() == (0.0, 3.0)
+    b = r.render(block[0], cables=[(cable, 5.5)])
+    assert r.overlay_figure.axes[1].get_xlim() == (0.0, 5.5)
+    title = r.overlay_figure.axes[1].title                              # the label stays above the bar
+    assert title.get_window_extent().y0 >= r.overlay_figure.axes[1].get_window_extent().y1
+    box = r.overlay_figure.axes[1].get_window_extent()                  # the tick labels below the bar changed
+    below = (slice(int(H - box.y0), H), slice(int(box.x0), int(box.x1)))
+    assert not np.array_equal(a[below], b[below])
+
+
 def test_ground_height_and_non_finite_nodes(renderer, block):
     pts = block[0]
     up = renderer.render(pts + [0, 0.05, 0], ground_height=0.05)
@@ -193,14 +255,59 @@ def test_gif_frame_count_and_loop(tmp_path, block):
         write_animation([], tmp_path / "c.gif", fps=10)
 
 
-def test_mp4_writes_or_says_what_to_install(tmp_path, block, monkeypatch):
+def _video_extra_missing() -> str | None:
+    import importlib.util
+    missing = [m for m in ("imageio", "imageio_ffmpeg") if importlib.util.find_spec(m) is None]
+    return f"the video extra is not installed ({', '.join(missing)} missing)" if missing else None
+
+
+@pytest.mark.skipif(_video_extra_missing() is not None, reason=str(_video_extra_missing()))
+def test_mp4_frames_read_back_as_written(tmp_path, block):
+    """With the video extra: the MP4 has every frame, at the requested rate, and each decoded
+    frame shows what was rendered (lossy codec: mean error below 3 grey levels, and the
+    block's pixels where they were)."""
+    import imageio.v2 as iio
+    r = Renderer(block[2], width=96, height=72, body_length=0.1)
+    frames = frames_of(r, block[0], 5)
+    path = write_animation(frames, tmp_path / "a.mp4", fps=10)
+    reader = iio.get_reader(path)
+    assert reader.get_meta_data()["fps"] == pytest.approx(10.0)
+    decoded = [np.asarray(f) for f in reader]
+    reader.close()
+    assert len(decoded) == 5
+    for k, (want, got) in enumerate(zip(frames, decoded)):
+        assert got.shape == want.shape
+        assert np.abs(got.astype(int) - want.astype(int)).mean() < 3.0, f"frame {k}"
+        moved = block[0] + [0.01 * k, 0.0, 0.0]                          # as in frames_of
+        empty = r.render(moved - [0.0, 10.0, 0.0], look_at=r.camera_target(moved), title=f"{k}")
+        body = changed(want, empty)
+        assert body.mean() > 0.02
+        assert changed(got, empty)[body].mean() > 0.9, f"frame {k}"
+
+
+def test_gif_keeps_the_trail_red_and_the_colour_bar(tmp_path, block):
+    """A GIF has 256 colours a frame: the few red pixels of the COM trail and legend, and the
+    colour bar's gradient, keep their colours (Pillow's default quantisation turned that red
+    pink)."""
+    r = Renderer(block[2], width=W * 2, height=H * 2, body_length=0.1, tension_max=8.0, legend=True, scale_bar=True)
+    trail = np.stack([np.linspace(-0.1, 0.05, 40), np.full(40, 0.015), 0.01 * np.sin(np.linspace(0, 6, 40))], 1)
+    frame = r.render(block[0], cables=[(np.array([[0.0, 0.02, 0.0], [0.1, 0.02, 0.0]]), 4.0)], com_trail=trail)
+    path = write_animation([frame], tmp_path / "a.gif", fps=10)
+    with Image.open(path) as im:
+        back = np.asarray(im.convert("RGB")).astype(int)
+    red = np.all(np.abs(frame.astype(int) - [217, 51, 25]) <= 12, axis=2)
+    assert red.sum() > 20
+    assert np.abs(back[red] - frame[red].astype(int)).max() <= 10          # median cut: 13
+    box = r.overlay_figure.axes[1].get_window_extent()
+    row = int(2 * H - 0.5 * (box.y0 + box.y1))
+    bar = slice(int(box.x0) + 2, int(box.x1) - 2)
+    assert np.abs(back[row, bar] - frame[row, bar].astype(int)).max() <= 16  # median cut: 32 (bands)
+
+
+def test_mp4_without_the_video_extra_says_what_to_install(tmp_path, block, monkeypatch):
     r = Renderer(block[2], width=96, height=72, body_length=0.1)
     frames = frames_of(r, block[0], 3)
-    try:
-        path = write_animation(frames, tmp_path / "a.mp4", fps=10)
-        assert path.stat().st_size > 0
-    except RuntimeError as err:
-        assert "pip install imageio imageio-ffmpeg" in str(err)
     monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # as if it were not installed
-    with pytest.raises(RuntimeError, match="imageio-ffmpeg"):
+    with pytest.raises(RuntimeError, match=r"pip install imageio imageio-ffmpeg"):
         write_animation(frames, tmp_path / "b.mp4", fps=10)
+    assert not (tmp_path / "b.mp4").exists()

@@ -148,8 +148,9 @@ def test_cli_help_and_commands(runs, tmp_path, capsys):
         assert exc.value.code == 0
     run = runs["tripod", "ppo"]
     code = main(["rl", "evaluate", str(run.run_dir), "--cycles", "1", "--json"])
-    assert code in (0, 1)                      # 1: the robot fell
-    assert '"speed_bl_per_min"' in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert '"speed_bl_per_min"' in out and '"upright": true' in out
+    assert code == 0                           # upright (1 would be: the robot fell)
     assert main(["rl", "export", str(run.run_dir), "--cycles", "1", "--out", str(tmp_path / "g.npz")]) == 0
     assert Result.load(tmp_path / "g.npz").task == "rl"
 

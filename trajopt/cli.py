@@ -1,38 +1,52 @@
 """trajopt: optimise, evaluate, render, export and play gaits of cable-driven soft robots.
 
-    trajopt optimize tripod --task walk --out results/
-    trajopt optimize puppy --task turn --warm-start results/puppy_walk.npz --out results/
-    trajopt optimize puppy --task incline --angle 10 --out results/
+    trajopt optimize tripod --task walk                    # results/tripod_walk.npz (+ .json)
+    trajopt optimize puppy --task turn --warm-start results/puppy_walk.npz
+    trajopt optimize puppy --task incline --angle 10
     trajopt evaluate results/tripod_walk.npz [--cycles 10]
-    trajopt render results/tripod_walk.npz --gif tripod.gif [--mp4 tripod.mp4]
-    trajopt export results/tripod_walk.npz --vtu paraview/
-    trajopt plot results/tripod_walk.npz --out plots/
+    trajopt render results/tripod_walk.npz                 # results/tripod_walk.gif [--mp4 PATH]
+    trajopt export results/tripod_walk.npz                 # results/paraview/tripod_walk/
+    trajopt plot results/tripod_walk.npz                   # results/plots/
     trajopt play results/tripod_walk.npz --hardware hw.toml [--dry-run]
-    trajopt rl train tripod --algo ppo --timesteps 20000 --out runs/
+    trajopt rl train tripod --algo ppo --timesteps 20000   # results/runs/tripod_ppo_seed0/
     trajopt mesh body.stl --scale 0.001 --up +z --out my_robot/
     trajopt check my_robot/robot.toml
+    trajopt sweep examples/sweep_speeds.toml --out sweeps/speeds [--workers N] [--address auto]
+    trajopt calibrate tripod --markers tracks.csv --controls results/tripod_walk.npz --fit youngs_modulus,friction --out calib/
+    trajopt robustness results/tripod_walk.npz --samples 64 --cycles 4 --out robustness/
+
+Everything the commands write goes under results/ by default (RESULTS_DIR). A file that exists
+is never replaced without --overwrite; a result is only used with the robot it was made for
+(--ignore-robot-mismatch overrides). Bad arguments end in one line naming them, exit code 2.
 """
 from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 
+from .argtypes import (cycles, file_name, frame_size, integer, number, output_dir, output_file, positive_float,
+                       positive_int, slope_deg, steps)
+from .files import RESULTS_DIR
 from .gait import DEFAULT_EVAL_CYCLES, TURN_KEYFRAMES, GaitSpec
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "RESULTS_DIR"]
+
+_IGNORE_HELP = "use a result with a robot other than the one it was made for (another or an edited robot.toml)"
+_OVERWRITE_HELP = "replace existing output files"
 
 
 def _add_optimize(sub) -> None:
     p = sub.add_parser("optimize", help="optimise a gait (paper III) and save a result")
     p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
     p.add_argument("--task", choices=["walk", "turn", "incline"], default="walk")
-    p.add_argument("--speed", type=float, default=None, help="target speed [body lengths/min]")
-    p.add_argument("--heading", type=float, default=0.0, help="walking direction [deg from +x to +z]")
+    p.add_argument("--speed", type=positive_float, default=None, help="target speed [body lengths/min]")
+    p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--turn", choices=["right", "left"], default="right", help="turn direction (task turn)")
-    p.add_argument("--angle", type=float, default=20.0, help="slope [deg] (task incline)")
+    p.add_argument("--angle", type=slope_deg, default=20.0, help="slope [deg] (task incline)")
     p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
                    help="ground contact law: paper (II-C, viscous-like friction, Table I) or coulomb "
                         "(friction bounded by mu N, feet that stick); default: the robot file's, coulomb "
@@ -42,85 +56,144 @@ def _add_optimize(sub) -> None:
                      help="bilateral symmetry on (default for walk and incline)")
     sym.add_argument("--no-symmetry", dest="symmetry", action="store_false", help="symmetry off (default for turn)")
     p.add_argument("--warm-start", type=Path, default=None, help="start from this result's keyframes")
-    p.add_argument("--iterations", type=int, default=10, help="Gauss-Newton iterations at most")
+    p.add_argument("--iterations", type=integer(0, 100_000), default=10,
+                   help="Gauss-Newton iterations at most (0: evaluate the starting gait)")
     paper = GaitSpec()
-    p.add_argument("--keyframes", type=int, default=None,
+    p.add_argument("--keyframes", type=steps, default=None,
                    help=f"spline keyframes per cycle (default {paper.n_keyframes}, the paper's; turn {TURN_KEYFRAMES})")
-    p.add_argument("--cycle-steps", type=int, default=paper.n_cycle,
+    p.add_argument("--cycle-steps", type=steps, default=paper.n_cycle,
                    help=f"simulation steps per gait cycle (default {paper.n_cycle}, the paper's)")
-    p.add_argument("--prep-steps", type=int, default=paper.n_prep,
+    p.add_argument("--prep-steps", type=integer(0, 100_000), default=paper.n_prep,
                    help=f"simulation steps of the preparatory phase (default {paper.n_prep}, the paper's)")
-    p.add_argument("--seeds", type=int, default=8, help="random starting patterns tried (no warm start)")
-    p.add_argument("--cycles", type=int, default=DEFAULT_EVAL_CYCLES, help="cycles played for the evaluation")
-    p.add_argument("--out", type=Path, default=Path("results"), help="output directory")
-    p.add_argument("--name", default=None, help="result file name (default ROBOT_TASK)")
-    p.add_argument("--resume", action="store_true", help="continue an interrupted run of the same name")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--seeds", type=integer(0, 10_000), default=8,
+                   help="random starting patterns tried (no warm start)")
+    p.add_argument("--cycles", type=cycles, default=DEFAULT_EVAL_CYCLES, help="cycles played for the evaluation")
+    p.add_argument("--out", type=output_dir, default=RESULTS_DIR, help=f"output directory (default {RESULTS_DIR}/)")
+    p.add_argument("--name", type=file_name, default=None, help="result file name (default ROBOT_TASK)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the interrupted run of this name (from its NAME.partial.npz checkpoint)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a finished result (or an interrupted run's checkpoint) of this name "
+                        "when the new run finishes")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=_cmd_optimize)
 
 
 def _add_result_commands(sub) -> None:
     p = sub.add_parser("evaluate", help="re-simulate a result and report its speed")
     p.add_argument("result", type=Path)
-    p.add_argument("--cycles", type=int, default=None, help="cycles to play (default: as optimised)")
+    p.add_argument("--cycles", type=cycles, default=None, help="cycles to play (default: as optimised)")
+    p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
+    p.add_argument("--json", action="store_true", help="print the evaluation as one JSON object (for scripts)")
     p.set_defaults(func=_cmd_evaluate)
-    p = sub.add_parser("render", help="animate a result (GIF through Pillow, MP4 with imageio-ffmpeg)")
+    n_cycles = GaitSpec().n_cycles
+    p = sub.add_parser("render", help="animate a result (GIF through Pillow, MP4 with imageio-ffmpeg)",
+                       description="Replay a result and draw it: grey cables are slack, coloured ones "
+                                   "taut (plasma colour map: tension), the red line is the centre of mass's path.")
     p.add_argument("result", type=Path)
-    p.add_argument("--gif", type=Path, default=None)
-    p.add_argument("--mp4", type=Path, default=None)
-    p.add_argument("--cycles", type=int, default=GaitSpec().n_cycles,
-                   help="gait cycles played after the prep phase (RL results play their own controls)")
-    p.add_argument("--every", type=int, default=2, help="render every n-th simulation step")
-    p.add_argument("--size", default="480x360", help="frame size WIDTHxHEIGHT")
+    p.add_argument("--gif", type=output_file, default=None,
+                   help=f"animated GIF to write (default {RESULTS_DIR}/RESULT_NAME.gif when --mp4 is not given)")
+    p.add_argument("--mp4", type=output_file, default=None,
+                   help="MP4 video to write (needs the video extra: pip install 'soft-envs[video]')")
+    p.add_argument("--cycles", type=cycles, default=n_cycles,
+                   help=f"gait cycles played after the prep phase (default {n_cycles}; RL results play "
+                        "their own controls)")
+    p.add_argument("--every", type=positive_int, default=2, help="render every n-th simulation step")
+    p.add_argument("--size", type=frame_size, default=(480, 360), help="frame size WIDTHxHEIGHT (default 480x360)")
+    p.add_argument("--overwrite", action="store_true", help=_OVERWRITE_HELP)
+    p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
     p.set_defaults(func=_cmd_render)
     p = sub.add_parser("export", help="ParaView time series (.vtu per step + .pvd)")
     p.add_argument("result", type=Path)
-    p.add_argument("--vtu", type=Path, required=True, help="output directory")
-    p.add_argument("--cycles", type=int, default=GaitSpec().n_cycles,
-                   help="gait cycles played after the prep phase (RL results play their own controls)")
+    p.add_argument("--vtu", type=output_dir, default=None,
+                   help=f"output directory (default {RESULTS_DIR}/paraview/RESULT_NAME/)")
+    p.add_argument("--cycles", type=cycles, default=n_cycles,
+                   help=f"gait cycles played after the prep phase (default {n_cycles}; RL results play "
+                        "their own controls)")
+    p.add_argument("--overwrite", action="store_true", help=_OVERWRITE_HELP)
+    p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
     p.set_defaults(func=_cmd_export)
     p = sub.add_parser("plot", help="COM path, controls, convergence and speed plots")
     p.add_argument("result", type=Path)
-    p.add_argument("--out", type=Path, default=Path("plots"))
+    p.add_argument("--out", type=output_dir, default=RESULTS_DIR / "plots",
+                   help=f"output directory (default {RESULTS_DIR}/plots/)")
     p.add_argument("--format", choices=["png", "svg"], default="png")
+    p.add_argument("--overwrite", action="store_true", help=_OVERWRITE_HELP)
+    p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
     p.set_defaults(func=_cmd_plot)
 
 
 def _add_robot_commands(sub) -> None:
     p = sub.add_parser("mesh", help="tet-mesh a closed surface (STL/OBJ/PLY...) and write a robot.toml skeleton")
     p.add_argument("surface", type=Path, help="closed surface, any format meshio reads")
-    p.add_argument("--out", type=Path, required=True, help="output directory (<name>.vtu, robot.toml)")
+    p.add_argument("--out", type=output_dir, required=True, help="output directory (<name>.vtu, robot.toml)")
     p.add_argument("--name", default=None, help="robot name (default: the surface file's stem)")
-    p.add_argument("--scale", type=float, default=1.0, help="surface units -> metres (0.001 for mm)")
+    p.add_argument("--scale", type=positive_float, default=1.0, help="surface units -> metres (0.001 for mm)")
     axes = ["+x", "-x", "+y", "-y", "+z", "-z"]
     p.add_argument("--forward", default="+x", choices=axes, metavar="AXIS",
                    help="surface axis pointing forward: +x -x +y -y +z -z (negative: --forward=-y)")
     p.add_argument("--up", default="+y", choices=axes, metavar="AXIS",
                    help="surface axis pointing up (default +y; Z-up CAD: --up +z)")
-    p.add_argument("--edge-length", type=float, default=None,
+    p.add_argument("--edge-length", type=positive_float, default=None,
                    help="target tet edge length [m, after --scale] (default: body length / 6)")
     p.add_argument("--keep-surface", action="store_true", help="keep the surface triangles (no re-meshing)")
     p.add_argument("--tendons", choices=["example", "legs"], default="example",
                    help="one example tendon pair, or a pair on the front and back of every leg")
-    p.add_argument("--density", type=float, default=None, help="[kg/m^3] (default 220)")
-    p.add_argument("--youngs-modulus", type=float, default=None, help="[Pa] (default 1e5)")
-    p.add_argument("--payload-mass", type=float, default=None, help="[kg] (default 1.5 x body mass)")
+    p.add_argument("--density", type=positive_float, default=None, help="[kg/m^3] (default 220)")
+    p.add_argument("--youngs-modulus", type=positive_float, default=None, help="[Pa] (default 1e5)")
+    p.add_argument("--payload-mass", type=number(0.0), default=None, help="[kg] (default 1.5 x body mass)")
     p.add_argument("--force", action="store_true", help="replace an existing robot.toml")
     p.set_defaults(func=_cmd_mesh)
     p = sub.add_parser("check", help="validate a robot, print its summary and draw it")
     p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
-    p.add_argument("--picture", type=Path, default=None,
+    p.add_argument("--picture", type=output_file, default=None,
                    help="PNG to write (default: <robot name>.png beside the robot.toml, or here)")
     p.add_argument("--no-picture", action="store_true", help="do not draw")
     p.set_defaults(func=_cmd_check)
+def _add_sweep(sub) -> None:
+    from .sweep.cli import add_sweep_parser     # imports Ray only when a sweep runs
+    add_sweep_parser(sub)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a bad argument reported in one line (and where to find the usage)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
+
+
+def _add_identification_commands(sub) -> None:
+    p = sub.add_parser("calibrate", help="fit physical parameters to tracked markers (writes a new robot.toml)")
+    p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
+    p.add_argument("--markers", type=Path, required=True, help="tracks CSV: t,marker,x,y,z [s, m]")
+    p.add_argument("--controls", type=Path, required=True, help="the result whose controls were played")
+    p.add_argument("--fit", required=True, help="comma-separated parameters, e.g. youngs_modulus,poisson_ratio,friction")
+    p.add_argument("--out", type=Path, required=True, help="output directory (robot.toml, calibration.json, tracks.png)")
+    p.add_argument("--marker-points", type=Path, default=None,
+                   help="CSV marker,x,y,z of rest positions [m, robot frame] (default: the robot's [[markers]])")
+    p.add_argument("--frame", choices=["robot", "camera"], default="robot",
+                   help="frame of the tracks; camera: a rigid transform is fitted too")
+    p.add_argument("--play", choices=["u_post", "u"], default="u_post",
+                   help="which controls of the result were played (u_post: what trajopt play streams)")
+    p.add_argument("--max-evaluations", type=int, default=30, help="rollouts per fitting stage at most")
+    p.set_defaults(func=_cmd_calibrate)
+    p = sub.add_parser("robustness", help="replay a gait under perturbed physics and report its speed spread")
+    p.add_argument("result", type=Path)
+    p.add_argument("--samples", type=int, default=32, help="perturbed replays")
+    p.add_argument("--cycles", type=int, default=4, help="gait cycles per replay")
+    p.add_argument("--out", type=Path, required=True, help="output directory (report.json, samples.csv, robustness.png)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the perturbations")
+    p.add_argument("--workers", type=int, default=1, help="parallel workers (Ray, when installed with trajopt sweep)")
+    p.set_defaults(func=_cmd_robustness)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="trajopt", description=__doc__.split("\n\n")[0])
+    parser = _Parser(prog="trajopt", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     _add_optimize(sub)
     _add_result_commands(sub)
     _add_robot_commands(sub)
+    _add_identification_commands(sub)
     try:
         from .hardware.cli import add_play_parser
         add_play_parser(sub)
@@ -131,16 +204,43 @@ def build_parser() -> argparse.ArgumentParser:
         add_rl_parser(sub)
     except ImportError:
         pass
+    _add_sweep(sub)
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"trajopt: warning: {message}", file=sys.stderr)
+
+
+def _is_simulation_error(exc: BaseException) -> bool:
+    if "soft_envs" not in sys.modules:
+        return False
+    from soft_envs.envs import SimulationError
+    return isinstance(exc, SimulationError)
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except ValueError as exc:          # bad input: files, fields, values
-        print(f"trajopt: error: {exc}", file=sys.stderr)
-        return 2
+    """Run a command; exit codes: 0 done, 1 a fault (a failed simulation, an I/O error, a gait
+    that fell), 2 a bad input (one line naming the argument, file or field), 130 Ctrl-C."""
+    args = build_parser().parse_args(argv)       # bad arguments: usage + one line, exit 2
+    with warnings.catch_warnings():
+        warnings.showwarning = _show_warning     # warnings as one plain line each
+        try:
+            return int(args.func(args) or 0)
+        except ValueError as exc:                # bad input: files, fields, values
+            print(f"trajopt: error: {exc}", file=sys.stderr)
+            return 2
+        except OSError as exc:                   # I/O fault while working (disk full, device gone)
+            print(f"trajopt: error: {exc}", file=sys.stderr)
+            return 1
+        except KeyboardInterrupt:
+            print("trajopt: interrupted (no output file is left half-written)", file=sys.stderr)
+            return 130
+        except RuntimeError as exc:
+            if not _is_simulation_error(exc):
+                raise
+            print(f"trajopt: error: simulation failed: {exc}", file=sys.stderr)
+            return 1
 
 
 # ---------------------------------------------------------------------- commands
@@ -155,17 +255,17 @@ def _cmd_evaluate(args) -> int:
 
 
 def _cmd_render(args) -> int:
-    from .commands import run_render
+    from .output_commands import run_render
     return run_render(args)
 
 
 def _cmd_export(args) -> int:
-    from .commands import run_export
+    from .output_commands import run_export
     return run_export(args)
 
 
 def _cmd_plot(args) -> int:
-    from .commands import run_plot
+    from .output_commands import run_plot
     return run_plot(args)
 
 
@@ -177,6 +277,16 @@ def _cmd_mesh(args) -> int:
 def _cmd_check(args) -> int:
     from .robot_commands import run_check
     return run_check(args)
+
+
+def _cmd_calibrate(args) -> int:
+    from .calibrate_command import run_calibrate
+    return run_calibrate(args)
+
+
+def _cmd_robustness(args) -> int:
+    from .robustness_report import run_robustness
+    return run_robustness(args)
 
 
 if __name__ == "__main__":  # pragma: no cover

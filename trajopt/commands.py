@@ -1,24 +1,44 @@
-"""What the ``trajopt`` sub-commands do (argument parsing lives in :mod:`trajopt.cli`; the
-library functions they call live in :mod:`trajopt.optimize`, :mod:`trajopt.evaluation` and
-:mod:`trajopt.replay`)."""
+"""What ``trajopt optimize`` and ``trajopt evaluate`` do (argument parsing lives in
+:mod:`trajopt.cli`; render, export and plot in :mod:`trajopt.output_commands`; the library
+functions they call in :mod:`trajopt.optimize`, :mod:`trajopt.evaluation` and :mod:`trajopt.replay`).
+
+``trajopt optimize ... --name NAME`` writes ``OUT/NAME.npz`` (+ ``.json``) only when the run
+finishes; until then its checkpoints (one per Gauss-Newton iteration, and the last iterate on
+Ctrl-C) go to ``OUT/NAME.partial.npz``, which ``--resume`` continues and a finished run removes.
+A finished result, or an interrupted run's checkpoint, is never replaced without ``--overwrite``.
+"""
 from __future__ import annotations
+
+import json
 
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
-from soft_envs.envs import cable_points, make_gradient_env, strain_energy_density
+from soft_envs.envs import compile_ahead, make_gradient_env
 
 from .evaluation import evaluate_result
+from .files import RESULTS_DIR
 from .gait import GaitSpec
 from .gauss_newton import GaussNewtonOptions
 from .optimize import TASK_CONTACT, optimize_gait
-from .replay import env_for_result, replay
-from .results import Result
+from .progress import IterationProgress
+from .results import Result, partial_path, result_path
 
-__all__ = ["run_optimize", "run_evaluate", "run_render", "run_export", "run_plot"]
+__all__ = ["run_optimize", "run_evaluate", "STATUS_MEANING", "evaluation_rows"]
+
+#: What the ``status`` of a result means (Gauss-Newton's stopping criteria, and checkpoints).
+STATUS_MEANING = {
+    "max_iter": "ran all the Gauss-Newton iterations asked for (--iterations); not a failure: the gait "
+                "is usable, and more iterations may still improve it",
+    "ftol": "converged: the last step lowered the objective by less than 1e-4 of it",
+    "gtol": "converged: the objective's projected gradient vanished",
+    "xtol": "converged: the last accepted step was negligible",
+    "stalled": "stopped: three iterations in a row found no lower objective (a local minimum)",
+    "callback": "stopped by its callback",
+    "running": "a checkpoint of a run in progress (or killed): continue it with --resume",
+    "interrupted": "a checkpoint of an interrupted run: continue it with --resume",
+}
 
 
 def _print_table(rows: list[tuple[str, str]]) -> None:
@@ -27,167 +47,177 @@ def _print_table(rows: list[tuple[str, str]]) -> None:
         print(f"  {k.ljust(w)}  {v}")
 
 
-def _gait_rows(task: str, ev: dict, target_speed: float | None = None) -> list[tuple[str, str]]:
-    """Speed and heading (yaw of the best-fit rotation of all nodes) over the evaluated cycles.
-    A turn's speed is along its COM path sampled once per cycle (along a fixed direction it
-    averages out; every step's path adds the sway within a stride); it also shows its heading
-    per cycle and over the optimised horizon, with the COM's RMS distance from the circle."""
-    aim = f" (target {target_speed:g})" if target_speed is not None else ""
+def evaluation_rows(ev: dict, task: str = "walk") -> list[tuple[str, str]]:
+    """The rows of an evaluation (speed, per cycle, heading, tilt, upright), or the simulation
+    failure's reason when the replay failed. The heading is the yaw of the best-fit rotation of
+    all nodes. A turn's speed is along its COM path sampled once per cycle (along a fixed
+    direction it averages out; every step's path adds the sway within a stride); a turn also
+    shows its heading per cycle and over the optimised horizon, with the COM's RMS distance from
+    the quarter circle."""
+    if "sim_failure" in ev:
+        return [("simulation", f"FAILED: {ev['sim_failure']}"), ("upright", "False (the simulation failed)")]
+    nan = float("nan")
     if task != "turn":
-        return [("speed", f"{ev['speed_bl_per_min']:.2f} BL/min over {ev['cycles']} cycles{aim}"),
+        rows = [("speed", f"{ev['speed_bl_per_min']:.3f} BL/min over {ev['cycles']} cycles"),
                 ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
-                ("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg over {ev['cycles']} cycles")]
-    rows = [("speed", f"{ev.get('cycle_path_speed_bl_per_min', float('nan')):.2f} BL/min along the COM path "
-                      f"(cycle to cycle) over {ev['cycles']} cycles{aim}"),
-            ("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg over {ev['cycles']} cycles"),
-            ("heading per cycle", " ".join(f"{v:+.1f}" for v in ev.get("heading_per_cycle_deg", [])))]
-    if "horizon_heading_change_deg" in ev:
-        rows.append(("heading, horizon", f"{ev['horizon_heading_change_deg']:+.1f} deg over the optimised "
-                                         f"{ev['horizon_steps']} steps; COM {ev['horizon_rms_to_target_bl']:.3f} "
-                                         "BL RMS from the target"))
-    return rows
+                ("heading change", f"{ev.get('heading_change_deg', nan):+.1f} deg over {ev['cycles']} cycles")]
+    else:
+        rows = [("speed", f"{ev.get('cycle_path_speed_bl_per_min', nan):.2f} BL/min along the COM path "
+                          f"(cycle to cycle) over {ev['cycles']} cycles"),
+                ("heading change", f"{ev.get('heading_change_deg', nan):+.1f} deg over {ev['cycles']} cycles"),
+                ("heading per cycle", " ".join(f"{v:+.1f}" for v in ev.get("heading_per_cycle_deg", [])))]
+        if "horizon_heading_change_deg" in ev:
+            rows.append(("heading, horizon", f"{ev['horizon_heading_change_deg']:+.1f} deg over the optimised "
+                                             f"{ev['horizon_steps']} steps; COM {ev['horizon_rms_to_target_bl']:.3f} "
+                                             "BL RMS from the target"))
+    return rows + [("max tilt", f"{ev.get('max_tilt_deg', nan):.1f} deg"),
+                   ("upright", "yes" if ev["upright"] else "NO: it fell (tilt over 60 deg or COM below half its height)")]
 
 
-def _load_resume(out: Path) -> Result | None:
-    """The interrupted run saved at ``out`` (its settings are checked by ``optimize_gait``), or
-    None when it is finished."""
-    prev = Result.load(out)
-    if prev.status not in ("running", "interrupted"):
-        print(f"{out} is finished ({prev.status}); nothing to resume. {prev.summary()}")
-        return None
-    print(f"resuming {out} after iteration {len(prev.history)}")
-    prev.settings["source"] = str(out)          # named by the settings check's error
+# ---------------------------------------------------------------------- optimize: files
+def _refuse(path: Path, what: str, advice: str) -> None:
+    raise ValueError(f"{path}: {what}; {advice}")
+
+
+def _plan(out: Path, partial: Path, args) -> tuple[Result | None, bool]:
+    """``(resume, done)``: the interrupted run to continue (or None), and whether there is
+    nothing to do (``--resume`` of a finished result). Refuses (ValueError, nothing written) to
+    replace a finished result or an interrupted run's checkpoint without ``--overwrite``."""
+    for p in (out, partial):
+        if p.exists() and not p.is_file():
+            _refuse(p, "exists and is not a file", "choose another --name or --out")
+    if args.resume:
+        if partial.is_file():
+            if out.is_file() and not args.overwrite:
+                _refuse(out, "a finished result of this name exists", f"resuming {partial} would replace it when "
+                        "it finishes: add --overwrite, or resume under another --name after renaming the checkpoint")
+            return _load_checkpoint(partial), False
+        if out.is_file():
+            prev = Result.load(out)
+            if prev.status in ("running", "interrupted"):     # a checkpoint of an older version
+                return _load_checkpoint(out), False
+            print(f"{out} is finished ({prev.status}); nothing to resume. {prev.summary()}")
+            return None, True
+        print(f"no interrupted run to resume ({partial} not found): starting afresh", file=sys.stderr)
+        return None, False
+    if partial.is_file() and not args.overwrite:
+        _refuse(partial, "holds the checkpoint of an interrupted run of this name",
+                "continue it with --resume, or start afresh with --overwrite")
+    if out.is_file() and not args.overwrite:
+        status = _status_of(out)
+        _refuse(out, f"a result of this name exists ({status})",
+                "pass --overwrite to replace it when the new run finishes, or choose another --name")
+    return None, False
+
+
+def _status_of(path: Path) -> str:
+    try:
+        return f"status {Result.load(path).status}"
+    except ValueError:
+        return "not a readable result"
+
+
+def _load_checkpoint(path: Path) -> Result:
+    prev = Result.load(path)
+    print(f"resuming {path} after iteration {len(prev.history)}")
+    prev.settings["source"] = str(path)          # named by the settings check's error
     return prev
 
 
+def _gait(args) -> GaitSpec:
+    try:
+        return GaitSpec.for_task(args.task, symmetry=args.symmetry, n_prep=args.prep_steps,
+                                 n_cycle=args.cycle_steps, n_keyframes=args.keyframes)
+    except ValueError:
+        raise ValueError(f"--keyframes {args.keyframes} must be at most --cycle-steps {args.cycle_steps}") from None
+
+
+def _finish_files(res: Result, out: Path, partial: Path) -> Path:
+    """Save the finished result and remove the checkpoint (the other way round never)."""
+    path = res.save(out)
+    for p in (partial, partial.with_suffix(".json")):
+        p.unlink(missing_ok=True)
+    return path
+
+
+# ---------------------------------------------------------------------- optimize
 def run_optimize(args) -> int:
     task = args.task
     name = args.name or f"{Path(args.robot).stem if args.robot.endswith('.toml') else args.robot}_{task}"
-    out = args.out / f"{name}.npz"
+    out = result_path(args.out / name)
+    partial = partial_path(out)
     incline = args.angle if task == "incline" else 0.0
-    resume = None
-    if args.resume and out.is_file():
-        resume = _load_resume(out)
-        if resume is None:
-            return 0
+    gait = _gait(args)
+    resume, done = _plan(out, partial, args)
+    if done:
+        return 0
     warm = Result.load(args.warm_start) if args.warm_start else None
     if warm is not None:
         warm.settings["source"] = str(args.warm_start)
-    gait = GaitSpec.for_task(task, symmetry=args.symmetry, n_prep=args.prep_steps, n_cycle=args.cycle_steps,
-                             n_keyframes=args.keyframes)
     contact = args.contact or TASK_CONTACT.get(task)          # the turn pivots on feet that stick
-    env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading, contact=contact)
+    with compile_ahead(args.robot):            # first run on a machine: numba compiles meanwhile
+        env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading, contact=contact)
     print(f"{env.robot.summary()}; task {task}; {env.contact_model} contact law"
           + (f" (the {task}'s default; --contact paper for the paper's)" if contact and not args.contact else "")
           + (f", slope {incline:g} deg" if incline else ""))
-    bar = None
-    if not args.quiet:
-        from tqdm import tqdm
-        bar = tqdm(total=args.iterations, desc="Gauss-Newton", unit="it", file=sys.stderr)
+    print(f"writes {out} (+ .json) when it finishes; checkpoints in {partial} until then")
+    done_before = len(resume.history) if resume else 0
+    progress = None if args.quiet else IterationProgress(args.iterations, first=done_before + 1)
     latest: dict = {}
 
-    def checkpoint(entry: dict, partial: Result) -> None:
-        latest["result"] = partial
-        partial.save(out)                      # atomic: a crash leaves the previous checkpoint
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix(objective=f"{entry['objective_after']:.4g}", step=f"{entry['step']:.1e}")
+    def checkpoint(entry: dict, partial_result: Result) -> None:
+        latest["result"] = partial_result
+        partial_result.save(partial)           # atomic: a crash leaves the previous checkpoint
+        if progress is not None:
+            progress.update(entry)
 
-    options = GaussNewtonOptions(max_iter=args.iterations - (len(resume.history) if resume else 0))
+    options = GaussNewtonOptions(max_iter=max(args.iterations - done_before, 0))
     t0 = time.perf_counter()
     try:
         res = optimize_gait(env, task, gait=gait, speed_bl_per_min=args.speed, heading_deg=args.heading,
                             turn=args.turn, options=options, warm_start=warm, n_seeds=args.seeds,
                             eval_cycles=args.cycles, robot_spec=args.robot, callback=checkpoint, resume=resume)
     except KeyboardInterrupt:
-        if bar is not None:
-            bar.close()
+        if progress is not None:
+            progress.close()
         if "result" in latest:
             latest["result"].status = "interrupted"
-            latest["result"].save(out)
-            print(f"\ninterrupted: last iterate saved to {out}; continue with --resume", file=sys.stderr)
+            latest["result"].save(partial)
+            print(f"\ninterrupted: iteration {len(latest['result'].history)} saved to {partial}"
+                  f"{f'; {out} is untouched' if out.is_file() else ''}; continue with the same command "
+                  "and --resume", file=sys.stderr)
+        else:
+            print("\ninterrupted before the first iteration: nothing saved", file=sys.stderr)
         return 130
-    if bar is not None:
-        bar.close()
-    path = res.save(out)
-    ev = res.evaluation
-    print(f"\nsaved {path} ({time.perf_counter() - t0:.1f} s)")
-    _print_table([
-        ("status", res.status),
-        ("iterations", str(len(res.history))),
-        ("objective", f"{ev['objective']:.5g}"),
-        *_gait_rows(res.task, ev, res.settings["speed_bl_per_min"]),
-        ("upright", str(ev["upright"])),
-        ("simulation steps", str(ev["optimization_sim_steps"])),
-    ])
+    finally:
+        if progress is not None:
+            progress.close()
+    path = _finish_files(res, out, partial)
+    _report(res, path, time.perf_counter() - t0)
     return 0
+
+
+def _report(res: Result, path: Path, seconds: float) -> None:
+    ev = res.evaluation
+    print(f"\nsaved {path} and {path.with_suffix('.json')} ({seconds:.1f} s)")
+    rows = [("status", f"{res.status}: {STATUS_MEANING.get(res.status, '')}"),
+            ("iterations", str(len(res.history))),
+            ("objective", f"{ev['objective']:.5g}"),
+            ("target speed", f"{res.settings['speed_bl_per_min']:g} BL/min")]
+    rows += evaluation_rows(ev, res.task)
+    rows.append(("simulation steps", str(ev["optimization_sim_steps"])))
+    _print_table(rows)
+    print(f"\nnext:\n  trajopt render {path}      # animation: {RESULTS_DIR / (path.stem + '.gif')}\n"
+          f"  trajopt plot {path}        # COM path, controls, convergence: {RESULTS_DIR / 'plots'}/\n"
+          f"  trajopt evaluate {path} --cycles 10")
 
 
 def run_evaluate(args) -> int:
     res = Result.load(args.result)
-    ev = evaluate_result(res, args.cycles)
-    print(res.summary())
-    _print_table([*_gait_rows(res.task, ev),
-                  ("max tilt", f"{ev.get('max_tilt_deg', float('nan')):.1f} deg"),
-                  ("upright", str(ev["upright"]))])
+    ev = evaluate_result(res, args.cycles, ignore_robot_mismatch=args.ignore_robot_mismatch)
+    if getattr(args, "json", False):
+        print(json.dumps({k: v for k, v in ev.items() if k != "com"}, allow_nan=True))
+    else:
+        print(res.summary())
+        _print_table(evaluation_rows(ev, res.task))
     return 0 if ev["upright"] else 1
-
-
-def run_render(args) -> int:
-    from soft_envs.render import Renderer, write_animation
-    if args.gif is None and args.mp4 is None:
-        raise ValueError("give --gif PATH and/or --mp4 PATH")
-    res = Result.load(args.result)
-    env, u, traj = replay(res, args.cycles)
-    robot = env.robot
-    w, h = (int(v) for v in args.size.lower().split("x"))
-    renderer = Renderer(robot.mesh.surface, width=w, height=h, body_length=robot.body_length)
-    frames = []
-    for k in range(0, len(traj.x), max(args.every, 1)):
-        uk = u[min(max(k - 1, 0), len(u) - 1)]
-        tension = env.cable_tension(traj.x[k], uk)
-        cables = [(pts, float(t)) for pts, t in zip(cable_points(robot, traj.x[k]), tension)]
-        frames.append(renderer.render(traj.x[k], cables=cables, com_trail=traj.com[:k + 1],
-                                      gravity=env.gravity, title=f"t = {k * env.timestep:.2f} s"))
-    fps = 1.0 / (env.timestep * max(args.every, 1))
-    for path in (args.gif, args.mp4):
-        if path is not None:
-            write_animation(frames, path, fps)
-            print(f"wrote {path} ({len(frames)} frames)")
-    return 0
-
-
-def run_export(args) -> int:
-    from .export import export_vtu_series
-    res = Result.load(args.result)
-    env, u, traj = replay(res, args.cycles)
-    robot = env.robot
-    pvd = export_vtu_series(args.vtu, robot.mesh.tets, robot.mesh.points, traj.x, env.timestep,
-                            cell_data={"strain_energy_density": strain_energy_density(robot, traj.x)},
-                            cables=cable_points(robot, traj.x), basename=Path(args.result).stem)
-    print(f"wrote {pvd} ({len(traj.x)} steps)")
-    return 0
-
-
-def run_plot(args) -> int:
-    from . import plots
-    res = Result.load(args.result)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    stem = Path(args.result).stem
-    x0, _ = env_for_result(res).reset_state()
-    s = res.settings
-    ext = args.format
-    written = [plots.plot_com_topdown(res.com, res.target, out / f"{stem}_com.{ext}", body_outline=x0,
-                                      prep_steps=s.get("n_prep"))]
-    written.append(plots.plot_controls(res.u, res.dt, res.motor_names, out / f"{stem}_controls.{ext}",
-                                       n_prep=s.get("n_prep"), n_cycle=s.get("n_cycle"), u_post=res.u_post))
-    if res.history:
-        written.append(plots.plot_convergence(res.history, out / f"{stem}_convergence.{ext}"))
-    speeds = res.evaluation.get("speed_per_cycle_bl_per_min")
-    if speeds:
-        ref = {"tripod": 6.1, "puppy": 8.6}.get(res.robot)
-        written.append(plots.plot_speed_per_cycle(np.asarray(speeds), out / f"{stem}_speed.{ext}", reference=ref))
-    for w in written:
-        print(f"wrote {w}")
-    return 0

@@ -127,17 +127,18 @@ def evaluate_controls(env: GradientEnv, u: np.ndarray, *, n_prep: int, n_cycle: 
                         max_tilt_deg=max_tilt_deg, target=target)
 
 
-def evaluate_result(res, n_cycles: int | None = None) -> dict[str, Any]:
+def evaluate_result(res, n_cycles: int | None = None, *, ignore_robot_mismatch: bool = False) -> dict[str, Any]:
     """The metric of a saved gait (a :class:`~trajopt.results.Result`) over ``n_cycles``
     cycles (default: as it was evaluated, else :data:`DEFAULT_EVAL_CYCLES`), on the physics it
-    was made on; keyframe results are re-expanded, others (like exported RL gaits) play their
-    ``u``. The optimised horizon's heading and distance to ``res.target`` are measured when
-    the played controls cover it."""
+    was made on (another robot is refused unless ``ignore_robot_mismatch``, see
+    :func:`trajopt.replay.env_for_result`); keyframe results are re-expanded, others (like
+    exported RL gaits) play their ``u``. The optimised horizon's heading and distance to
+    ``res.target`` are measured when the played controls cover it."""
     from .replay import env_for_result, result_controls
     cycles = int(res.settings.get("eval_cycles", DEFAULT_EVAL_CYCLES)) if n_cycles is None else int(n_cycles)
     if cycles < 1:
         raise ValueError(f"the number of cycles must be >= 1, got {cycles}")
-    env = env_for_result(res)
+    env = env_for_result(res, ignore_robot_mismatch=ignore_robot_mismatch)
     u, n_prep, n_cycle = result_controls(res, env.robot, cycles)
     target = res.target if 2 <= len(res.target) <= len(u) + 1 else None     # the optimised horizon
     return evaluate_controls(env, u, n_prep=n_prep, n_cycle=n_cycle,

@@ -8,8 +8,6 @@ density). Cables go to a second series (``<basename>_cables``) of line cells wit
 from __future__ import annotations
 
 import io
-import os
-import tempfile
 from pathlib import Path
 from typing import Mapping, Sequence
 from xml.sax.saxutils import quoteattr
@@ -17,21 +15,14 @@ from xml.sax.saxutils import quoteattr
 import meshio
 import numpy as np
 
-from .results import atomic_write_bytes
+from .files import atomic_output, atomic_write_bytes
 
 __all__ = ["export_vtu_series"]
 
 
 def _write_vtu(path: Path, mesh: meshio.Mesh) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".vtu")
-    os.close(fd)
-    try:
+    with atomic_output(path, sync=False) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _pvd(entries: Sequence[tuple[float, str]]) -> bytes:

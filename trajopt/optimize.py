@@ -32,6 +32,7 @@ from .heading import HeadingMeasure
 from .objectives import HeadingTarget, ObjectiveWeights, gait_residuals
 from .parameterization import GaitParameterization
 from .results import Result
+from .robot_match import describe_difference, fingerprint_of
 from .targets import bl_per_min_to_mps, from_array, quarter_circle, quarter_circle_heading, straight_line
 
 __all__ = ["optimize_gait", "GaitProblem", "Start", "Recorder", "build_problem", "choose_start", "check_resume",
@@ -130,16 +131,22 @@ def build_problem(env: GradientEnv, task: str, gait: GaitSpec, *, speed_bl_per_m
 
 
 # ---------------------------------------------------------------------- 2. the start
-def check_resume(resume: Result, task: str, settings: dict[str, Any]) -> None:
-    """The one check that an interrupted run ``resume`` can be continued with ``settings``
-    (the error names ``resume.settings["source"]``, its file, when set)."""
+def check_resume(resume: Result, task: str, settings: dict[str, Any],
+                 fingerprint: dict[str, Any] | None = None) -> None:
+    """The one check that an interrupted run ``resume`` can be continued with ``settings`` on
+    the robot of ``fingerprint`` (the error names ``resume.settings["source"]``, its file, when set)."""
     saved = {**resume.settings, **GaitSpec.from_settings(resume.settings).to_settings(),
              "contact": resume.settings.get("contact", "paper")}        # older results: the paper's law
-    differ = {k: (saved.get(k), settings[k]) for k in RESUME_KEYS if saved.get(k) != settings[k]}
+    differ = {k: (saved.get(k), settings[k]) for k in RESUME_KEYS if k in settings and saved.get(k) != settings[k]}
+    source = resume.settings.get("source")
     if differ or resume.task != task:
-        source = resume.settings.get("source")
         raise ValueError(f"{source + ': ' if source else ''}cannot resume: the settings differ from the "
                          f"interrupted run's (saved, asked): {differ or {'task': (resume.task, task)}}")
+    changed = describe_difference(resume.robot_fingerprint, fingerprint) \
+        if (resume.robot_fingerprint and fingerprint) else None
+    if changed:
+        raise ValueError(f"{source + ': ' if source else ''}cannot resume: the robot is not the interrupted "
+                         f"run's ({changed}); start afresh (--overwrite)")
 
 
 def _best_seed(problem: GaitProblem, seeds: list[np.ndarray]) -> np.ndarray:
@@ -209,6 +216,7 @@ class Recorder:
                  history: list[dict], callback: Callable[[dict, Result], bool | None] | None):
         self.problem, self.robot_name, self.task, self.settings = problem, robot_name, task, settings
         self.history, self.callback = history, callback
+        self.fingerprint = fingerprint_of(problem.env.robot)      # ties the result to its robot
         self.t_start = time.perf_counter()
 
     def result(self, z: np.ndarray, status: str, history: list[dict]) -> Result:
@@ -218,7 +226,7 @@ class Recorder:
                       dt=p.env.timestep, z=z, u=u, u_post=u.copy(), target=p.target,
                       com=np.zeros((len(u) + 1, 3)),
                       settings={**self.settings, "keyframes": p.param.keyframes(z).tolist()},
-                      history=history, status=status)
+                      history=history, status=status, robot_fingerprint=self.fingerprint)
 
     def on_iteration(self, entry: dict) -> bool | None:
         z_now = entry["z"]
@@ -298,7 +306,7 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
                 "warm_start": warm_start.settings.get("source") if warm_start is not None else None,
                 "control": env.control_mode, "contact": env.contact_model}
     if resume is not None:
-        check_resume(resume, task, settings)
+        check_resume(resume, task, settings, fingerprint_of(robot))
     problem = build_problem(env, task, gait, speed_bl_per_min=speed, heading_deg=heading_deg, turn=turn,
                             target=target, weights=weights)
     start = choose_start(problem, resume=resume, z0=z0, warm_start=warm_start, n_seeds=n_seeds)

@@ -11,9 +11,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 __all__ = ["plot_com_topdown", "plot_controls", "plot_convergence", "plot_speed_per_cycle",
-           "plot_speed_vs_steps"]
+           "plot_speed_vs_steps", "controls_figure", "motor_groups"]
 
 
 def _save(fig: Figure, path: str | Path) -> Path:
@@ -47,38 +48,91 @@ def plot_com_topdown(com: np.ndarray, target: np.ndarray | None, path: str | Pat
     ax.set_ylabel("z [cm]")
     ax.invert_yaxis()
     ax.set_aspect("equal", adjustable="datalim")
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, borderaxespad=0.0)   # off the path
     ax.set_title("centre of mass, top view")
     return _save(fig, path)
 
 
+#: what the dotted lines of :func:`plot_controls` are (paper III-B-2)
+U_POST_LABEL = ("u_post: zero-slack controls (paper III-B-2), u plus each cable's slack: the same motion, "
+                "what the hardware plays")
+U_LABEL = "u: optimised contraction"
+
+
+def motor_groups(n_motors: int, mirror_map: Sequence[int] | None) -> list[list[int]]:
+    """Motors per panel of :func:`plot_controls`: each motor with its mirror motor (bilateral
+    symmetry), in motor order; all in one panel when no motor has a mirror."""
+    if mirror_map is None:
+        return [list(range(n_motors))]
+    mm = [int(v) for v in mirror_map]
+    if len(mm) != n_motors or any(not 0 <= v < n_motors or mm[v] != m for m, v in enumerate(mm)):
+        raise ValueError(f"mirror_map {mm} must pair {n_motors} motors (each one's mirror's mirror is itself)")
+    if mm == list(range(n_motors)):                     # no pairs
+        return [list(range(n_motors))]
+    return [[m] + ([mm[m]] if mm[m] != m else []) for m in range(n_motors) if mm[m] >= m]
+
+
 def plot_controls(u: np.ndarray, dt: float, motor_names: Sequence[str], path: str | Path, *,
                   n_prep: int | None = None, n_cycle: int | None = None,
-                  u_post: np.ndarray | None = None) -> Path:
-    """Contraction of every motor over time (paper Fig. 5), phase boundaries dashed; the
-    zero-slack controls ``u_post`` as thin dotted lines."""
+                  u_post: np.ndarray | None = None, mirror_map: Sequence[int] | None = None) -> Path:
+    """:func:`controls_figure` written to ``path``."""
+    return _save(controls_figure(u, dt, motor_names, n_prep=n_prep, n_cycle=n_cycle, u_post=u_post,
+                                 mirror_map=mirror_map), path)
+
+
+def controls_figure(u: np.ndarray, dt: float, motor_names: Sequence[str], *, n_prep: int | None = None,
+                    n_cycle: int | None = None, u_post: np.ndarray | None = None,
+                    mirror_map: Sequence[int] | None = None) -> Figure:
+    """Contraction of every motor over time (paper Fig. 5), one colour per motor; phases
+    (prep, cycle 1, cycle 2, ...) between dashed lines and named on top; the zero-slack controls
+    ``u_post`` (paper III-B-2) as thin dotted lines, visible where a cable would be slack.
+
+    With ``mirror_map`` (``Robot.mirror_map``) each mirror pair gets its own panel, its second
+    motor dashed, so that motors playing the same signal do not hide each other. Legends are
+    outside the axes: the motors right of each panel, the line styles below."""
     u = np.atleast_2d(np.asarray(u, dtype=np.float64))
     if u.shape[1] != len(motor_names):
         raise ValueError(f"u has {u.shape[1]} columns but {len(motor_names)} motor names")
+    if u_post is not None and np.shape(u_post) != u.shape:
+        raise ValueError(f"u_post has shape {np.shape(u_post)} but u has {u.shape}")
+    groups = motor_groups(u.shape[1], mirror_map)
+    paired = mirror_map is not None and [int(v) for v in mirror_map] != list(range(u.shape[1]))   # pair panels
     t = np.arange(len(u)) * dt
-    fig = Figure(figsize=(7, 3.5))
-    ax = fig.add_subplot()
-    colors = [f"C{i % 10}" for i in range(u.shape[1])]
-    for m, name in enumerate(motor_names):
-        ax.plot(t, 1000 * u[:, m], color=colors[m], label=name)
-        if u_post is not None:
-            ax.plot(t, 1000 * np.asarray(u_post)[:, m], ":", color=colors[m], lw=1)
+    fig = Figure(figsize=(8, 3.0 if len(groups) == 1 else 1.0 + 1.35 * len(groups)), layout="constrained")
+    axes = fig.subplots(len(groups), 1, sharex=True, sharey=True, squeeze=False)[:, 0]
     start = n_prep or 0
-    if start:
-        ax.axvline(start * dt, color="k", ls="--", lw=0.8)
+    bounds = [0] + ([start] if start else [])
     if n_cycle:
-        for c in range(1, (len(u) - start) // n_cycle):
-            ax.axvline((start + c * n_cycle) * dt, color="k", ls="--", lw=0.8)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("contraction u [mm]")
-    ax.legend(loc="upper right", fontsize=7, ncol=2)
-    ax.set_title("controls: prep | cycle | cycle")
-    return _save(fig, path)
+        bounds += list(range(start + n_cycle, len(u), n_cycle))
+    for ax, group in zip(axes, groups):
+        for j, m in enumerate(group):
+            style = "--" if paired and j == 1 else "-"
+            ax.plot(t, 1000 * u[:, m], style, color=f"C{m % 10}", label=motor_names[m])
+            if u_post is not None:
+                ax.plot(t, 1000 * np.asarray(u_post)[:, m], ":", color=f"C{m % 10}", lw=1)
+        for b in bounds[1:]:
+            ax.axvline(b * dt, color="k", ls="--", lw=0.8)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, borderaxespad=0.0)
+        ax.grid(alpha=0.3)
+    edges = bounds + [len(u)]
+    for i, (a, b) in enumerate(zip(edges[:-1], edges[1:]) if (start or n_cycle) else []):
+        name = "prep" if (start and i == 0) else (f"cycle {i + (0 if start else 1)}" if n_cycle else "gait")
+        axes[0].text(0.5 * (a + b) * dt, 1.02, name, transform=axes[0].get_xaxis_transform(), ha="center",
+                     va="bottom", fontsize=8)
+    axes[-1].set_xlabel("time [s]")
+    if len(groups) == 1:
+        axes[0].set_ylabel("contraction u [mm]")
+    else:
+        fig.supylabel("contraction u [mm]", fontsize=10)
+    styles = [Line2D([], [], color="0.3", label=U_LABEL)]
+    if paired:
+        styles.append(Line2D([], [], color="0.3", ls="--", label="mirror motor (dashed)"))
+    if u_post is not None:
+        styles.append(Line2D([], [], color="0.3", ls=":", lw=1, label=U_POST_LABEL))
+    fig.legend(handles=styles, loc="outside lower center", fontsize=7, ncol=1 if u_post is not None else 2,
+               frameon=False)
+    fig.suptitle("controls", fontsize=11)
+    return fig
 
 
 def plot_convergence(history: Sequence[Mapping], path: str | Path) -> Path:
@@ -108,7 +162,7 @@ def plot_speed_per_cycle(speeds: np.ndarray, path: str | Path, *, reference: flo
     ax.bar(np.arange(1, len(s) + 1), s, color="tab:green")
     if reference is not None:
         ax.axhline(reference, color="k", ls="--", label=f"paper: {reference:g} BL/min")
-        ax.legend(loc="lower right", fontsize=8)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), fontsize=8, frameon=False)   # off the bars
     ax.set_xlabel("cycle")
     ax.set_ylabel("speed [body lengths / min]")
     ax.set_title("speed over repeated cycles")

@@ -1,8 +1,15 @@
 """From a saved :class:`~trajopt.results.Result` back to the physics: the environment it was made
 on, its controls for any number of cycles, and its trajectory. Used by the ``trajopt`` commands
-(evaluate, render, export, plot) and by the RL baseline alike."""
+(evaluate, render, export, plot) and by the RL baseline alike.
+
+The environment is only built for the robot the result was made for: :func:`env_for_result`
+checks the result's robot fingerprint and motors (:func:`trajopt.robot_match.check_robot`) and
+refuses another or an edited robot unless ``ignore_robot_mismatch`` (then it warns,
+:class:`RobotMismatchWarning`).
+"""
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -12,18 +19,30 @@ from soft_envs.envs import GradientEnv, Trajectory, make_gradient_env
 from .gait import GaitSpec
 from .parameterization import GaitParameterization
 from .results import Result
+from .robot_match import check_robot, fingerprint_of
 
-__all__ = ["env_for_result", "result_parameterization", "result_controls", "replay"]
+__all__ = ["env_for_result", "result_parameterization", "result_controls", "replay", "RobotMismatchWarning"]
 
 
-def env_for_result(res: Result) -> GradientEnv:
+class RobotMismatchWarning(UserWarning):
+    """A result is used on a robot other than its own (``ignore_robot_mismatch=True``)."""
+
+
+def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False) -> GradientEnv:
     """A bare environment with the physics ``res`` was made on: its robot (shipped name or
-    robot.toml path), slope, uphill heading, contact law and simulation time step ``res.dt``
-    (results made before the contact law was recorded used the paper's law)."""
+    robot.toml path), slope, uphill heading, contact law (results made before it was recorded
+    used the paper's law) and simulation time step ``res.dt``. A robot that
+    is not the one ``res`` was made for raises :class:`~trajopt.robot_match.RobotMismatchError`
+    (a ValueError), or warns with ``ignore_robot_mismatch``."""
     s = res.settings
-    return make_gradient_env(res.robot, incline_deg=float(s.get("incline_deg", 0.0)),
-                             heading_deg=float(s.get("heading_deg", 0.0)), timestep=res.dt,
-                             contact=s.get("contact", "paper"))
+    env = make_gradient_env(res.robot, incline_deg=float(s.get("incline_deg", 0.0)),
+                            heading_deg=float(s.get("heading_deg", 0.0)), timestep=res.dt,
+                            contact=s.get("contact", "paper"))
+    note = check_robot(res, fingerprint_of(env.robot), list(env.robot.motor_names),
+                       src=res.path or "the result", ignore=ignore_robot_mismatch)
+    if note is not None:
+        warnings.warn(note, RobotMismatchWarning, stacklevel=2)
+    return env
 
 
 def result_parameterization(res: Result, robot: Any) -> GaitParameterization:
@@ -45,9 +64,10 @@ def result_controls(res: Result, robot: Any, n_cycles: int | None = None) -> tup
     return res.u, int(s.get("n_prep", 0)), int(s.get("n_cycle", len(res.u)))
 
 
-def replay(res: Result, n_cycles: int | None = None) -> tuple[GradientEnv, np.ndarray, Trajectory]:
+def replay(res: Result, n_cycles: int | None = None, *,
+           ignore_robot_mismatch: bool = False) -> tuple[GradientEnv, np.ndarray, Trajectory]:
     """``(env, u, traj)``: ``res`` played for ``n_cycles`` cycles (default: the optimised prep +
     cycles, ``res.u``) from the rest state of :func:`env_for_result`."""
-    env = env_for_result(res)
+    env = env_for_result(res, ignore_robot_mismatch=ignore_robot_mismatch)
     u, _, _ = result_controls(res, env.robot, n_cycles)
     return env, u, env.rollout(u)

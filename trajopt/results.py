@@ -1,40 +1,65 @@
 """Optimisation results: everything needed to replay, evaluate, render or play a gait.
 
-A :class:`Result` is saved as ``NAME.npz`` (arrays plus the metadata as JSON; authoritative)
-and ``NAME.json`` (the same metadata, for people and other tools), each written atomically
-(temporary file + ``os.replace``), so an interrupted save never leaves a broken file.
+A :class:`Result` is saved as ``NAME.npz`` (arrays plus the metadata as JSON) and ``NAME.json``
+(the same metadata, for people and other tools). The two are one unit:
+
+* the ``.npz`` is authoritative: it carries ``content_sha256``, a SHA-256 of its metadata and
+  arrays, checked when it is read (a damaged or hand-edited file is refused);
+* the ``.json`` repeats that hash. Each file is written atomically (:mod:`trajopt.files`), the
+  ``.npz`` first; a save killed between the two leaves the new ``.npz`` beside the old ``.json``,
+  and :meth:`Result.load` reports that (:class:`ResultFileWarning`) and reads the ``.npz``;
+* a result records the fingerprint of its robot (:mod:`trajopt.robot_match`), so that it is
+  never replayed on another or an edited robot by mistake.
+
+Only what :meth:`Result.validate` accepts is written, so :meth:`Result.load` never meets values
+that :meth:`Result.save` wrote (NaN controls, wrong shapes).
 """
 from __future__ import annotations
 
+import hashlib
+import io
 import json
-import os
-import tempfile
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["Result", "atomic_write_bytes", "FORMAT_VERSION"]
+from .files import atomic_write_bytes
+from .gait import GaitSpec
+
+__all__ = ["Result", "ResultFileWarning", "atomic_write_bytes", "result_path", "partial_path", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
 _ARRAYS = ("z", "u", "u_post", "target", "com")
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
+class ResultFileWarning(UserWarning):
+    """A result's ``.json`` does not match its ``.npz`` (an interrupted save); the ``.npz`` was read."""
+
+
+def result_path(path: str | Path) -> Path:
+    """``path`` with the ``.npz`` extension (added when missing or different)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    return path if path.suffix == ".npz" else path.with_suffix(".npz")
+
+
+def partial_path(path: str | Path) -> Path:
+    """Where the checkpoints of a run that will write ``path`` go until it finishes:
+    ``NAME.partial.npz`` beside ``NAME.npz``."""
+    path = result_path(path)
+    return path.with_name(f"{path.stem}.partial.npz")
+
+
+def content_hash(meta_text: str, arrays: dict[str, np.ndarray]) -> str:
+    """SHA-256 of a result's metadata text and arrays (name, dtype, shape and bytes of each)."""
+    h = hashlib.sha256(meta_text.encode())
+    for key in _ARRAYS:
+        a = np.ascontiguousarray(arrays[key])
+        h.update(f"\0{key}\0{a.dtype.str}\0{a.shape}\0".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 @dataclass
@@ -49,6 +74,10 @@ class Result:
     target : (K+1, 2) target horizontal COM path; com : (K+1, 3) simulated COM.
     settings : everything that made it (parameterisation, weights, incline, speed ...).
     history : one dict per Gauss-Newton iteration. evaluation : see trajopt.evaluation.
+    status : how the run ended (:data:`trajopt.commands.STATUS_MEANING`); "running" or
+    "interrupted" for a checkpoint.
+    robot_fingerprint : the robot it was made for (:func:`trajopt.robot_match.fingerprint_of`);
+    empty for robots built in Python and for files of older versions.
     """
 
     robot: str
@@ -64,6 +93,9 @@ class Result:
     history: list[dict] = field(default_factory=list)
     evaluation: dict[str, Any] = field(default_factory=dict)
     status: str = ""
+    robot_fingerprint: dict[str, Any] = field(default_factory=dict)
+    #: the file it was last loaded from or saved to ("" for a result in memory); not saved
+    path: str = field(default="", compare=False, repr=False)
 
     # ------------------------------------------------------------------ derived
     @property
@@ -73,20 +105,27 @@ class Result:
     def metadata(self) -> dict[str, Any]:
         return {"format_version": FORMAT_VERSION, "robot": self.robot, "task": self.task,
                 "motor_names": list(self.motor_names), "dt": self.dt, "settings": self.settings,
-                "history": self.history, "evaluation": self.evaluation, "status": self.status}
+                "history": self.history, "evaluation": self.evaluation, "status": self.status,
+                "robot_fingerprint": self.robot_fingerprint}
 
     # ------------------------------------------------------------------ files
-    def save(self, path: str | Path) -> Path:
-        """Write ``path`` (.npz added if missing) and its .json sibling atomically."""
-        path = Path(path)
-        if path.suffix != ".npz":
-            path = path.with_suffix(".npz")
+    def save(self, path: str | Path, *, overwrite: bool = True) -> Path:
+        """Write ``path`` (.npz added if missing) and its .json sibling (see the module
+        docstring); ``overwrite=False`` refuses an existing ``path``. A result that
+        :meth:`validate` refuses (NaN controls, wrong shapes) is not written."""
+        path = result_path(path)
+        self.validate(str(path))
+        if not overwrite and path.exists():
+            raise ValueError(f"{path}: exists already; pass --overwrite (overwrite=True) to replace it")
         meta = json.dumps(_finite(self.metadata()), default=_json_default, indent=1, allow_nan=False)
-        import io
+        arrays = {k: np.asarray(getattr(self, k), dtype=np.float64) for k in _ARRAYS}
+        digest = content_hash(meta, arrays)
         buf = io.BytesIO()
-        np.savez(buf, meta=np.array(meta), **{k: np.asarray(getattr(self, k)) for k in _ARRAYS})
+        np.savez(buf, meta=np.array(meta), content_sha256=np.array(digest), **arrays)
         atomic_write_bytes(path, buf.getvalue())
-        atomic_write_bytes(path.with_suffix(".json"), meta.encode())
+        sidecar = json.dumps({"content_sha256": digest, **json.loads(meta)}, indent=1)
+        atomic_write_bytes(path.with_suffix(".json"), sidecar.encode())
+        self.path = str(path)
         return path
 
     @classmethod
@@ -106,6 +145,9 @@ class Result:
         for key in ("meta", *_ARRAYS):
             if key not in arrays:
                 raise ValueError(f"{src}: field {key!r} is missing")
+        digest = _check_digest(arrays, src)
+        if digest is not None:
+            _check_sidecar(path, digest)
         try:
             meta = json.loads(str(arrays["meta"]))
         except json.JSONDecodeError as exc:
@@ -116,7 +158,8 @@ class Result:
             if key not in meta:
                 raise ValueError(f"{src}: metadata field {key!r} is missing")
         types = {"robot": str, "task": str, "motor_names": list, "dt": (int, float), "settings": dict,
-                 "history": list, "evaluation": dict, "status": str, "format_version": int}
+                 "history": list, "evaluation": dict, "status": str, "format_version": int,
+                 "robot_fingerprint": dict}
         for key, typ in types.items():
             if key in meta and (isinstance(meta[key], bool) or not isinstance(meta[key], typ)):
                 raise ValueError(f"{src}: metadata field {key!r} has the wrong type ({type(meta[key]).__name__})")
@@ -128,20 +171,31 @@ class Result:
         res = cls(robot=meta["robot"], task=meta["task"], motor_names=list(meta["motor_names"]),
                   dt=float(meta["dt"]), settings=meta.get("settings", {}), history=meta.get("history", []),
                   evaluation=meta.get("evaluation", {}), status=meta.get("status", ""),
+                  robot_fingerprint=meta.get("robot_fingerprint", {}), path=src,
                   **{k: arrays[k].astype(np.float64) for k in _ARRAYS})
         res.validate(src)
         return res
 
     def validate(self, src: str = "<result>") -> None:
+        """Raise ValueError naming ``src`` and the field for anything :meth:`load` would refuse."""
+        if not (isinstance(self.motor_names, (list, tuple)) and all(isinstance(m, str) for m in self.motor_names)):
+            raise ValueError(f"{src}: field 'motor_names' must be a list of names")
+        for key in _ARRAYS:
+            try:
+                setattr(self, key, np.asarray(getattr(self, key), dtype=np.float64))
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"{src}: field {key!r} must be an array of numbers ({exc})") from None
         M = len(self.motor_names)
-        if not (np.isfinite(self.dt) and self.dt > 0):
+        if isinstance(self.dt, bool) or not isinstance(self.dt, (int, float, np.floating)) \
+                or not (np.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"{src}: field 'dt' must be positive, got {self.dt}")
         for key in ("u", "u_post"):
             arr = getattr(self, key)
             if arr.ndim != 2 or arr.shape[1] != M:
                 raise ValueError(f"{src}: field {key!r} must have shape (K, {M}), got {arr.shape}")
-            if not np.isfinite(arr).all():
-                raise ValueError(f"{src}: field {key!r} contains NaN or inf")
+            bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+            if bad.size:
+                raise ValueError(f"{src}: field {key!r} contains NaN or inf (steps {bad[:5].tolist()})")
         if self.u_post.shape != self.u.shape:
             raise ValueError(f"{src}: field 'u_post' has shape {self.u_post.shape}, u has {self.u.shape}")
         if self.target.size and self.target.shape != (len(self.u) + 1, 2):
@@ -158,6 +212,10 @@ class Result:
             for key in ("n_prep", "n_cycle", "n_keyframes"):
                 if isinstance(s[key], bool) or not isinstance(s[key], int) or s[key] < 0:
                     raise ValueError(f"{src}: settings field {key!r} must be a non-negative integer, got {s[key]!r}")
+            try:
+                GaitSpec.from_settings(s)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"{src}: settings: {exc}") from None
             kf = np.asarray(s["keyframes"], dtype=object)
             if kf.shape != (M, s["n_keyframes"]):
                 raise ValueError(f"{src}: settings field 'keyframes' must have shape ({M}, {s['n_keyframes']}), "
@@ -167,7 +225,9 @@ class Result:
         ev = self.evaluation
         speed = ev.get("speed_bl_per_min")
         parts = [f"{self.robot} {self.task}", f"{len(self.u)} steps x {len(self.motor_names)} motors"]
-        if speed is not None:
+        if "sim_failure" in ev:
+            parts.append(f"its evaluation's simulation failed ({ev['sim_failure']})")
+        elif speed is not None:
             parts.append(f"{speed:.2f} BL/min over {ev.get('cycles')} cycles")
             parts.append("upright" if ev.get("upright") else "FELL")
         if "heading_change_deg" in ev:
@@ -177,6 +237,32 @@ class Result:
             parts.append(f"{len(self.history)} GN iterations, objective "
                          f"{last.get('objective_after', last.get('objective', float('nan'))):.4g}")
         return ", ".join(parts)
+
+
+def _check_digest(arrays: dict[str, np.ndarray], src: str) -> str | None:
+    """The content hash of a file that carries one (checked), None for files of older versions."""
+    if "content_sha256" not in arrays:
+        return None
+    stored = str(arrays["content_sha256"])
+    if content_hash(str(arrays["meta"]), {k: arrays[k] for k in _ARRAYS}) != stored:
+        raise ValueError(f"{src}: its content does not match its content_sha256 (the file is damaged, or "
+                         "was changed by something other than Result.save)")
+    return stored
+
+
+def _check_sidecar(path: Path, digest: str) -> None:
+    """Warn when the .json beside ``path`` does not repeat the .npz's hash."""
+    sidecar = path.with_suffix(".json")
+    if not sidecar.is_file():
+        return
+    try:
+        theirs = json.loads(sidecar.read_text(encoding="utf-8")).get("content_sha256")
+    except (OSError, ValueError, AttributeError):
+        theirs = "<unreadable>"
+    if theirs != digest:
+        warnings.warn(f"{sidecar} does not match {path} (a save was interrupted, or one of the two was "
+                      f"replaced): {path} is authoritative and was read; Result.load(path).save(path) "
+                      "rewrites the .json", ResultFileWarning, stacklevel=3)
 
 
 def _finite(o):

@@ -5,13 +5,19 @@ This layer turns the physics of :mod:`soft_envs.sim` into Gymnasium environments
 :class:`SoftRobotEnv`, registered on ``import soft_envs``) and offers ``trajopt`` its one way into
 the physics: the :class:`GradientEnv` protocol (rollouts with exact sensitivities, the robot, the
 simulation time step, the slope) with :func:`make_gradient_env` / :func:`as_gradient_env`, plus the
-re-exports below (the failure exception, body-frame measurements, cable points, strain energy).
+re-exports below (the failure exception, body-frame measurements, cable points, strain energy, the
+robot fingerprint that ties a result to its robot, the physical parameters and tracked markers of
+calibration, compiling the kernels ahead of a first run).
 It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`; never
 ``trajopt``.
 """
 from ..sim import Robot, SimulationError, Trajectory, load_robot
+from ..sim.robot_file import robot_fingerprint
+from ..sim.warmup import compile_ahead
 from .base import MOTOR_NO_LOAD_RPM, PAPER_GAIT_PERIOD, PAPER_TIMESTEP, SoftRobotEnv
 from .domain import DEFAULT_DOMAIN_RANDOMIZATION
+from .identification import (PHYSICAL_PARAMETERS, Marker, MarkerSet, check_parameters, parameter_values,
+                             with_parameters)
 from .measure import (BodyFrame, cable_points, heading_vector, strain_energy_density, tilt_deg_of, wrap_angle,
                       yaw_of)
 from .protocol import GradientEnv, as_gradient_env, make_gradient_env
@@ -19,6 +25,9 @@ from .puppy import SoftPuppyEnv
 from .tripod import SoftTripodEnv
 
 __all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv", "make_gradient_env",
-           "as_gradient_env", "Robot", "Trajectory", "SimulationError", "load_robot", "BodyFrame", "yaw_of",
+           "as_gradient_env", "Robot", "Trajectory", "SimulationError", "load_robot", "robot_fingerprint",
+           "BodyFrame", "yaw_of",
            "tilt_deg_of", "wrap_angle", "heading_vector", "cable_points", "strain_energy_density",
-           "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION"]
+           "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION",
+           "PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "check_parameters", "Marker", "MarkerSet",
+           "compile_ahead"]

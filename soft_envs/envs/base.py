@@ -24,13 +24,16 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
+from gymnasium import logger, spaces
 
-from ..sim import FactorCache, Robot, SimulationError, Simulator, Trajectory, incline_gravity, load_robot
+from ..sim import FactorCache, Robot, SimulationError, Simulator, incline_gravity, load_robot
 from .actuation import Actuation
-from .domain import parse_domain_randomization, randomized_robot, sample_factors
+from .arguments import RENDER_MODES, check_env_arguments
+from .domain import draw_standing_robot, parse_domain_randomization, randomized_robot
 from .measure import BodyFrame, tilt_deg_of, wrap_angle, yaw_of
 from .task import LocomotionTask
+from .threads import limit_threads_in_worker
+from .hooks import GradientHooksMixin
 from .viewer import EnvViewer, RenderingMixin
 
 __all__ = ["SoftRobotEnv", "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM"]
@@ -39,26 +42,7 @@ PAPER_TIMESTEP = 0.033              # [s] the paper's simulation time step h
 PAPER_GAIT_PERIOD = 72 * PAPER_TIMESTEP   # [s] the paper's gait cycle: 72 steps
 MOTOR_NO_LOAD_RPM = 100.0           # Pololu 298:1 micro metal gearmotor, no-load at 6 V
 _TRAIL_LENGTH = 3000                # COM trail points kept for rendering
-_RENDER_MODES = ("human", "rgb_array")
-
-
-def _check_arguments(*, frame_skip: Any, timestep: float, gait_period: float, reset_noise_scale: float,
-                     motor_speed_rpm: float | None, incline_deg: float, render_mode: str | None) -> None:
-    """Raise ValueError naming the first bad keyword of :class:`SoftRobotEnv` (the task's own
-    keywords are checked by :class:`LocomotionTask`)."""
-    if int(frame_skip) != frame_skip or frame_skip < 1:
-        raise ValueError(f"frame_skip must be a positive integer, got {frame_skip!r}")
-    for name, v in (("timestep", timestep), ("gait_period", gait_period)):
-        if not (math.isfinite(v) and v > 0):
-            raise ValueError(f"{name} must be positive, got {v!r}")
-    if not (math.isfinite(reset_noise_scale) and reset_noise_scale >= 0):
-        raise ValueError(f"reset_noise_scale must be >= 0, got {reset_noise_scale!r}")
-    if motor_speed_rpm is not None and not motor_speed_rpm > 0:
-        raise ValueError(f"motor_speed_rpm must be positive or None, got {motor_speed_rpm!r}")
-    if not abs(incline_deg) < 90:
-        raise ValueError(f"incline_deg must be in (-90, 90), got {incline_deg!r}")
-    if render_mode is not None and render_mode not in _RENDER_MODES:
-        raise ValueError(f"render_mode must be one of {list(_RENDER_MODES)} or None, got {render_mode!r}")
+_RENDER_MODES = RENDER_MODES
 
 
 def _with_contact(robot: Robot, contact: str | None) -> Robot:
@@ -69,7 +53,7 @@ def _with_contact(robot: Robot, contact: str | None) -> Robot:
     return robot.replace(contact=dataclasses.replace(robot.contact, model=contact))
 
 
-class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
+class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
     """A cable-driven soft robot on the ground plane (see the module docstring and the
     per-robot subclasses for the specification, keywords included)."""
 
@@ -109,9 +93,13 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
             ctrl_cost_weight=ctrl_cost_weight, healthy_reward=healthy_reward,
             terminate_when_unhealthy=terminate_when_unhealthy, healthy_tilt_deg=healthy_tilt_deg,
             healthy_height_fraction=healthy_height_fraction)
-        _check_arguments(frame_skip=frame_skip, timestep=timestep, gait_period=gait_period,
-                         reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
-                         incline_deg=incline_deg, render_mode=render_mode)
+        check_env_arguments(frame_skip=frame_skip, timestep=timestep, gait_period=gait_period,
+                            reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
+                            incline_deg=incline_deg, observe_nodes=observe_nodes, render_mode=render_mode,
+                            width=width, height=height, camera_config=camera_config)
+        if not isinstance(robot, (str, os.PathLike, Robot)):
+            raise ValueError(f"robot must be a shipped name, a robot.toml path or a Robot, got {type(robot).__name__}")
+        limit_threads_in_worker()      # a vector-env worker: one BLAS/numba thread (threads.py)
         self._base_robot = _with_contact(robot if isinstance(robot, Robot) else load_robot(robot), contact)
         if self._base_robot.n_motors == 0:
             raise ValueError(f"robot {self._base_robot.name!r} has no motors")
@@ -129,6 +117,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         self._width, self._height = int(width), int(height)
         self._camera_config = dict(camera_config or {})
         self._viewer: EnvViewer | None = None
+        self._steps_beyond_terminated = 0        # steps after terminated=True (warned at the first)
         self._init_actuation(motor_speed_rpm)
         self._init_spaces()
         self._init_physics()
@@ -214,16 +203,23 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
 
     # ------------------------------------------------------------------ simulator management
     def _set_domain(self, factors: Mapping[str, float]) -> None:
-        """Use the robot with these factors; rebuild the simulator only if they changed."""
+        """Use the robot with these factors; rebuild the simulator only if they changed. A robot
+        that cannot stand at rest raises SimulationError and changes nothing."""
         factors = {k: float(v) for k, v in sorted(factors.items())}
         if self._sim is not None and factors == self._domain:
             return
         robot = randomized_robot(self._base_robot, factors)
-        self._sim = Simulator(robot, dt=self._timestep, gravity=self._gravity, control="length")
-        self._domain = factors
-        x_rest = self._sim.rest_state(robot.u_rest)
+        sim = Simulator(robot, dt=self._timestep, gravity=self._gravity, control="length")
+        x_rest = sim.rest_state(robot.u_rest)
+        self._sim, self._domain = sim, factors
         self._frame = BodyFrame(x_rest, robot.node_masses)
         self._rest_com_height = float(self._frame.com(x_rest)[1])
+
+    def _draw_domain(self) -> dict[str, Any]:
+        """Draw this episode's robot (:func:`~soft_envs.envs.domain.draw_standing_robot`: redraws
+        from ``np_random`` until it stands at rest, else the nominal robot); returns the ``info``
+        entries that report it."""
+        return draw_standing_robot(self._domain_ranges, self.np_random, self._set_domain)
 
     # ------------------------------------------------------------------ actions
     def action_to_control(self, action: Any) -> np.ndarray:
@@ -237,9 +233,13 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start an episode at rest (plus ``reset_noise_scale`` noise). With domain
+        randomisation the robot is drawn first (:meth:`_draw_domain`); ``info`` then also holds
+        ``domain_parameters`` (the factors), ``domain_draws`` and ``domain_fallback``. A reset
+        never raises for a drawn robot that cannot stand."""
         super().reset(seed=seed)
-        if self._domain_ranges is not None:
-            self._set_domain(sample_factors(self._domain_ranges, self.np_random))
+        self._steps_beyond_terminated = 0
+        domain_info = self._draw_domain() if self._domain_ranges is not None else {}
         u_rest = self.robot.u_rest
         x_rest = self._sim.rest_state(u_rest)
         s = self._reset_noise_scale
@@ -254,9 +254,10 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
         self._restore(x0, xm1, u_rest, 0, self._frame.com(x0), None if s > 0 else x0.copy(), history)
         if self.render_mode == "human":
             self.render()
-        return self._get_obs(), self._get_info()
+        return self._get_obs(), {**self._get_info(), **domain_info}
 
     def step(self, action: Any):
+        self._warn_if_stepping_after_termination()
         a = self._actuation.check_action(action)
         u_cmd = self._actuation.command(a)
         x, xp, xp2, u, history = self._x, self._x_prev, self._x_prev2, self._u, self._history
@@ -271,6 +272,7 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
                     history = self._sim.next_history(x, xp, history)
                 u_sub[i] = u
         except SimulationError as err:     # keep the state of before the step
+            self._failed_state = self._x
             info = self._get_info()
             info.update(reward_forward=0.0, reward_ctrl=0.0, reward_survive=0.0,
                         sim_failure=str(err))
@@ -287,6 +289,19 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
             self.render()
         # truncation is left to the TimeLimit wrapper added by gymnasium.make
         return self._get_obs(), reward, terminated, False, info
+
+    def _warn_if_stepping_after_termination(self) -> None:
+        """Warn (once per episode, as Gymnasium's own environments do) when :meth:`step` follows
+        a step that returned ``terminated=True`` (unhealthy, or a failed simulation step)."""
+        terminated = (getattr(self, "_failed_state", None) is self._x
+                      or (self._n_sub > 0 and self._task.terminate_when_unhealthy and not self._healthy))
+        if not terminated:
+            return
+        if self._steps_beyond_terminated == 0:
+            logger.warn("You are calling 'step()' even though this environment has already returned terminated = "
+                        "True. You should always call 'reset()' once you receive 'terminated = True' -- any "
+                        "further steps are undefined behavior.")
+        self._steps_beyond_terminated += 1
 
     # ------------------------------------------------------------------ state and measurements
     @property
@@ -342,89 +357,6 @@ class SoftRobotEnv(RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
                 "com": self._com.copy(), "displacement": self._com - self._com_start,
                 "yaw": self._yaw, "tilt_deg": self._tilt, "time": self._n_sub * self._timestep,
                 "u": self._u.copy(), "is_healthy": self.is_healthy}
-
-    # ------------------------------------------------------------------ gradient hooks
-    def reset_state(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(x_0, x_{-1})`` of the last reset (copies): where :meth:`rollout` starts."""
-        return self._x0_reset.copy(), self._xm1_reset.copy()
-
-    def rollout(self, u: np.ndarray, dudz: np.ndarray | None = None, *,
-                store_dxdz: bool = False) -> Trajectory:
-        """Simulate contractions ``u`` (K, M) [m] from the reset state, with sensitivities when
-        ``dudz`` (K, M, nz) is given (see :meth:`Simulator.rollout`). ``u`` is applied as given:
-        no action clipping and no motor speed limit. The environment's state is not touched."""
-        return self._sim.rollout(u, x0=self._x0_reset, dudz=dudz, x_prev0=self._xm1_reset,
-                                 store_dxdz=store_dxdz, history0=self._history_reset)
-
-    def get_state(self) -> dict[str, Any]:
-        """A copy of everything a step depends on: positions ``x`` and ``x_prev`` (n, 3),
-        applied contractions ``u`` (M,), simulation steps since reset ``sim_steps``, the start
-        COM ``com_start`` (3,) and the ``domain`` parameters; also ``x_prev2`` (n, 3) or None,
-        the state before ``x_prev``, which only improves the solver's first guess (the next
-        state is the same to within the Newton tolerance without it); and ``history``, the
-        contact law's lagged state (the Coulomb law's stick anchors: a list with one (c, 2)
-        array; None entries for terms without history)."""
-        return {"x": self._x.copy(), "x_prev": self._x_prev.copy(), "u": self._u.copy(),
-                "sim_steps": self._n_sub, "com_start": self._com_start.copy(), "domain": dict(self._domain),
-                "x_prev2": None if self._x_prev2 is None else self._x_prev2.copy(),
-                "history": [None if h is None else np.array(h) for h in self._history]}
-
-    def set_state(self, state: Mapping[str, Any]) -> None:
-        """Restore a state from :meth:`get_state` (``x`` required; ``x_prev`` defaults to ``x``,
-        i.e. at rest, ``x_prev2`` to ``x`` at rest and to None otherwise, ``history`` to the
-        stick anchors of a robot at rest at ``x``, other keys to their current values)."""
-        if "domain" in state:
-            self._set_domain(state["domain"])
-        n = self._sim.n_nodes
-        x = np.array(state["x"], dtype=np.float64)
-        xp = np.array(state.get("x_prev", x), dtype=np.float64)
-        xp2 = state.get("x_prev2", x if "x_prev" not in state else None)
-        xp2 = None if xp2 is None else np.array(xp2, dtype=np.float64)
-        u = np.array(state.get("u", self._u), dtype=np.float64)
-        checks = [("x", x, (n, 3)), ("x_prev", xp, (n, 3)), ("u", u, self._u.shape)]
-        if xp2 is not None:
-            checks.append(("x_prev2", xp2, (n, 3)))
-        for name, v, shape in checks:
-            if v.shape != shape or not np.isfinite(v).all():
-                raise ValueError(f"state[{name!r}] must be a finite array of shape {shape}, got {v.shape}")
-        history = self._check_history(state.get("history"), x)
-        self._trail.clear()
-        self._restore(x, xp, u, int(state.get("sim_steps", self._n_sub)),
-                      state.get("com_start", self._com_start), xp2, history)
-
-    def _check_history(self, history, x: np.ndarray) -> tuple:
-        """A state's ``history`` as the simulator's tuple (default: at rest at x)."""
-        expected = self._sim.initial_history(x)
-        if history is None:
-            return expected
-        if len(history) != len(expected):
-            raise ValueError(f"state['history'] must have {len(expected)} entries, got {len(history)}")
-        out = []
-        for i, (h, e) in enumerate(zip(history, expected)):
-            if e is None or h is None:
-                if (e is None) != (h is None):
-                    raise ValueError(f"state['history'][{i}] must be {'None' if e is None else 'an array'}")
-                out.append(None)
-                continue
-            h = np.array(h, dtype=np.float64)
-            if h.shape != e.shape or not np.isfinite(h).all():
-                raise ValueError(f"state['history'][{i}] must be a finite array of shape {e.shape}, got {h.shape}")
-            out.append(h)
-        return tuple(out)
-
-    def com(self) -> np.ndarray:
-        """Current centre of mass (3,) [m]."""
-        return self._com.copy()
-
-    def cable_deformation(self, x: np.ndarray | None = None, u: np.ndarray | None = None) -> np.ndarray:
-        """Cable deformation Gamma (T,) [m] per tendon (> 0: stretched, < 0: slack; paper eq. 3)
-        at positions ``x`` (n, 3) with controls ``u`` (M,), by default the current ones."""
-        return self._sim.cable_deformation(self._x if x is None else x, self._u if u is None else u)
-
-    def cable_tension(self, x: np.ndarray | None = None, u: np.ndarray | None = None) -> np.ndarray:
-        """Cable tension (T,) [N] per tendon (0 when slack) at positions ``x`` (n, 3) with
-        controls ``u`` (M,), by default the current ones."""
-        return self._sim.cable_tension(self._x if x is None else x, self._u if u is None else u)
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()

@@ -16,19 +16,32 @@ environment's ``np_random``) and multiply the nominal robot's parameter by it. K
 ``domain_randomization=True`` draws from :data:`DEFAULT_DOMAIN_RANDOMIZATION`: friction
 (0.7, 1.3) and Young's modulus (0.8, 1.2), the two parameters fitted rather than measured
 (paper II-A), and foam density and payload mass (0.9, 1.1), weighed ones.
+
+A reset never fails because of a draw (:func:`draw_standing_robot`): a drawn robot that cannot
+stand at rest (its rest state does not settle: e.g. a soft, heavy body on soft ground) is
+redrawn, up to :data:`MAX_DOMAIN_DRAWS` times from the same ``np_random``, so the factors are
+drawn from the ranges given the robot can stand; if no draw stands, the episode uses the
+nominal robot (all factors 1) and Gymnasium's logger warns. The reset's ``info`` reports
+``domain_parameters`` (the factors used), ``domain_draws`` (draws made) and
+``domain_fallback`` (True when the nominal robot was used).
 """
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from types import MappingProxyType
+from typing import Any
 
 import numpy as np
+from gymnasium import logger
 
-from ..sim import Robot
+from ..sim import Robot, SimulationError
 
-__all__ = ["DOMAIN_KEYS", "DEFAULT_DOMAIN_RANDOMIZATION", "parse_domain_randomization", "sample_factors",
-           "randomized_robot"]
+__all__ = ["DOMAIN_KEYS", "DEFAULT_DOMAIN_RANDOMIZATION", "MAX_DOMAIN_DRAWS", "parse_domain_randomization",
+           "sample_factors", "randomized_robot", "draw_standing_robot"]
+
+#: Draws per reset before the nominal robot is used (see the module docstring).
+MAX_DOMAIN_DRAWS = 8
 
 DOMAIN_KEYS = ("contact_stiffness", "density", "friction", "payload_mass", "youngs_modulus")
 
@@ -82,3 +95,24 @@ def randomized_robot(base: Robot, factors: Mapping[str, float]) -> Robot:
                         youngs_modulus=base.youngs_modulus * f.get("youngs_modulus", 1.0),
                         density=base.density * f.get("density", 1.0),
                         payload_mass=base.payload_mass * f.get("payload_mass", 1.0))
+
+
+def draw_standing_robot(ranges: Mapping[str, tuple[float, float]], rng: np.random.Generator,
+                        use: Callable[[Mapping[str, float]], None]) -> dict[str, Any]:
+    """Draw factors and ``use(factors)`` them (which raises SimulationError when that robot
+    cannot stand at rest, changing nothing) until one stands, at most :data:`MAX_DOMAIN_DRAWS`
+    times; then the nominal factors. Returns the reset ``info`` entries (module docstring)."""
+    failures = []
+    for draw in range(1, MAX_DOMAIN_DRAWS + 1):
+        factors = sample_factors(ranges, rng)
+        try:
+            use(factors)
+        except SimulationError as err:
+            failures.append(f"{ {k: round(v, 3) for k, v in factors.items()} }: {err}")
+            continue
+        return {"domain_parameters": factors, "domain_draws": draw, "domain_fallback": False}
+    nominal = {k: 1.0 for k in sorted(ranges)}
+    use(nominal)
+    logger.warn(f"domain randomisation: none of {MAX_DOMAIN_DRAWS} draws could stand at rest (last: {failures[-1]}); "
+                "this episode uses the nominal robot (all factors 1)")
+    return {"domain_parameters": nominal, "domain_draws": MAX_DOMAIN_DRAWS, "domain_fallback": True}

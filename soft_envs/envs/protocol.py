@@ -15,7 +15,7 @@ import numpy as np
 from ..sim import Robot, Trajectory
 from .base import PAPER_TIMESTEP, SoftRobotEnv
 
-__all__ = ["GradientEnv", "GRADIENT_ENV_MEMBERS", "as_gradient_env", "make_gradient_env"]
+__all__ = ["GradientEnv", "GRADIENT_ENV_MEMBERS", "PARAMETER_MEMBERS", "as_gradient_env", "make_gradient_env"]
 
 
 @runtime_checkable
@@ -30,6 +30,14 @@ class GradientEnv(Protocol):
     ``u`` is applied as given (the environments' action clipping and motor speed limit are not
     applied; keep ``u`` within ``robot.u_bounds`` yourself). A failed step raises
     :class:`~soft_envs.sim.SimulationError` (re-exported by :mod:`soft_envs.envs`).
+
+    Optional member (``trajopt calibrate`` needs it; :data:`PARAMETER_MEMBERS`):
+    ``rollout_parameters(u, parameters)`` plays ``u`` from the rest state like ``rollout`` and
+    returns the Trajectory with ``dxdtheta`` (K+1, 3n, ntheta) and ``dcomdtheta``, the
+    sensitivities of the whole rollout (rest state included) to the physical ``parameters``
+    (names of :data:`soft_envs.envs.PHYSICAL_PARAMETERS`: ``youngs_modulus``,
+    ``poisson_ratio``, ``density``, ``payload_mass``, ``contact_stiffness``, ``friction`` or
+    ``friction_coefficient`` (by the contact law), ``cable_stiffness``).
 
     In :class:`~soft_envs.envs.base.SoftRobotEnv`, stepping the environment and ``rollout`` agree
     up to the Newton tolerance (the controls actually applied per simulation step are
@@ -75,6 +83,8 @@ class GradientEnv(Protocol):
 #: The members of :class:`GradientEnv`, checked by :func:`as_gradient_env`.
 GRADIENT_ENV_MEMBERS = ("robot", "timestep", "control_mode", "incline_deg", "contact_model", "gravity", "rollout",
                         "reset_state", "get_state", "set_state", "com", "cable_deformation", "cable_tension")
+#: Optional members of :class:`GradientEnv` (parameter sensitivities for calibration).
+PARAMETER_MEMBERS = ("rollout_parameters",)
 
 
 def make_gradient_env(robot: str | os.PathLike | Robot = "puppy", *, incline_deg: float = 0.0,

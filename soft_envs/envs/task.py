@@ -10,9 +10,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .arguments import is_number
 from .measure import heading_vector
 
 __all__ = ["LocomotionTask"]
+
+
+def _finite(name: str, value) -> float:
+    if not (is_number(value) and np.isfinite(value)):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return float(value)
 
 
 @dataclass(frozen=True)
@@ -32,10 +39,23 @@ class LocomotionTask:
     healthy_height_fraction: float = 0.5
 
     def __post_init__(self):
+        """Every keyword checked: a ValueError names the first bad one."""
         if self.task not in ("walk", "turn"):
             raise ValueError(f"task must be 'walk' or 'turn', got {self.task!r}")
         if self.turn_direction not in ("right", "left"):
             raise ValueError(f"turn_direction must be 'right' or 'left', got {self.turn_direction!r}")
+        for name in ("target_heading_deg", "forward_reward_weight", "healthy_reward"):
+            _finite(name, getattr(self, name))
+        if _finite("ctrl_cost_weight", self.ctrl_cost_weight) < 0:
+            raise ValueError(f"ctrl_cost_weight must be >= 0, got {self.ctrl_cost_weight!r}")
+        if self.turn_radius is not None and not _finite("turn_radius", self.turn_radius) > 0:
+            raise ValueError(f"turn_radius must be positive [m] or None (one body length), got {self.turn_radius!r}")
+        if not isinstance(self.terminate_when_unhealthy, (bool, np.bool_)):
+            raise ValueError(f"terminate_when_unhealthy must be True or False, got {self.terminate_when_unhealthy!r}")
+        if not 0 < _finite("healthy_tilt_deg", self.healthy_tilt_deg) <= 180:
+            raise ValueError(f"healthy_tilt_deg must be in (0, 180], got {self.healthy_tilt_deg!r}")
+        if not 0 <= _finite("healthy_height_fraction", self.healthy_height_fraction) < 1:
+            raise ValueError(f"healthy_height_fraction must be in [0, 1), got {self.healthy_height_fraction!r}")
 
     @property
     def heading(self) -> np.ndarray:

@@ -33,6 +33,11 @@ eq. 4, implicit Euler by Newton        :meth:`.integrator.NewtonSolver.step` (mi
 eqs. 6-9, the whole-rollout system     :mod:`.sensitivity` (module docstring)
 eqs. 10-11, forward recurrence         :meth:`.sensitivity.ForwardSensitivities.step`
 adjoint of eq. 10                      :func:`.sensitivity.adjoint_pass`
+eq. 10 for physical parameters         the parameter block of :class:`.sensitivity.ForwardSensitivities`
+(calibration, beyond the paper)        (``d(dE_t/dx)/dtheta``: ``EnergyTerm.add_parameter_jacobian``;
+                                       names in :mod:`.parameters`); rest state:
+                                       :meth:`.simulator.Simulator.rest_sensitivity`; tracked
+                                       markers :mod:`.markers`
 appendix A, tension control            :class:`.cables.CableTensions`
 =====================================  ==========================================================
 
@@ -42,10 +47,11 @@ from .gravity import incline_gravity
 from .integrator import NewtonOptions, SimulationError
 from .linsolve import FactorCache
 from .mesh import TetMesh, load_mesh
+from .markers import Marker, MarkerSet
 from .robot import ContactParams, Motor, Robot, Tendon
 from .simulator import Simulator, Trajectory
 
-__all__ = ["Robot", "Tendon", "Motor", "ContactParams", "Simulator", "Trajectory", "SimulationError",
+__all__ = ["Robot", "Tendon", "Motor", "ContactParams", "Marker", "MarkerSet", "Simulator", "Trajectory", "SimulationError",
            "NewtonOptions", "FactorCache", "TetMesh", "load_mesh", "incline_gravity", "load_robot"]
 
 

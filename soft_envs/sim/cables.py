@@ -245,10 +245,13 @@ class Cables(EnergyTerm):
     r"""Cables in length control (paper eqs. 2-3): ``E = sum_t Q(Gamma_t)`` with the deformation
     ``Gamma_t = L_t(x) - alpha_t(u)`` and the rest length ``alpha_t = alpha0_t - u_m(t)``, ``u``
     the contraction [m] of the motor driving tendon t. ``d(dE/dx)/du = Q''(Gamma) dL/dx`` per
-    tendon, summed per motor."""
+    tendon, summed per motor. Q' is linear in the stiffness, and the parameter
+    ``cable_stiffness`` (the mean k over the tendons, all scaled alike) gives
+    ``d(dE/dx)/dk = sum_t Q'(Gamma_t) / k dL_t/dx``."""
 
     name = "cables"
     mode = LENGTH_CONTROL
+    parameters = ("cable_stiffness",)
 
     def __init__(self, robot):
         cab = robot.cable_data
@@ -323,6 +326,11 @@ class Cables(EnergyTerm):
         c = self._control_stiffness(x, u)
         G += self.length_gradients(x).T @ (c[:, None] * self.motor_matrix)
 
+    def add_parameter_jacobian(self, x, x_prev, u, hist, names, out) -> None:
+        for j, n in enumerate(names):
+            if n in self.parameters and self.n_tendons:
+                out[:, j] += self.length_gradients(x).T @ (self.tension(x, u) / self.stiffness.mean())
+
 
 class CableTensions(Cables):
     r"""Cables in tension control (paper appendix A): ``E = sum_t tau_t L_t(x)`` with the
@@ -330,6 +338,7 @@ class CableTensions(Cables):
     alpha0 (Gamma = L - alpha0 is still reported). ``d(dE/dx)/du = dL/dx`` per tendon."""
 
     mode = TENSION_CONTROL
+    parameters = ()           # E = tau L: the stiffness plays no part
 
     def rest_lengths(self, u: np.ndarray) -> np.ndarray:
         return self.alpha0

@@ -107,6 +107,7 @@ class GroundContact(EnergyTerm):
     ``stiffness`` k_n [N/m], ``blend`` eps_n [m], ``friction`` mu_f [1/m]."""
 
     name = "contact"
+    parameters = ("contact_stiffness", "friction")
 
     def __init__(self, robot):
         c = robot.contact
@@ -135,3 +136,21 @@ class GroundContact(EnergyTerm):
 
     def add_prev_product_T(self, x, x_prev, u, hist, lam, out) -> None:
         friction_cross_T(x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f, lam, out)
+
+    def add_parameter_jacobian(self, x, x_prev, u, hist, names, out) -> None:
+        """Q_n' is linear in k_n, so ``N = k_n Q_1'``: the normal force ``-N(y)`` gives
+        ``-N / k_n`` and the friction force ``2 mu_f N_{k-1} dx_t`` gives ``2 mu_f N_{k-1} dx_t
+        / k_n`` (the lagged N_{k-1} scales with k_n too); ``d/d mu_f = 2 N_{k-1} dx_t``."""
+        nodes = self.nodes
+        N = self.normal_forces(x)
+        N_prev = self.normal_forces(x_prev)
+        dt = x[nodes][:, [0, 2]] - x_prev[nodes][:, [0, 2]]
+        friction = 2.0 * N_prev[:, None] * dt                  # d grad_t / d mu_f
+        for j, n in enumerate(names):
+            if n == "contact_stiffness":
+                out[3 * nodes + 1, j] -= N / self.k_n
+                out[3 * nodes, j] += self.mu_f * friction[:, 0] / self.k_n
+                out[3 * nodes + 2, j] += self.mu_f * friction[:, 1] / self.k_n
+            elif n == "friction":
+                out[3 * nodes, j] += friction[:, 0]
+                out[3 * nodes + 2, j] += friction[:, 1]

@@ -141,6 +141,16 @@ def _anchor_product(x, x_prev, anchors, nodes, k_n, eps_n, mu, rs, P, out, trans
 
 
 @njit(cache=True)
+def _friction_forces(x, x_prev, anchors, nodes, k_n, eps_n, mu, rs, out):
+    """``out (c, 2)``: the tangential friction force ``mu N_{k-1} w d`` (x, z) of every contact
+    node (its share of the gradient)."""
+    for c in range(nodes.shape[0]):
+        a, dN, dx, dz, G, w, cw = _friction(x, x_prev, anchors, nodes[c], c, k_n, eps_n, mu, rs)
+        out[c, 0] = a * w * dx
+        out[c, 1] = a * w * dz
+
+
+@njit(cache=True)
 def _next_anchors(x, x_prev, anchors, nodes, k_n, eps_n, rs, out):
     """The anchor update of the module docstring."""
     for c in range(nodes.shape[0]):
@@ -200,6 +210,7 @@ class CoulombContact(EnergyTerm):
 
     name = "contact"
     has_history = True
+    parameters = ("contact_stiffness", "friction_coefficient")
 
     def __init__(self, robot):
         c = robot.contact
@@ -234,6 +245,23 @@ class CoulombContact(EnergyTerm):
 
     def add_prev_product_T(self, x, x_prev, u, hist, lam, out) -> None:
         _prev_product_T(*self._args(x, x_prev, hist), lam, out)
+
+    def add_parameter_jacobian(self, x, x_prev, u, hist, names, out) -> None:
+        """The normal force ``-N(y)`` and the friction force ``mu N_{k-1} w d`` are linear in
+        k_n (through N and the lagged N_{k-1}) and the friction force is linear in mu. The
+        anchor update depends on the parameters only through the sign of N_{k-1}: no
+        :meth:`history_parameter_jacobian`."""
+        nodes = self.nodes
+        f1 = np.empty((len(nodes), 2))                  # N_{k-1} w d: the friction force at mu = 1
+        _friction_forces(x, x_prev, hist, nodes, self.k_n, self.eps_n, 1.0, self.rs, f1)
+        for j, n in enumerate(names):
+            if n == "contact_stiffness":
+                out[3 * nodes + 1, j] -= self.normal_forces(x) / self.k_n
+                out[3 * nodes, j] += self.mu * f1[:, 0] / self.k_n
+                out[3 * nodes + 2, j] += self.mu * f1[:, 1] / self.k_n
+            elif n == "friction_coefficient":
+                out[3 * nodes, j] += f1[:, 0]
+                out[3 * nodes + 2, j] += f1[:, 1]
 
     # ------------------------------------------------------------------ anchors
     def initial_history(self, x0) -> np.ndarray:

@@ -3,12 +3,19 @@
 ``E_FEM(x) = sum_e V_e Psi(F_e)``; the kernels (energy density, stress, 12x12 element Hessian
 and the scatter into the global pattern) are in :mod:`.materials`, the positive semi-definite
 projection used by the Newton solver's fallback in :mod:`.psd_projection`.
+
+The gradient is linear in the Lame parameters, ``dE/dx = mu G_mu(x) + lam G_lam(x)`` with
+``G_mu = sum_e V_e (F - F^{-T}) N_a`` and ``G_lam = sum_e V_e ln J F^{-T} N_a`` (the gradient
+kernel at (mu, lam) = (1, 0) and (0, 1)), so its derivative with respect to Young's modulus and
+the Poisson ratio is ``dmu/dtheta G_mu + dlam/dtheta G_lam``
+(:func:`~.parameters.lame_jacobian`).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from .materials import fem_assemble, fem_energy
+from .parameters import lame_jacobian
 from .psd_projection import fem_assemble_projected
 from .terms import EnergyTerm
 
@@ -20,11 +27,13 @@ class Elastic(EnergyTerm):
     (eq. 1). ``inf`` when an element is inverted (J <= 0)."""
 
     name = "elastic"
+    parameters = ("youngs_modulus", "poisson_ratio")
 
     def __init__(self, robot):
         mesh = robot.mesh
         self.tets, self.dN, self.vol = mesh.tets, mesh.dN, mesh.volumes
         self.mu, self.lam = robot.element_lame()
+        self._lame_jacobian = lame_jacobian(robot.youngs_modulus, robot.poisson_ratio)
 
     def hessian_blocks(self) -> list[np.ndarray]:
         return [(3 * self.tets[:, :, None] + np.arange(3)).reshape(len(self.tets), 12)]
@@ -43,3 +52,15 @@ class Elastic(EnergyTerm):
     def assemble_projected(self, x, x_prev, u, hist, grad, hdata) -> float:
         return fem_assemble_projected(x, self.tets, self.dN, self.vol, self.mu, self.lam, grad,
                                       hdata, self.hmap)
+
+    def add_parameter_jacobian(self, x, x_prev, u, hist, names, out) -> None:
+        cols = [(j, self._lame_jacobian[n]) for j, n in enumerate(names) if n in self.parameters]
+        if not cols:
+            return
+        ones, zeros = np.ones_like(self.mu), np.zeros_like(self.mu)
+        g_mu, g_lam = np.zeros(out.shape[0]), np.zeros(out.shape[0])
+        for g, (m, lm) in ((g_mu, (ones, zeros)), (g_lam, (zeros, ones))):
+            if fem_assemble(x, self.tets, self.dN, self.vol, m, lm, g, g, self.hmap, False) == np.inf:
+                raise ValueError("an element is inverted: the elastic gradient has no parameter derivative")
+        for j, (dmu, dlam) in cols:
+            out[:, j] += dmu * g_mu + dlam * g_lam

@@ -25,12 +25,22 @@ def incline_gravity(angle_deg: float, g: float = 9.81, uphill: tuple[float, floa
 
 class Gravity(EnergyTerm):
     r"""Gravitational potential ``E = -sum_i m_i g . x_i`` for any vector ``g`` [m/s^2] (an
-    incline rotates ``g``, paper IV-B; see :func:`incline_gravity`)."""
+    incline rotates ``g``, paper IV-B; see :func:`incline_gravity`). ``mass_jacobian``
+    (optional): ``{parameter: dm_i/dtheta (n,)}`` for the parameters that change the masses
+    (:func:`~.parameters.node_mass_jacobian`); ``d(dE/dx)/dtheta = -dm/dtheta g``."""
 
     name = "gravity"
 
-    def __init__(self, node_masses: np.ndarray, g: np.ndarray):
-        self.force = (np.asarray(node_masses)[:, None] * np.asarray(g)[None, :]).ravel()   # (3n,)
+    def __init__(self, node_masses: np.ndarray, g: np.ndarray, mass_jacobian=None):
+        self.g = np.asarray(g, dtype=np.float64)
+        self.force = (np.asarray(node_masses)[:, None] * self.g[None, :]).ravel()   # (3n,)
+        self.mass_jacobian = dict(mass_jacobian or {})
+        self.parameters = tuple(self.mass_jacobian)
+
+    def add_parameter_jacobian(self, x, x_prev, u, hist, names, out) -> None:
+        for j, n in enumerate(names):
+            if n in self.mass_jacobian:
+                out[:, j] -= (self.mass_jacobian[n][:, None] * self.g[None, :]).ravel()
 
     def energy(self, x, x_prev, u, hist=None) -> float:
         return -float(self.force @ x.ravel())

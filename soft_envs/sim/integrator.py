@@ -38,6 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .line_search import backtracking, bracketing
 from .linsolve import FactorCache, make_solver
 from .system import EnergySystem
 
@@ -295,78 +296,25 @@ class NewtonSolver:
         return self.solver.solve(g)
 
     def _line_search(self, it: _Iterate, dx, slope: float, ctx: "_Inputs"):
-        """From the full step: ``(x, Phi, grad, alpha)`` of the accepted point, or None. A chord
-        step (reused factorisation) only tries the full step. A Newton step backtracks
-        (``line_search="backtracking"``: halving until Armijo holds) or, with ``"exact"``,
-        brackets the minimum of Phi along the step and takes a point where the directional
-        derivative has shrunk to ``wolfe`` times its initial value (safeguarded regula falsi
-        on it; Armijo still required): where a contact or cable engages part-way, the step
-        stops there instead of halving past it."""
-        opt = self.options
-        if it.fresh and self._exact_line_search:
-            found = self._line_search_exact(it, dx, slope, ctx)
-            if found is not None:
-                return found
-        alpha = 1.0
-        for _ in range(opt.max_backtracks):
-            xn = it.x.copy()
-            self._move(xn, alpha * dx)
-            phi_n, grad_n, _ = self._phi_grad(xn, ctx)
-            if phi_n <= it.phi + opt.armijo * alpha * slope:
-                return xn, phi_n, grad_n, alpha
-            if not it.fresh:
-                return None
-            alpha *= 0.5
-        return None
-
-    def _line_search_exact(self, it: _Iterate, dx, slope: float, ctx: "_Inputs"):
-        """The ``"exact"`` line search of :meth:`_line_search`; None hands over to backtracking."""
+        """From the full step (:mod:`.line_search`): ``(x, Phi, grad, alpha)`` of the accepted
+        point, or None. A chord step (reused factorisation) only tries the full step; a Newton
+        step brackets (``"exact"``), falling back to, or else, backtracking."""
         opt = self.options
         sys = self.system
         free = sys.free if len(sys.free) < sys.n_dof else slice(None)
-        best = None
 
-        def at(alpha):
+        def evaluate(alpha):
             xn = it.x.copy()
             self._move(xn, alpha * dx)
             phi_n, grad_n, _ = self._phi_grad(xn, ctx)
-            d = float(grad_n[free] @ dx) if np.isfinite(phi_n) else np.inf
-            return xn, phi_n, grad_n, d
+            return xn, phi_n, grad_n, (float(grad_n[free] @ dx) if np.isfinite(phi_n) else np.inf)
 
-        lo, d_lo = 0.0, slope
-        hi = 1.0
-        for _ in range(opt.max_backtracks):        # an upper end where Phi is finite
-            xn, phi_n, grad_n, d_hi = at(hi)
-            if np.isfinite(phi_n):
-                break
-            hi *= 0.5
-        else:
-            return None
-        side = 0
-        for _ in range(opt.line_search_iter):
-            if phi_n <= it.phi + opt.armijo * hi * slope and (best is None or phi_n < best[1]):
-                best = (xn, phi_n, grad_n, hi)
-            if d_hi <= 0.0 or abs(d_hi) <= -opt.wolfe * slope:
-                break                                 # still descending at hi, or flat enough
-            # regula falsi (Illinois) on the directional derivative, kept inside the bracket
-            a = lo - d_lo * (hi - lo) / (d_hi - d_lo)
-            a = min(max(a, lo + 0.02 * (hi - lo)), hi - 0.02 * (hi - lo))
-            xa, phi_a, grad_a, d_a = at(a)
-            if d_a > 0.0 or not np.isfinite(phi_a):
-                hi, d_hi, xn, phi_n, grad_n = a, d_a, xa, phi_a, grad_a
-                if side == 1:
-                    d_lo *= 0.5
-                side = 1
-            else:
-                if phi_a <= it.phi + opt.armijo * a * slope and (best is None or phi_a < best[1]):
-                    best = (xa, phi_a, grad_a, a)
-                if abs(d_a) <= -opt.wolfe * slope:
-                    return best
-                lo, d_lo = a, d_a
-                if side == -1:
-                    d_hi *= 0.5
-                side = -1
-        return best
+        if it.fresh and self._exact_line_search:
+            found = bracketing(evaluate, it.phi, slope, opt.armijo, opt.wolfe, opt.line_search_iter,
+                               opt.max_backtracks)
+            if found is not None:
+                return found
+        return backtracking(evaluate, it.phi, slope, opt.armijo, opt.max_backtracks, full_step_only=not it.fresh)
 
     def _info(self, it: _Iterate, refactor: bool, need_exact: bool, cache, x, x_prev2, ctx: "_Inputs") -> StepInfo:
         """The :class:`StepInfo` of a finished step; with ``need_exact`` it holds the exact

@@ -12,11 +12,16 @@ from pathlib import Path
 
 import meshio
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 __all__ = ["TetMesh", "load_mesh", "boundary_faces", "shape_gradients"]
 
 #: Relative volume below which a rest element counts as degenerate (volume / h^3, h = mean edge).
 DEGENERATE_RTOL = 1e-8
+#: Nodes closer than this times the mean edge length count as coincident (a crack in the mesh).
+COINCIDENT_RTOL = 1e-6
 
 
 def boundary_faces(tets: np.ndarray, points: np.ndarray | None = None) -> np.ndarray:
@@ -73,7 +78,9 @@ def shape_gradients(points: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, n
 
 @dataclass(frozen=True, eq=False)
 class TetMesh:
-    """A validated linear tetrahedral mesh (SI units, metres).
+    """A validated linear tetrahedral mesh (SI units, metres): finite coordinates, every node in
+    a tet, no degenerate or inverted element, no two nodes at one place (a crack: the elements
+    on either side would not be joined), and one connected body (nodes shared between tets).
 
     Attributes
     ----------
@@ -188,6 +195,31 @@ def _validate(points: np.ndarray, tets: np.ndarray, name: str) -> None:
     if not used.all():
         idx = np.flatnonzero(~used)
         raise ValueError(f"{name}: {idx.size} unreferenced nodes (not in any tet), e.g. {idx[:10].tolist()}")
+    _check_one_body(points, tets, name)
+
+
+def _check_one_body(points: np.ndarray, tets: np.ndarray, name: str) -> None:
+    """No coincident nodes (a crack) and a single connected component."""
+    h = float(np.linalg.norm(points[tets[:, 1:]] - points[tets[:, :1]], axis=2).mean())
+    pairs = cKDTree(points).query_pairs(COINCIDENT_RTOL * h, output_type="ndarray")
+    if len(pairs):
+        i, j = sorted(pairs[0].tolist())
+        raise ValueError(f"{name}: {len(pairs)} pairs of coincident nodes, e.g. nodes {i} and {j} at "
+                         f"{np.array2string(points[i], precision=6)} (a crack: the elements on either side are "
+                         "not joined); merge the duplicate nodes")
+    n = len(points)
+    graph = coo_matrix((np.ones(3 * len(tets)), (np.repeat(tets[:, 0], 3), tets[:, 1:].ravel())), shape=(n, n))
+    n_parts, labels = connected_components(graph, directed=False)
+    if n_parts > 1:
+        sizes = np.bincount(labels)
+        main = int(np.argmax(sizes))
+        others = np.flatnonzero(labels != main)
+        dist, idx = cKDTree(points[labels == main]).query(points[others])
+        k = int(np.argmin(dist))
+        a, b = int(np.flatnonzero(labels == main)[idx[k]]), int(others[k])
+        counts = ", ".join(map(str, sorted(sizes, reverse=True)[:5]))
+        raise ValueError(f"{name}: the mesh is {n_parts} disconnected bodies ({counts} nodes; the nearest two, nodes "
+                         f"{a} and {b}, are {dist[k]:.3g} apart); a robot must be one connected body")
 
 
 def _check_orientation(points: np.ndarray, tets: np.ndarray, vol: np.ndarray, name: str) -> None:

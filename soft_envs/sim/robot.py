@@ -15,10 +15,11 @@ from typing import Any, Iterable, Mapping
 import meshio
 import numpy as np
 
+from .markers import Marker, MarkerSet
 from .materials import lame_parameters
 from .mesh import TetMesh, load_mesh
 
-__all__ = ["Robot", "Tendon", "Motor", "ContactParams", "CableData", "CONTACT_MODELS"]
+__all__ = ["Robot", "Tendon", "Motor", "ContactParams", "CableData", "Marker", "CONTACT_MODELS"]
 
 
 CONTACT_MODELS = ("paper", "coulomb")
@@ -115,6 +116,7 @@ class Robot:
     body_length: float | None = None
     cable_blend: float = 2e-4
     source: str = "<python>"
+    markers: tuple[Marker, ...] = ()
 
     def __post_init__(self):
         lame_parameters(self.youngs_modulus, self.poisson_ratio)   # validates
@@ -146,7 +148,11 @@ class Robot:
                                  f"got {t.rest_length!r}")
             tendons.append(dataclasses.replace(t, points=pts))
         object.__setattr__(self, "tendons", tuple(tendons))
+        markers = tuple(m if isinstance(m, Marker) else Marker(str(m["name"]), np.asarray(m["point"], float))
+                        for m in self.markers)
+        object.__setattr__(self, "markers", markers)
         self._check_cables()
+        _ = self.marker_set       # binds the markers now, so errors surface at construction
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -331,6 +337,12 @@ class Robot:
             stiffness=np.array([t.stiffness for t in self.tendons], dtype=np.float64),
             tendon_motor=self.tendon_motor)
         return cd
+
+    @cached_property
+    def marker_set(self) -> MarkerSet:
+        """The tracked markers (:attr:`markers`) bound to the mesh."""
+        return MarkerSet.bind(self.mesh, [m.name for m in self.markers], [m.point for m in self.markers],
+                              source=f"{self.source}: markers")
 
     def summary(self) -> str:
         return (f"{self.name}: {self.mesh.n_nodes} nodes, {self.mesh.n_tets} tets, "

@@ -40,6 +40,10 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     stiffness = 1e5              # [N/m]
     # rest_length = 0.045        # assembly length alpha0 [m]; default: rest polyline length
 
+    [[markers]]                  # optional: tracked points (trajopt calibrate), bound like tendon points
+    name = "nose"
+    point = [0.13, 0.03, 0.02]   # mesh frame, inside the body or on its surface
+
     [[motors]]
     name = "fore_left_front"
     tendons = ["fore_left_front_a", "fore_left_front_b"]
@@ -48,10 +52,18 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     u_max = 0.008                # [m]
     spool_radius = 0.005         # [m]
 
-Every error is a ``ValueError`` that names the file and the field.
+Every error is a ``ValueError`` that names the file and the field: a file that is not UTF-8,
+not TOML, an unknown or missing key, a value of the wrong type, and any number that is not
+finite (TOML's ``inf`` and ``nan``).
+
+:func:`robot_fingerprint` identifies a robot description (its ``robot.toml`` and mesh, normalised)
+so that a gait can be tied to the robot it was made for.
 """
 from __future__ import annotations
 
+import hashlib
+import json
+import math
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -59,9 +71,9 @@ from typing import Any
 import numpy as np
 
 from .mesh import TetMesh, load_mesh
-from .robot import ContactParams, Motor, Robot, Tendon
+from .robot import ContactParams, Marker, Motor, Robot, Tendon
 
-__all__ = ["load_robot", "asset_path", "SHIPPED_ROBOTS"]
+__all__ = ["load_robot", "asset_path", "robot_fingerprint", "robot_file_path", "SHIPPED_ROBOTS"]
 
 SHIPPED_ROBOTS = ("tripod", "puppy")
 
@@ -81,6 +93,7 @@ _SCHEMA: dict[str, dict[str, tuple[type | tuple[type, ...], bool]]] = {
 }
 _TENDON = {"name": (str, True), "points": (list, True), "stiffness": ((int, float), False),
            "rest_length": ((int, float), False)}
+_MARKER = {"name": (str, True), "point": (list, True)}
 _MOTOR = {"name": (str, True), "tendons": (list, True), "mirror": (str, False),
           "u_min": ((int, float), False), "u_max": ((int, float), True),
           "spool_radius": ((int, float), False)}
@@ -134,19 +147,108 @@ def _frame(robot_tbl: dict, src: str) -> np.ndarray:
     return np.stack([f, u, np.cross(f, u)])     # rows: sim x, y, z in mesh coordinates
 
 
+def robot_file_path(name_or_path: str | Path) -> Path:
+    """The ``robot.toml`` of a shipped robot name or a path (which must exist)."""
+    p = Path(name_or_path)
+    path = p if (p.suffix == ".toml" or p.is_file()) else asset_path(str(name_or_path))
+    if not path.is_file():
+        raise ValueError(f"{path}: robot file not found")
+    return path
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    """The parsed document; not UTF-8, unreadable, not TOML or a non-finite number: a
+    ValueError naming the file (and the field)."""
+    src = str(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{src}: not UTF-8 text (TOML files must be UTF-8): byte {exc.object[exc.start]:#04x} "
+                         f"at offset {exc.start}") from None
+    except OSError as exc:
+        raise ValueError(f"{src}: cannot be read ({exc.strerror or exc})") from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{src}: not valid TOML: {exc}") from exc
+    _check_finite(doc, src)
+    return doc
+
+
+def _check_finite(doc: dict[str, Any], src: str) -> None:
+    """Every number of the document finite (TOML allows ``inf`` and ``nan``)."""
+    def walk(v: Any, where: str) -> None:
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ValueError(f"{src}: {where} must be a finite number, got {v}")
+        if isinstance(v, dict):
+            for k, x in v.items():
+                walk(x, f"{where}.{k}")
+        elif isinstance(v, list):
+            for i, x in enumerate(v):
+                walk(x, f"{where}[{i}]")
+    for key, value in doc.items():
+        if isinstance(value, dict):
+            for k, x in value.items():
+                walk(x, f"[{key}].{k}")
+        else:
+            walk(value, key)
+
+
+def _normalised(v: Any) -> Any:
+    """Numbers as floats (``1`` and ``1.0`` are one value), everything else as parsed."""
+    if isinstance(v, dict):
+        return {k: _normalised(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_normalised(x) for x in v]
+    if isinstance(v, int) and not isinstance(v, bool):
+        return float(v)
+    return v
+
+
+def robot_fingerprint(source: str | Path | Robot) -> dict[str, Any] | None:
+    """What identifies a robot description, to tie a result to the robot it was made for.
+
+    ``source``: a shipped name, a ``robot.toml`` path, or a :class:`Robot` (its ``source``
+    file; None for a robot built in Python). Returns ``{"name", "source", "sha256",
+    "toml_sha256", "mesh_sha256", "toml"}``: the ``[robot].name``, the file, and SHA-256 hashes
+    of the whole, of the ``robot.toml`` as parsed (comments, layout, key order, ``1`` vs ``1.0``,
+    ``[robot].mesh`` and ``description`` do not count; ``toml`` is that normalised document, so a
+    mismatch can name the fields that changed) and of the mesh as read (node positions rounded to
+    1e-9 of the mesh's size, and tets; the file format does not count)."""
+    if isinstance(source, Robot):
+        if not Path(source.source).is_file():
+            return None
+        path = Path(source.source)
+    else:
+        path = robot_file_path(source)
+    doc = _read_toml(path)
+    robot_tbl = doc.get("robot", {}) if isinstance(doc.get("robot"), dict) else {}
+    mesh_name = robot_tbl.get("mesh")
+    if not isinstance(mesh_name, str):
+        raise ValueError(f"{path}: [robot].mesh is missing")
+    mesh = load_mesh(path.parent / mesh_name)
+    norm = _normalised(doc)
+    norm.get("robot", {}).pop("mesh", None)
+    norm.get("robot", {}).pop("description", None)
+    toml_text = json.dumps(norm, sort_keys=True, separators=(",", ":"), default=str)
+    size = float(np.ptp(mesh.points, axis=0).max()) or 1.0
+    h = hashlib.sha256()
+    h.update(np.round(mesh.points / size * 1e9).astype(np.int64).tobytes())
+    h.update(mesh.tets.astype(np.int64).tobytes())
+    mesh_hash = h.hexdigest()
+    toml_hash = hashlib.sha256(toml_text.encode()).hexdigest()
+    return {"name": str(robot_tbl.get("name", "")), "source": str(path),
+            "sha256": hashlib.sha256(f"{toml_hash}:{mesh_hash}".encode()).hexdigest(),
+            "toml_sha256": toml_hash, "mesh_sha256": mesh_hash, "toml": json.loads(toml_text)}
+
+
 def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
     """Load ``"tripod"``/``"puppy"`` or a ``robot.toml`` path. ``overrides`` replace Robot
     fields afterwards (e.g. ``youngs_modulus=2e5``)."""
-    p = Path(name_or_path)
-    path = p if (p.suffix == ".toml" or p.is_file()) else asset_path(str(name_or_path))
+    path = robot_file_path(name_or_path)
     src = str(path)
-    if not path.is_file():
-        raise ValueError(f"{src}: robot file not found")
-    try:
-        doc = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{src}: not valid TOML: {exc}") from exc
-    allowed = set(_SCHEMA) | {"tendons", "motors"}
+    doc = _read_toml(path)
+    allowed = set(_SCHEMA) | {"tendons", "motors", "markers"}
     for key in doc:
         if key not in allowed:
             raise ValueError(f"{src}: unknown table [{key}] (allowed: {', '.join(sorted(allowed))})")
@@ -214,6 +316,7 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
             raise ValueError(f"{src}: motors[{i}].tendons must be a list of tendon names")
         motors.append(Motor(m["name"], tuple(m["tendons"]), m.get("mirror"), float(m.get("u_min", 0.0)),
                             float(m["u_max"]), float(m.get("spool_radius", 0.005))))
+    markers = _markers(doc.get("markers", []), to_sim, src)
     mat = tables["material"]
     try:
         contact = ContactParams(**{k: (v if k == "model" else float(v)) for k, v in tables["contact"].items()})
@@ -225,13 +328,30 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
                   payload_nodes=payload_nodes if float(pay.get("mass", 0.0)) > 0 else np.zeros(0, np.int64),
                   fixed_nodes=fixed_nodes, contact=contact,
                   body_length=float(rt["body_length"]) if "body_length" in rt else None,
-                  cable_blend=float(tables["cables"].get("blend", 2e-4)), source=src)
+                  cable_blend=float(tables["cables"].get("blend", 2e-4)), source=src, markers=markers)
     kwargs.update(overrides)
     try:
         return Robot(**kwargs)
     except ValueError as exc:
         msg = str(exc)
         raise ValueError(msg if msg.startswith(src) else f"{src}: {msg}") from exc
+
+
+def _markers(raw: Any, to_sim, src: str) -> tuple[Marker, ...]:
+    """The ``[[markers]]`` tables as markers in the simulation frame."""
+    if not isinstance(raw, list):
+        raise ValueError(f"{src}: markers must be an array of tables [[markers]]")
+    out = []
+    for i, m in enumerate(raw):
+        _check_table(m, _MARKER, f"markers[{i}]", src)
+        try:
+            p = to_sim(np.asarray(m["point"], dtype=np.float64))
+        except (ValueError, TypeError):
+            p = np.zeros(0)
+        if p.shape != (3,):
+            raise ValueError(f"{src}: markers[{i}] ({m['name']!r}).point must be [x, y, z]")
+        out.append(Marker(m["name"], p))
+    return tuple(out)
 
 
 def _index_list(values: Any, where: str, n: int, src: str) -> np.ndarray:

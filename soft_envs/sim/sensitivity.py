@@ -43,48 +43,116 @@ class ForwardSensitivities:
     (K, n_motors, nz) the control Jacobian. After :meth:`step` has been called for every
     step, ``dcomdz`` (K+1, 3, nz), ``dgammadz`` (K+1, T, nz) and, with ``store_dxdz``,
     ``dxdz`` (K+1, 3n, nz) hold the Jacobians of the centre of mass, the cable deformations
-    and the states (entry 0, the given initial state, is zero)."""
+    and the states (entry 0, the given initial state, is zero).
 
-    def __init__(self, newton, masses: np.ndarray, dudz: np.ndarray, store_dxdz: bool = False):
+    Parameter block: with ``params`` (names of :data:`~soft_envs.sim.parameters.PARAMETERS`) the
+    same recurrence runs for ``S_k = dx_k/dtheta`` with the right-hand side ``-dR_k/dtheta =
+    -(d(dE/dx)/dtheta + dM/dtheta a_k)`` (the energy terms' parameter Jacobians and the mass
+    matrix's derivative times the acceleration ``a_k = (x_k - 2x_{k-1} + x_{k-2}) / h^2``); the
+    histories' derivatives follow ``P_k = dPi/dx S_k + dPi/dp P_{k-1} + dPi/dtheta``. The
+    initial state's derivative ``dx0dtheta`` (3n, ntheta) (a rest state depends on the
+    parameters; the rollout starts at rest, so ``x_{-1}`` has the same) and the initial
+    histories' ``dhistory0dtheta`` (a tuple aligned with the terms) start it; ``x0`` gives the
+    COM's entry 0. Then ``dxdtheta`` (K+1, 3n, ntheta) and ``dcomdtheta`` (K+1, 3, ntheta)
+    (which includes the masses' own dependence) hold the results. Both blocks share each step's
+    one multi-right-hand-side solve."""
+
+    def __init__(self, newton, masses: np.ndarray, dudz: np.ndarray, store_dxdz: bool = False,
+                 params=(), dx0dtheta: np.ndarray | None = None, dhistory0dtheta: tuple | None = None,
+                 x0: np.ndarray | None = None):
         self.newton = newton
         system = newton.system
         K, _, nz = dudz.shape
         self.dudz = dudz
         self.masses = np.asarray(masses)
         self.total_mass = self.masses.sum()
-        self.S1 = np.zeros((system.n_dof, nz))       # S_{k-1}
-        self.S2 = np.zeros((system.n_dof, nz))       # S_{k-2}
+        self.params = tuple(params)
+        self.nz, nt = nz, len(self.params)
+        self.S1 = np.zeros((system.n_dof, nz + nt))       # S_{k-1}, [dx/dz | dx/dtheta]
+        if nt and dx0dtheta is not None:
+            self.S1[:, nz:] = dx0dtheta
+        self.S2 = self.S1.copy()                          # S_{k-2} (at rest: x_{-1} = x_0)
         self.dcomdz = np.zeros((K + 1, 3, nz))
         self.dgammadz = np.zeros((K + 1, system.cables.n_tendons, nz))
         self.dxdz = np.zeros((K + 1, system.n_dof, nz)) if store_dxdz else None
         self.P = None                               # dhistory_{k-1}/dz per term (x_0 is given: 0)
+        self._dh0 = dhistory0dtheta
+        self.dxdtheta = self.dcomdtheta = None
+        if nt:
+            self.mass_jacobian = system.mass_jacobian(self.params)          # (3n, nt)
+            self.dxdtheta = np.zeros((K + 1, system.n_dof, nt))
+            self.dxdtheta[0] = self.S1[:, nz:]
+            self.dcomdtheta = np.zeros((K + 1, 3, nt))
+            if x0 is not None:
+                self.dcomdtheta[0] = self._dcom(x0, self.S1[:, nz:])
+
+    def _dcom(self, x: np.ndarray, St: np.ndarray) -> np.ndarray:
+        """d COM/dtheta (3, nt) at x: positions move (St) and masses change."""
+        nt = St.shape[1]
+        com = self.masses @ x / self.total_mass
+        dm = self.mass_jacobian[::3]                                         # (n, nt)
+        dcom = (self.masses @ St.reshape(-1, 3 * nt)).reshape(3, nt) + (x - com).T @ dm
+        return dcom / self.total_mass
+
+    def hold(self) -> None:
+        """The next step starts at rest, ``x_{k-2} = x_{k-1}`` (the relaxation steps of
+        :meth:`~soft_envs.sim.Simulator.rest_state`)."""
+        self.S2 = self.S1.copy()
+
+    def _initial_histories(self, history: tuple) -> tuple:
+        ncol = self.S1.shape[1]
+        P = []
+        for i, h in enumerate(history):
+            p = None if h is None else np.zeros((h.size, ncol))
+            if p is not None and self._dh0 is not None and self._dh0[i] is not None:
+                p[:, self.nz:] = self._dh0[i]
+            P.append(p)
+        return tuple(P)
 
     def step(self, k: int, solver, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray,
-             history: tuple) -> None:
+             history: tuple, x_prev2: np.ndarray | None = None) -> None:
         """Advance the recurrence by the step that took ``x_prev`` to ``x`` = state k+1 under
         controls ``u = u_k`` and the energy terms' ``history``; ``solver`` holds the
-        factorisation of the exact ``H`` at ``x``."""
+        factorisation of the exact ``H`` at ``x``. ``x_prev2`` (the state before ``x_prev``) is
+        needed by the parameter block when a parameter changes the masses."""
         system = self.newton.system
         U = self.dudz[k]
-        nz = U.shape[1]
+        nz = self.nz
         if self.P is None:
-            self.P = tuple(None if h is None else np.zeros((h.size, nz)) for h in history)
+            self.P = self._initial_histories(history)
         rhs = self.newton.inertia[:, None] * (2.0 * self.S1 - self.S2)
         rhs -= system.prev_product(x, x_prev, u, self.S1, history)
-        rhs -= system.control_jacobian(x, x_prev, u, history) @ U
+        if nz:
+            rhs[:, :nz] -= system.control_jacobian(x, x_prev, u, history) @ U
         if system.has_history:
             d = np.zeros_like(rhs)
             system.history_product(x, x_prev, u, history, self.P, d)
             rhs -= d
+        if self.params:
+            rhs[:, nz:] -= system.parameter_jacobian(x, x_prev, u, self.params, history)
+            if self.mass_jacobian.any():
+                if x_prev2 is None:
+                    raise ValueError("the parameter block needs x_prev2 for parameters that change the masses")
+                acc = (x - 2.0 * x_prev + x_prev2).reshape(-1) / self.newton.dt ** 2
+                rhs[:, nz:] -= self.mass_jacobian * acc[:, None]
         S = np.zeros_like(self.S1)
         S[system.free] = solver.solve(np.ascontiguousarray(rhs[system.free]))
         if system.has_history:
             self.P = system.history_tangent(x, x_prev, history, S, self.P)
-        self.dcomdz[k + 1] = (self.masses @ S.reshape(-1, 3 * nz)).reshape(3, nz) / self.total_mass
-        cables = system.cables
-        self.dgammadz[k + 1] = cables.deformation_jacobian(cables.length_gradients(x), S, U)
-        if self.dxdz is not None:
-            self.dxdz[k + 1] = S
+            if self.params:
+                for p, e in zip(self.P, system.history_parameter_jacobian(x, x_prev, history, self.params)):
+                    if p is not None and e is not None:
+                        p[:, nz:] += e
+        if nz:
+            Sz = S[:, :nz]
+            self.dcomdz[k + 1] = (self.masses @ Sz.reshape(-1, 3 * nz)).reshape(3, nz) / self.total_mass
+            cables = system.cables
+            self.dgammadz[k + 1] = cables.deformation_jacobian(cables.length_gradients(x), Sz, U)
+            if self.dxdz is not None:
+                self.dxdz[k + 1] = Sz
+        if self.params and k + 1 < len(self.dxdtheta):
+            self.dxdtheta[k + 1] = S[:, nz:]
+            self.dcomdtheta[k + 1] = self._dcom(x, S[:, nz:])
         self.S2, self.S1 = self.S1, S
 
 

@@ -30,7 +30,9 @@ class Trajectory:
     ``x`` (K+1, n, 3) positions; ``com`` (K+1, 3); ``cable_deformation`` (K+1, T) Gamma per
     tendon (entry 0 with the motors at ``robot.u_rest``); ``u`` (K, n_motors) the controls;
     ``newton_iterations`` (K,). With ``dudz``: ``dcomdz`` (K+1, 3, nz), ``dgammadz``
-    (K+1, T, nz) and, when requested, ``dxdz`` (K+1, 3n, nz)."""
+    (K+1, T, nz) and, when requested, ``dxdz`` (K+1, 3n, nz). With physical ``params``:
+    ``dxdtheta`` (K+1, 3n, ntheta) and ``dcomdtheta`` (K+1, 3, ntheta), the parameters' names in
+    ``info["parameters"]``."""
 
     x: np.ndarray
     com: np.ndarray
@@ -40,6 +42,8 @@ class Trajectory:
     dcomdz: np.ndarray | None = None
     dgammadz: np.ndarray | None = None
     dxdz: np.ndarray | None = None
+    dxdtheta: np.ndarray | None = None
+    dcomdtheta: np.ndarray | None = None
     info: dict = field(default_factory=dict)
 
 
@@ -64,6 +68,7 @@ class Simulator:
         self.gravity = self.system.gravity
         self.control = control
         self._rest_cache: dict = {}
+        self._rest_sens_cache: dict = {}
 
     # ------------------------------------------------------------------ pickling
     def __getstate__(self) -> dict:
@@ -154,11 +159,29 @@ class Simulator:
         contact law keeps none)."""
         return self._rest(u, tol, max_iter)[1]
 
+    def rest_sensitivity(self, params, u=None, tol: float = 1e-9, max_iter: int = 200) -> tuple:
+        """``(x0, history0, dx0/dtheta (3n, ntheta), dhistory0/dtheta)`` of :meth:`rest_state`
+        for the physical parameters ``params`` (names of
+        :data:`~soft_envs.sim.parameters.PARAMETERS`): the rest state is the end of the
+        relaxation's implicit steps, differentiated through the same recurrence as rollouts
+        (:class:`~.sensitivity.ForwardSensitivities`, each step starting at rest)."""
+        params = self.system.check_parameters(params)
+        u = np.zeros(self.n_motors) if u is None else self._check_u(u)
+        key = (tuple(u.tolist()), tol, params)
+        if key not in self._rest_sens_cache:
+            self._rest_sens_cache[key] = self._relax(u, tol, max_iter, params)
+        return self._rest_sens_cache[key]
+
     def _rest(self, u, tol: float, max_iter: int) -> tuple[np.ndarray, tuple]:
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
         key = (tuple(u.tolist()), tol)
-        if key in self._rest_cache:
-            return self._rest_cache[key]
+        if key not in self._rest_cache:
+            self._rest_cache[key] = self._relax(u, tol, max_iter)[:2]
+        return self._rest_cache[key]
+
+    def _relax(self, u, tol: float, max_iter: int, params=()) -> tuple:
+        """The relaxation of :meth:`rest_state`: ``(x, history)``, and with ``params`` their
+        derivatives."""
         g = self.gravity
         anchored = self.system.has_history
         relax_g = g if (anchored or self.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])
@@ -167,10 +190,19 @@ class Simulator:
                                                         solver=self.newton.options.solver))
         x = self.initial_placement()
         history = system.initial_history(x)
+        sens = exact = None
+        if params:      # its own solver for the exact Hessians: the relaxation's path stays that of rest_state
+            exact = NewtonSolver(system, 1.0, relax.options)
+            sens = ForwardSensitivities(exact, self.robot.node_masses, np.zeros((max_iter, self.n_motors, 0)),
+                                        params=params, x0=x)
         cache = FactorCache()
-        for _ in range(max_iter):
+        for j in range(max_iter):
             try:
                 xn, _ = relax.step(x, x, u, cache=cache, history=history)
+                if sens is not None:
+                    sens.hold()
+                    sens.step(j, exact.factorize_exact_at(xn, x, x, u, history=history), xn, x, u, history,
+                              x_prev2=x)
             except SimulationError as err:
                 raise SimulationError(f"rest_state of robot {self.robot.name!r} failed (u = {u.tolist()}, "
                                       f"gravity = {relax_g.tolist()}): {err.reason}") from err
@@ -187,8 +219,10 @@ class Simulator:
                                   f"gravity = {relax_g.tolist()}, tol = {tol}){hint}")
         for a in (x, *[h for h in history if h is not None]):
             a.setflags(write=False)
-        self._rest_cache[key] = (x, history)
-        return self._rest_cache[key]
+        if sens is None:
+            return x, history
+        dh = tuple(None if p is None else p[:, sens.nz:].copy() for p in (sens.P or (None,) * len(history)))
+        return x, history, sens.S1[:, sens.nz:].copy(), dh
 
     def step(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None,
              factor_cache: FactorCache | None = None, history: tuple | None = None) -> np.ndarray:
@@ -223,7 +257,8 @@ class Simulator:
 
     # ------------------------------------------------------------------ rollouts
     def rollout(self, u, x0=None, dudz=None, *, x_prev0=None, store_dxdz: bool = False,
-                check_bounds: bool = True, history0: tuple | None = None) -> Trajectory:
+                check_bounds: bool = True, history0: tuple | None = None, params=None,
+                dx0dtheta: np.ndarray | None = None, dhistory0dtheta: tuple | None = None) -> Trajectory:
         """Simulate controls ``u`` (K, n_motors) from ``x0`` (default :meth:`rest_state`) with
         zero initial velocity (or ``x_{-1} = x_prev0``).
 
@@ -234,10 +269,20 @@ class Simulator:
         differences at a bound). The rollout owns the factorisation its steps reuse, so its
         result depends on its inputs only. ``history0``: the energy terms' history at the start
         (default: at rest at ``x0``); ``traj.info["history"]`` is the history at the end.
+
+        With ``params`` (names of physical parameters, :mod:`.parameters`) the parameter block
+        of the recurrence runs too: ``traj.dxdtheta`` (K+1, 3n, ntheta) and ``traj.dcomdtheta``
+        (K+1, 3, ntheta). From the rest state (``x0=None``) the derivative of the rest state
+        itself is included (:meth:`rest_sensitivity`); from a given ``x0`` pass its derivative
+        ``dx0dtheta`` (default 0) and that of the history, ``dhistory0dtheta``.
         """
         u = self._check_u(u, K=len(np.asarray(u)), check_bounds=check_bounds)
         K = len(u)
-        if x0 is None:
+        params = self.system.check_parameters(params) if params else ()
+        if params and x0 is None:
+            x0, rest_h, dx0dtheta, dhistory0dtheta = self.rest_sensitivity(params)
+            history0 = rest_h if history0 is None else history0
+        elif x0 is None:
             x0 = self.rest_state()
             history0 = self.rest_history() if history0 is None else history0
         x0 = self._check_x(x0, "x0")
@@ -249,7 +294,11 @@ class Simulator:
                 raise ValueError(f"dudz must have shape ({K}, {self.n_motors}, nz), got {dudz.shape}")
             if not np.isfinite(dudz).all():
                 raise ValueError(f"dudz contains NaN or inf at {np.argwhere(~np.isfinite(dudz))[:5].tolist()}")
-            sens = ForwardSensitivities(self.newton, self.robot.node_masses, dudz, store_dxdz)
+        want_z = dudz is not None
+        if want_z or params:
+            dudz = np.zeros((K, self.n_motors, 0)) if dudz is None else dudz
+            sens = ForwardSensitivities(self.newton, self.robot.node_masses, dudz, store_dxdz, params=params,
+                                        dx0dtheta=dx0dtheta, dhistory0dtheta=dhistory0dtheta, x0=x0)
         cables = self.system.cables
         xs = np.empty((K + 1, self.n_nodes, 3))
         xs[0] = x0
@@ -267,7 +316,7 @@ class Simulator:
             iters[k] = info.iterations
             gam[k + 1] = cables.deformation(x, u[k])
             if sens is not None:
-                sens.step(k, info.solver, x, prev, u[k], history)
+                sens.step(k, info.solver, x, prev, u[k], history, x_prev2=prev2)
             if self.system.has_history:
                 history = self.system.next_history(x, prev, history)
             prev3, prev2, prev = prev2, prev, x
@@ -275,8 +324,11 @@ class Simulator:
         com = np.einsum("kni,n->ki", xs, masses) / masses.sum()
         traj = Trajectory(x=xs, com=com, cable_deformation=gam, u=u, newton_iterations=iters,
                           info={"history": history})
-        if sens is not None:
+        if want_z:
             traj.dcomdz, traj.dgammadz, traj.dxdz = sens.dcomdz, sens.dgammadz, sens.dxdz
+        if params:
+            traj.dxdtheta, traj.dcomdtheta = sens.dxdtheta, sens.dcomdtheta
+            traj.info["parameters"] = params
         return traj
 
     def rollout_gradient(self, u, dobj_dx, x0=None, dudz=None, traj: Trajectory | None = None,

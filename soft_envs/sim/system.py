@@ -19,6 +19,7 @@ from .contact import GroundContact
 from .coulomb import CoulombContact
 from .elastic import Elastic
 from .gravity import Gravity
+from .parameters import MASS_PARAMETERS, check_parameters, node_mass_jacobian
 from .terms import EnergyTerm
 
 __all__ = ["EnergySystem", "Pattern", "build_pattern"]
@@ -104,8 +105,10 @@ class EnergySystem:
         self.elastic = Elastic(robot)
         self.cables = (Cables if control == "length" else CableTensions)(robot)
         self.contact = GroundContact(robot) if robot.contact.model == "paper" else CoulombContact(robot)
+        masses = [n for n in MASS_PARAMETERS if n != "payload_mass" or robot.payload_nodes.size]
+        self._mass_jacobian = dict(zip(masses, node_mass_jacobian(robot, masses).T))
         self.terms: list[EnergyTerm] = [self.elastic, self.cables, self.contact,
-                                        Gravity(robot.node_masses, g)]
+                                        Gravity(robot.node_masses, g, self._mass_jacobian)]
         blocks = [term.hessian_blocks() for term in self.terms]
         self.pattern, slots, diag_slots = build_pattern(self.n_dof, self.free, [b for bs in blocks for b in bs])
         start = 0
@@ -225,6 +228,39 @@ class EnergySystem:
         """``d next_history / dz`` per term from ``S = dx/dz`` and ``P = dhistory/dz``."""
         return tuple(t.history_tangent(x, x_prev, h, S, p) if t.has_history else None
                      for t, h, p in zip(self.terms, history, P))
+
+    # ------------------------------------------------------------------ physical parameters
+    def check_parameters(self, names) -> tuple[str, ...]:
+        """``names`` (see :data:`~.parameters.PARAMETERS`) checked against this robot, contact
+        law and control mode; a name that no term owns is a ValueError."""
+        names = check_parameters(self.robot, names, self.control)
+        owned = {n for t in self.terms for n in t.parameters}
+        for n in names:
+            if n not in owned:
+                raise ValueError(f"{self.robot.source}: no energy term depends on parameter {n!r}")
+        return names
+
+    def parameter_jacobian(self, x, x_prev, u, names, history=None) -> np.ndarray:
+        """``d(dE/dx)/dtheta`` (3n, len(names)): every term's part for the parameters it owns."""
+        history = self.resolve_history(history, x_prev)
+        out = np.zeros((self.n_dof, len(names)))
+        for term, h in zip(self.terms, history):
+            if any(n in term.parameters for n in names):
+                term.add_parameter_jacobian(x, x_prev, u, h, names, out)
+        return out
+
+    def mass_jacobian(self, names) -> np.ndarray:
+        """``dm/dtheta`` per dof (3n, len(names)): the diagonal mass matrix's derivative."""
+        out = np.zeros((self.n_dof, len(names)))
+        for j, n in enumerate(names):
+            if n in self._mass_jacobian:
+                out[:, j] = np.repeat(self._mass_jacobian[n], 3)
+        return out
+
+    def history_parameter_jacobian(self, x, x_prev, history: tuple, names) -> tuple:
+        """Per term ``d next_history / dtheta`` at fixed states (None: no dependence)."""
+        return tuple(t.history_parameter_jacobian(x, x_prev, h, names) if t.has_history else None
+                     for t, h in zip(self.terms, history))
 
     # ------------------------------------------------------------------ cables
     def cable_deformation(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:

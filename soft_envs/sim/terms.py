@@ -17,7 +17,13 @@ the term is built; nothing changes between calls. A term gives
 * for terms with history: ``initial_history(x0)`` (at rest), ``next_history(x, x_prev, hist)``
   (after a step), and the derivatives of both: ``add_history_product`` (``d(dE_t/dx)/dhist @
   P``), ``history_tangent`` (``d next_history / dz`` from ``S = dx/dz`` and ``P = dhist/dz``)
-  and their transposes for the adjoint.
+  and their transposes for the adjoint;
+* the derivative with respect to the physical parameters the term owns (:attr:`parameters`,
+  names of :data:`soft_envs.sim.parameters.PARAMETERS`): ``add_parameter_jacobian`` adds
+  ``d(dE_t/dx)/dtheta`` at fixed x, x_prev and history (calibration, the parameter block of
+  :class:`~soft_envs.sim.sensitivity.ForwardSensitivities`), and for terms whose history update
+  depends on a parameter, ``history_parameter_jacobian``. A term that owns no parameter needs
+  neither.
 
 The pattern is built once from every term's :meth:`hessian_blocks` (dense blocks of dofs
 that a term couples) plus the full diagonal. A new physical effect (another contact law, a
@@ -40,6 +46,8 @@ class EnergyTerm:
     name = "term"
     #: whether the term keeps lagged state of its own (see the module docstring)
     has_history = False
+    #: the physical parameters its gradient depends on (names of ``parameters.PARAMETERS``)
+    parameters: tuple[str, ...] = ()
 
     def hessian_blocks(self) -> list[np.ndarray]:
         """Arrays ``(k, p)`` of dof indices: each row is a dense block of ``p`` dofs whose
@@ -75,6 +83,11 @@ class EnergyTerm:
     def add_prev_product_T(self, x, x_prev, u, hist, lam: np.ndarray, out: np.ndarray) -> None:
         """``out (3n,) += (d(dE_t/dx)/dx_prev)^T @ lam``."""
 
+    def add_parameter_jacobian(self, x, x_prev, u, hist, names, out: np.ndarray) -> None:
+        """``out[:, j] (3n,) += d(dE_t/dx)/dtheta_j`` for every ``names[j]`` in
+        :attr:`parameters` (x, x_prev, u and the history held fixed; lagged quantities such as
+        the normal force N_{k-1} included through their explicit parameter dependence)."""
+
     # ------------------------------------------------------------------ history (lagged state)
     def initial_history(self, x0: np.ndarray):
         """The history of a body at rest at ``x0`` (None for terms without one)."""
@@ -94,6 +107,11 @@ class EnergyTerm:
         """``d next_history / dz`` (flattened history, nz) from ``S = dx/dz`` (3n, nz) and
         ``P = dhist/dz`` (the derivative through x_prev vanishes wherever it exists)."""
         raise NotImplementedError
+
+    def history_parameter_jacobian(self, x, x_prev, hist, names) -> np.ndarray | None:
+        """``d next_history / dtheta`` at fixed x, x_prev and hist (flattened history,
+        len(names)), or None when the update does not depend on the parameters."""
+        return None
 
     def history_tangent_T(self, x, x_prev, hist, m: np.ndarray, out_x: np.ndarray, out_h: np.ndarray) -> None:
         """Transpose of :meth:`history_tangent`: ``out_x (3n,) += (d next/dx)^T m`` and

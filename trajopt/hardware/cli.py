@@ -60,6 +60,9 @@ def add_play_parser(subparsers: Any) -> argparse.ArgumentParser:
                         help="CSV log of commanded vs measured counts (default: play_<RESULT>_<time>.csv)")
     parser.add_argument("--port-override", metavar="PORT", default=None,
                         help="use PORT (device or pyserial URL) for every motor")
+    parser.add_argument("--ignore-robot-mismatch", action="store_true",
+                        help="play a result made for another robot than the hardware file's, or for an "
+                             "edited robot.toml")
     parser.set_defaults(func=run_play)
     return parser
 
@@ -87,6 +90,14 @@ def run_play(args: argparse.Namespace) -> int:
         config = load_hardware_config(args.hardware)
     except (ValueError, OSError, ImportError) as exc:
         print(f"trajopt play: cannot load inputs: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    try:
+        from trajopt.robot_match import check_for_play
+        for note in check_for_play(res, config.robot, config.path, src=str(args.result),
+                                   ignore=getattr(args, "ignore_robot_mismatch", False)):
+            print(f"trajopt play: warning: {note}", file=sys.stderr)
+    except ValueError as exc:
+        print(f"trajopt play: refused: {exc}", file=sys.stderr)
         return EXIT_INPUT
     log_path = args.log
     if log_path is None and not args.dry_run:

@@ -2,6 +2,10 @@
 
 File layout (see ``example_hardware.toml`` and ``example_tripod.toml`` beside this module)::
 
+    robot = "puppy"                # optional: the robot this hardware is (a robot name, or a
+                                   # robot.toml path relative to this file); `trajopt play`
+                                   # refuses results made for another (--ignore-robot-mismatch)
+
     [settings]                     # optional table, all keys optional
     min_battery_voltage = 10.5     # V, pre-flight refuses to play below this
     baudrate = 115200              # ignored by USB RoboClaws

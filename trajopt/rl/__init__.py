@@ -1,8 +1,8 @@
 """RL baseline: Stable-Baselines3 PPO and SAC on the same simulator as ``trajopt``.
 
-    trajopt rl train tripod --algo ppo --timesteps 30000 --seed 0 --out runs/
-    trajopt rl evaluate runs/tripod_ppo_seed0            # the trajopt metric (BL/min, upright)
-    trajopt rl export runs/tripod_ppo_seed0 --out tripod_ppo.npz   # a trajopt Result
+    trajopt rl train tripod --algo ppo --timesteps 30000 --seed 0   # results/runs/tripod_ppo_seed0/
+    trajopt rl evaluate results/runs/tripod_ppo_seed0   # the trajopt metric (BL/min, upright)
+    trajopt rl export results/runs/tripod_ppo_seed0     # a trajopt Result: results/tripod_ppo_seed0.npz
 
 Python API: :func:`train` (:mod:`trajopt.rl.training`), :func:`load_policy`,
 :func:`evaluate_policy_metric`, :func:`export_result` (:mod:`trajopt.rl.evaluate`); the

@@ -1,10 +1,10 @@
 """``trajopt rl``: train, evaluate and export the RL baseline.
 
-    trajopt rl train tripod --algo ppo --timesteps 30000 --seed 0 --out runs/
+    trajopt rl train tripod --algo ppo --timesteps 30000 --seed 0     # results/runs/tripod_ppo_seed0/
     trajopt rl train puppy --algo sac --timesteps 10000 --hp learning_rate=1e-3
-    trajopt rl evaluate runs/tripod_ppo_seed0 [--cycles 6] [--seed 0] [--json]
-    trajopt rl export runs/tripod_ppo_seed0 --out results/tripod_ppo.npz
-    trajopt render results/tripod_ppo.npz --gif tripod_ppo.gif
+    trajopt rl evaluate results/runs/tripod_ppo_seed0 [--cycles 6] [--seed 0] [--json]
+    trajopt rl export results/runs/tripod_ppo_seed0                   # results/tripod_ppo_seed0.npz
+    trajopt render results/tripod_ppo_seed0.npz                       # results/tripod_ppo_seed0.gif
 
 This module imports neither Stable-Baselines3 nor PyTorch: the parser exists without them and
 the commands say how to install them (``pip install soft-envs[rl]``).
@@ -16,8 +16,14 @@ import json
 import sys
 from pathlib import Path
 
+from ..argtypes import (cycles, file_name, integer, nonnegative_float, number, output_dir, output_file, positive_int,
+                        slope_deg)
+from ..files import RESULTS_DIR, refuse_existing
 from .envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOT_IDS, TRAIN_HORIZON
 from .hyperparams import ALGOS
+
+RUNS_DIR = RESULTS_DIR / "runs"
+SEED = integer(0, 2**32 - 1)          # what NumPy's legacy seeding accepts
 
 __all__ = ["add_rl_parser"]
 
@@ -33,43 +39,49 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p = rsub.add_parser("train", help="train a policy (checkpoints, TensorBoard + CSV logs)")
     p.add_argument("robot", choices=sorted(ROBOT_IDS), help="robot (environment SoftTripod-v0 / SoftPuppy-v0)")
     p.add_argument("--algo", choices=ALGOS, default="ppo")
-    p.add_argument("--timesteps", type=int, default=30_000, help="environment steps to train for")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=Path, default=Path("runs"), help="parent directory of the run")
-    p.add_argument("--name", default=None, help="run directory name (default ROBOT_ALGO_seedS)")
-    p.add_argument("--n-envs", type=int, default=None, help="parallel environments (default: CPU count)")
+    p.add_argument("--timesteps", type=positive_int, default=30_000, help="environment steps to train for")
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--out", type=output_dir, default=RUNS_DIR,
+                   help=f"parent directory of the run (default {RUNS_DIR}/)")
+    p.add_argument("--name", type=file_name, default=None, help="run directory name (default ROBOT_ALGO_seedS)")
+    p.add_argument("--n-envs", type=positive_int, default=None, help="parallel environments (default: CPU count)")
     p.add_argument("--vec-env", choices=["auto", "subproc", "dummy"], default="auto",
                    help="auto: SubprocVecEnv when n-envs > 1")
-    p.add_argument("--frame-skip", type=int, default=1, help="simulation steps per action")
-    p.add_argument("--episode-steps", type=int, default=TRAIN_HORIZON,
+    p.add_argument("--frame-skip", type=positive_int, default=1, help="simulation steps per action")
+    p.add_argument("--episode-steps", type=positive_int, default=TRAIN_HORIZON,
                    help=f"max_episode_steps (default {TRAIN_HORIZON}, trajopt's horizon)")
-    p.add_argument("--incline", type=float, default=0.0, help="ground slope [deg]")
-    p.add_argument("--heading", type=float, default=0.0, help="walking direction [deg from +x to +z]")
-    p.add_argument("--checkpoint-every", type=int, default=None,
+    p.add_argument("--incline", type=slope_deg, default=0.0, help="ground slope [deg]")
+    p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
+                   help="ground contact law (paper: -v0's; coulomb: -v1's); default: the robot file's (paper)")
+    p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
+    p.add_argument("--checkpoint-every", type=positive_int, default=None,
                    help="environment steps between checkpoints (default: a tenth of the budget)")
     p.add_argument("--hp", action="append", default=[], metavar="KEY=VALUE",
                    help="override a hyper-parameter (Python literal), repeatable")
     p.add_argument("--overwrite", action="store_true", help="replace an existing run of the same name")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bar (there is none either when stderr is not a terminal)")
     p.add_argument("--verbose", action="store_true", help="also print the SB3 logger to stdout")
     p.set_defaults(func=_cmd_train)
 
     p = rsub.add_parser("evaluate", help="trajopt's metric (BL/min along the target, upright) for a policy")
     p.add_argument("model", type=Path, help="run directory, its model.zip or a checkpoint .zip")
-    p.add_argument("--cycles", type=int, default=DEFAULT_EVAL_CYCLES,
+    p.add_argument("--cycles", type=cycles, default=DEFAULT_EVAL_CYCLES,
                    help=f"gait cycles of {GAIT.n_cycle} steps after {GAIT.n_prep} prep steps")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--reset-noise", type=float, default=0.0,
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--reset-noise", type=nonnegative_float, default=0.0,
                    help="reset noise [m] (default 0: trajopt's start, the exact rest state)")
     p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
     p.set_defaults(func=_cmd_evaluate)
 
     p = rsub.add_parser("export", help="save the policy's deterministic rollout as a trajopt Result (.npz)")
     p.add_argument("model", type=Path, help="run directory, its model.zip or a checkpoint .zip")
-    p.add_argument("--out", type=Path, required=True, help="result file (.npz, with a .json sibling)")
-    p.add_argument("--cycles", type=int, default=DEFAULT_EVAL_CYCLES)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--reset-noise", type=float, default=0.0)
+    p.add_argument("--out", type=output_file, default=None,
+                   help=f"result file (.npz, with a .json sibling; default {RESULTS_DIR}/RUN_NAME.npz)")
+    p.add_argument("--cycles", type=cycles, default=DEFAULT_EVAL_CYCLES)
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--reset-noise", type=nonnegative_float, default=0.0)
+    p.add_argument("--overwrite", action="store_true", help="replace an existing result file")
     p.set_defaults(func=_cmd_export)
     return rl
 
@@ -89,11 +101,13 @@ def _cmd_train(args) -> int:
             env_kwargs["incline_deg"] = args.incline
         if args.heading:
             env_kwargs["target_heading_deg"] = args.heading
+        if args.contact:
+            env_kwargs["contact"] = args.contact
         run = train(args.robot, args.algo, args.timesteps, args.seed, args.out, name=args.name,
                     n_envs=args.n_envs, vec_env=args.vec_env, frame_skip=args.frame_skip,
                     max_episode_steps=args.episode_steps, env_kwargs=env_kwargs,
                     hyperparams=parse_overrides(args.hp), checkpoint_every=args.checkpoint_every,
-                    progress_bar=not args.no_progress, log_stdout=args.verbose,
+                    progress_bar=not args.no_progress and sys.stderr.isatty(), log_stdout=args.verbose,
                     overwrite=args.overwrite)
     except MissingRLDependencies as exc:
         return _missing(exc)
@@ -140,13 +154,17 @@ def _cmd_evaluate(args) -> int:
 
 def _cmd_export(args) -> int:
     from . import MissingRLDependencies
+    from ..results import result_path
+    model = Path(args.model)
+    default = RESULTS_DIR / f"{model.name if model.is_dir() else model.stem}.npz"
+    path = result_path(args.out if args.out is not None else default)
+    refuse_existing([path], args.overwrite)
     try:
         from .evaluate import export_result
-        res = export_result(args.model, args.out, n_cycles=args.cycles, seed=args.seed,
-                            reset_noise_scale=args.reset_noise)
+        res = export_result(args.model, path, n_cycles=args.cycles, seed=args.seed,
+                            reset_noise_scale=args.reset_noise, overwrite=args.overwrite)
     except MissingRLDependencies as exc:
         return _missing(exc)
-    path = args.out if args.out.suffix == ".npz" else args.out.with_suffix(".npz")
     print(f"wrote {path}: {res.summary()}")
-    print(f"  render: trajopt render {path} --gif {path.with_suffix('.gif')}")
+    print(f"  render: trajopt render {path}      # {RESULTS_DIR / (path.stem + '.gif')}")
     return 0

@@ -32,6 +32,7 @@ from soft_envs.envs import MOTOR_NO_LOAD_RPM, heading_vector
 from ..evaluation import evaluate_controls, evaluate_result, measure_gait, zero_slack_controls
 from ..gait import GaitSpec
 from ..results import Result
+from ..robot_match import fingerprint_of
 from . import require_sb3
 from .envs import DEFAULT_EVAL_CYCLES, GAIT, make_env
 from .training import CONFIG_NAME, MODEL_NAME, VECNORM_NAME
@@ -210,13 +211,14 @@ def evaluate_policy_metric(model: str | os.PathLike | LoadedPolicy, *, n_cycles:
 
 def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLike | None = None, *,
                   n_cycles: int = DEFAULT_EVAL_CYCLES, seed: int = 0,
-                  reset_noise_scale: float = 0.0) -> Result:
+                  reset_noise_scale: float = 0.0, overwrite: bool = True) -> Result:
     """The policy's deterministic rollout as a trajopt :class:`Result` (task "rl"), saved to
-    ``out`` when given. ``u`` holds the applied contraction of each simulation step
-    (24 prep + ``n_cycles`` x 72), ``u_post`` its zero-slack version (paper III-B-2, what the
-    hardware plays, as for optimised gaits), ``com`` the simulated COM, ``evaluation`` the
-    metric of :func:`evaluate_policy_metric` and ``settings`` n_prep, n_cycle, the algorithm,
-    budget, seed and environment settings. ``z`` and ``target`` are empty."""
+    ``out`` when given (``overwrite=False``: an existing ``out`` is refused, ValueError). ``u``
+    holds the applied contraction of each simulation step (24 prep + ``n_cycles`` x 72),
+    ``u_post`` its zero-slack version (paper III-B-2, what the hardware plays, as for optimised
+    gaits), ``com`` the simulated COM, ``evaluation`` the metric of
+    :func:`evaluate_policy_metric`, ``settings`` n_prep, n_cycle, the algorithm, budget, seed and
+    environment settings, ``robot_fingerprint`` the robot's. ``z`` and ``target`` are empty."""
     policy = model if isinstance(model, LoadedPolicy) else load_policy(model)
     ev, rec, env = run_policy(policy, n_cycles=n_cycles, seed=seed, reset_noise_scale=reset_noise_scale)
     if rec["sim_failure"] is not None:
@@ -239,7 +241,7 @@ def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLik
         "env_id": cfg.get("env_id"), "frame_skip": int(cfg["env"].get("frame_skip", 1)),
         "env_kwargs": env_kwargs, "reset_noise_scale": float(reset_noise_scale),
         "heading_deg": float(env_kwargs.get("target_heading_deg", 0.0)),
-        "incline_deg": float(env_kwargs.get("incline_deg", 0.0)),
+        "incline_deg": float(env_kwargs.get("incline_deg", 0.0)), "contact": base.contact_model,
         "motor_speed_rpm": env_kwargs.get("motor_speed_rpm", MOTOR_NO_LOAD_RPM),
         "control": base.control_mode, "source": str(policy.path),
     }
@@ -249,10 +251,11 @@ def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLik
                  z=np.zeros(0), u=u, u_post=zero_slack_controls(u, traj.cable_deformation, robot.tendon_motor,
                                                                  robot.u_bounds),
                  target=np.zeros((0, 2)), com=np.asarray(ev["com"], dtype=np.float64), settings=settings,
-                 evaluation=evaluation, status=f"rl:{cfg.get('status', 'done')}")
+                 evaluation=evaluation, status=f"rl:{cfg.get('status', 'done')}",
+                 robot_fingerprint=fingerprint_of(robot))
     res.validate(str(out or policy.path))
     if out is not None:
-        res.save(out)
+        res.save(out, overwrite=overwrite)
     return res
 
 

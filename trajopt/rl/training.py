@@ -65,7 +65,7 @@ def _algo_class(algo: str):
 
 
 def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
-          out: str | os.PathLike = "runs", *, name: str | None = None, n_envs: int | None = None,
+          out: str | os.PathLike = "results/runs", *, name: str | None = None, n_envs: int | None = None,
           vec_env: str = "auto", frame_skip: int = 1, max_episode_steps: int = TRAIN_HORIZON,
           env_kwargs: dict[str, Any] | None = None, hyperparams: dict[str, Any] | None = None,
           checkpoint_every: int | None = None, progress_bar: bool = True, verbose: int = 0,

@@ -1,0 +1,280 @@
+"""Mutation check: does the default test suite notice a wrong result?
+
+    python benchmarks/mutation_check.py                 # every fault, its relevant test files
+    python benchmarks/mutation_check.py --only bl_per_min_30 friction_halved
+    python benchmarks/mutation_check.py --all-tests     # the whole default suite per fault (slow)
+    python benchmarks/mutation_check.py --list
+
+Each fault is a one-place change of behaviour written as ``(file, exact old text, new text)``.
+The checkout (tracked and untracked, non-ignored files, with numba's caches) is copied to a
+temporary directory once; the working tree is never touched. The relevant test files are run
+there unmutated first (they must pass), then once per fault with that fault applied, with
+pytest's default options (so ``-m 'not slow'``: a fault must be caught by the default suite).
+A table fault / caught by (the first failing test) / time is printed; the exit code is 0 when
+every fault was caught, 1 when one was not, 2 when a fault's old text is no longer found
+exactly once (a refactor moved the code: re-target that fault, do not delete it).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@dataclass(frozen=True)
+class Fault:
+    name: str
+    file: str
+    old: str
+    new: str
+    tests: tuple[str, ...]
+    why: str
+
+
+OPT = ("tests/test_optimizer_outcomes.py", "tests/test_trajopt.py")
+METRICS = ("tests/test_metrics.py", "tests/test_trajopt.py")
+ENVS = ("tests/test_env_rewards.py", "tests/test_envs.py")
+PHYSICS = ("tests/test_physics_magnitudes.py", "tests/test_reference_rollouts.py", "tests/test_dynamics.py",
+           "tests/test_static.py")
+HARDWARE = ("tests/test_cli_paths.py", "tests/test_hardware_config.py", "tests/test_hardware_playback.py")
+COULOMB = ("tests/test_physics_magnitudes.py", "tests/test_coulomb_anchors.py", "tests/test_coulomb.py",
+           "tests/test_energy_derivatives.py", "tests/test_sensitivity.py")
+
+FAULTS = [
+    # ------------------------------------------------------------------ trajopt: optimiser
+    Fault("gn_uphill", "trajopt/gauss_newton.py",
+          "dz[free] = np.linalg.solve(A, -g[free])", "dz[free] = np.linalg.solve(A, g[free])", OPT,
+          "Gauss-Newton steps uphill (every step rejected)"),
+    Fault("active_set_sign", "trajopt/gauss_newton.py",
+          "at_lo = (z <= lower) & (g > 0)\n    at_hi = (z >= upper) & (g < 0)",
+          "at_lo = (z <= lower) & (g < 0)\n    at_hi = (z >= upper) & (g > 0)", OPT,
+          "active-set sign flipped in the bound projection"),
+    Fault("armijo_off", "trajopt/gauss_newton.py",
+          "if f_try <= f + opt.armijo * min(float(g @ (z_try - z)), 0.0):", "if True:", OPT,
+          "line search accepts any step"),
+    # ------------------------------------------------------------------ trajopt: metrics, targets
+    Fault("bl_per_min_30", "trajopt/evaluation.py",
+          "return float(v) * 60.0 / float(body_length)", "return float(v) * 30.0 / float(body_length)", METRICS,
+          "BL/min computed with 30 instead of 60"),
+    Fault("heading_sign", "soft_envs/sim/kinematics.py",
+          "return np.array([math.cos(h), 0.0, math.sin(h)])", "return np.array([math.cos(h), 0.0, -math.sin(h)])",
+          METRICS, "speed measured along the mirrored heading (heading_vector, shared by metrics and envs)"),
+    Fault("slack_max", "trajopt/evaluation.py",
+          "s[:, m] = slack[:, cols].min(axis=1)", "s[:, m] = slack[:, cols].max(axis=1)", METRICS,
+          "zero-slack post-processing reels in the larger slack of a tendon pair"),
+    Fault("target_speed_unit", "trajopt/targets.py",
+          "return float(speed_bl_per_min) * float(body_length) / 60.0",
+          "return float(speed_bl_per_min) * float(body_length) / 30.0",
+          ("tests/test_cli_paths.py", "tests/test_trajopt.py"), "target speed BL/min -> m/s off by 2"),
+    # ------------------------------------------------------------------ envs
+    Fault("forward_reward_doubled", "soft_envs/envs/task.py",
+          "forward = float(self.forward_reward_weight) * progress",
+          "forward = 2.0 * float(self.forward_reward_weight) * progress", ENVS, "forward reward doubled"),
+    Fault("ctrl_cost_of_action", "soft_envs/envs/task.py",
+          "np.sum(np.square(0.5 * (action + 1.0)))", "np.sum(np.square(action))", ENVS,
+          "control cost of the raw action instead of the contraction fraction"),
+    Fault("obs_velocity_env_dt", "soft_envs/envs/base.py",
+          "obs[3:6] = (self._com - self._frame.com(self._x_prev)) / self._timestep",
+          "obs[3:6] = (self._com - self._frame.com(self._x_prev)) / self.dt", ENVS,
+          "COM velocity observation over the env step instead of the simulation step"),
+    Fault("density_not_randomised", "soft_envs/envs/domain.py",
+          'density=base.density * f.get("density", 1.0),', "density=base.density,", ENVS,
+          "domain randomisation ignores the density factor"),
+    # ------------------------------------------------------------------ sim
+    Fault("friction_halved", "soft_envs/sim/contact.py",
+          "self.k_n, self.eps_n, self.mu_f = c.stiffness, c.blend, c.friction",
+          "self.k_n, self.eps_n, self.mu_f = c.stiffness, c.blend, 0.5 * c.friction", PHYSICS,
+          "friction weight halved consistently everywhere"),
+    Fault("friction_removed", "soft_envs/sim/contact.py",
+          "self.k_n, self.eps_n, self.mu_f = c.stiffness, c.blend, c.friction",
+          "self.k_n, self.eps_n, self.mu_f = c.stiffness, c.blend, 0.0 * c.friction", PHYSICS,
+          "no friction at all"),
+    Fault("contact_stiffer", "soft_envs/sim/contact.py",
+          "self.k_n, self.eps_n, self.mu_f = c.stiffness, c.blend, c.friction",
+          "self.k_n, self.eps_n, self.mu_f = 1.5 * c.stiffness, c.blend, c.friction", PHYSICS,
+          "ground penalty 1.5x stiffer consistently everywhere"),
+    Fault("lame_mu", "soft_envs/sim/materials.py",
+          "return E / (2.0 * (1.0 + nu)), E * nu", "return E / (2.0 * (1.0 - nu)), E * nu",
+          ("tests/test_physics_magnitudes.py", "tests/test_reference_rollouts.py"),
+          "shear modulus with (1 - nu)"),
+    Fault("lumped_mass_third", "soft_envs/sim/mesh.py",
+          "np.repeat(density * self.volumes / 4.0, 4)", "np.repeat(density * self.volumes / 3.0, 4)", PHYSICS,
+          "each tet gives a third of its mass to each node"),
+    Fault("payload_not_spread", "soft_envs/sim/robot.py",
+          "m[self.payload_nodes] += self.payload_mass / len(self.payload_nodes)",
+          "m[self.payload_nodes] += self.payload_mass", PHYSICS, "the whole payload on every payload node"),
+    Fault("rest_state_full_gravity", "soft_envs/sim/simulator.py",
+          "relax_g = g if (anchored or self.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])",
+          "relax_g = g", PHYSICS, "rest state on a slope under full (not normal) gravity with the paper's law"),
+    # ------------------------------------------------------------------ sim: Coulomb law, terms, solver state
+    Fault("coulomb_bound_doubled", "soft_envs/sim/coulomb.py",
+          "self.mu, self.rs = c.friction_coefficient, c.slip_distance",
+          "self.mu, self.rs = 2.0 * c.friction_coefficient, c.slip_distance", COULOMB,
+          "Coulomb friction bounded by 2 mu N instead of mu N, consistently everywhere"),
+    Fault("coulomb_slip_distance_doubled", "soft_envs/sim/coulomb.py",
+          "self.mu, self.rs = c.friction_coefficient, c.slip_distance",
+          "self.mu, self.rs = c.friction_coefficient, 2.0 * c.slip_distance", COULOMB,
+          "the bristles reach mu N at twice the slip distance, consistently everywhere"),
+    Fault("anchor_drags_sticking_nodes", "soft_envs/sim/coulomb.py",
+          "if r <= rs:\n            out[c, 0], out[c, 1] = anchors[c, 0], anchors[c, 1]",
+          "if r <= rs:\n            out[c, 0], out[c, 1] = tx, tz", COULOMB,
+          "a sticking node's anchor follows it (no stick: creeps like the paper's law)"),
+    Fault("anchor_not_dragged_when_sliding", "soft_envs/sim/coulomb.py",
+          "out[c, 0], out[c, 1] = tx - rs * dx / r, tz - rs * dz / r",
+          "out[c, 0], out[c, 1] = anchors[c, 0], anchors[c, 1]", COULOMB,
+          "a sliding node leaves its anchor behind (pulled back after it stops)"),
+    Fault("history_not_carried", "soft_envs/sim/simulator.py",
+          "                history = self.system.next_history(x, prev, history)\n",
+          "                pass\n", COULOMB,
+          "a rollout keeps its starting anchors instead of updating them after each step"),
+    Fault("rest_anchors_dropped", "soft_envs/sim/simulator.py",
+          "history0 = self.rest_history() if history0 is None else history0",
+          "history0 = history0", COULOMB,
+          "a rollout from the rest state re-anchors the nodes where they stand (its loaded bristles forgotten)"),
+    Fault("factor_cache_no_generation", "soft_envs/sim/linsolve.py",
+          "return self.generation == solver.generation", "return self.generation >= 0",
+          ("tests/test_dynamics.py",), "a FactorCache trusts whatever the solver holds (generation check removed)"),
+    Fault("term_dropped_cables", "soft_envs/sim/system.py",
+          "[self.elastic, self.cables, self.contact,", "[self.elastic, self.contact,", PHYSICS,
+          "the cable term left out of EnergySystem.terms"),
+    Fault("term_dropped_contact", "soft_envs/sim/system.py",
+          "[self.elastic, self.cables, self.contact,", "[self.elastic, self.cables,", PHYSICS,
+          "the contact term left out of EnergySystem.terms"),
+    # ------------------------------------------------------------------ trajopt / envs after the refactors
+    Fault("measure_gait_window", "trajopt/evaluation.py",
+          "marks = n_prep + n_cycle * np.arange(n_cycles + 1)", "marks = n_cycle * np.arange(n_cycles + 1)",
+          METRICS, "measure_gait's cycles start at step 0 instead of after the prep phase"),
+    Fault("forward_reward_timestep", "soft_envs/envs/base.py",
+          "forward_velocity = float((self._com - com_before) @ self._heading) / self.dt / self._body_length",
+          "forward_velocity = float((self._com - com_before) @ self._heading) / self._timestep / self._body_length",
+          ENVS, "forward velocity over the simulation step instead of the env step (env.dt) with frame_skip"),
+    # ------------------------------------------------------------------ hardware
+    Fault("counts_without_2pi", "trajopt/hardware/config.py",
+          "/ self.spool_radius / (2 * math.pi) * self.counts_per_rev",
+          "/ self.spool_radius / math.pi * self.counts_per_rev", HARDWARE,
+          "cable length -> encoder counts without the 2 pi"),
+]
+
+
+def copy_checkout(dest: Path) -> None:
+    """Tracked and untracked non-ignored files, plus __pycache__ (numba's caches), mtimes kept."""
+    out = subprocess.run(["git", "ls-files", "-co", "--exclude-standard", "-z"], cwd=ROOT, check=True,
+                         capture_output=True).stdout.decode()
+    for rel in filter(None, out.split("\0")):
+        src = ROOT / rel
+        if src.is_file():
+            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / rel)
+    for cache in ROOT.rglob("__pycache__"):
+        rel = cache.relative_to(ROOT)
+        if ".git" in rel.parts or rel.parts[0].startswith("."):
+            continue
+        if (dest / rel.parent).is_dir():
+            shutil.copytree(cache, dest / rel, dirs_exist_ok=True, copy_function=shutil.copy2)
+
+
+def check_targets(faults: list[Fault], root: Path) -> list[str]:
+    problems = []
+    for f in faults:
+        path = root / f.file
+        n = path.read_text().count(f.old) if path.is_file() else -1
+        if n != 1:
+            where = "file missing" if n < 0 else f"old text found {n} times"
+            problems.append(f"{f.name}: {f.file}: {where}: {f.old!r}")
+    return problems
+
+
+def run_tests(root: Path, tests: tuple[str, ...], timeout: float) -> tuple[int, str, float]:
+    env = {**os.environ, "PYTHONPATH": str(root), "MPLBACKEND": "Agg"}
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests],
+                              cwd=root, env=env, capture_output=True, text=True, timeout=timeout)
+        code, out = proc.returncode, proc.stdout + proc.stderr
+    except subprocess.TimeoutExpired as exc:
+        code, out = -1, f"timeout after {timeout:.0f} s\n{exc.stdout or ''}"
+    return code, out, time.perf_counter() - t0
+
+
+def first_failure(output: str) -> str:
+    m = re.search(r"^(?:FAILED|ERROR) (\S+)", output, re.MULTILINE)
+    return m.group(1) if m else "?"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--only", nargs="+", metavar="FAULT", help="run these faults only")
+    p.add_argument("--all-tests", action="store_true", help="run the whole default suite for every fault")
+    p.add_argument("--list", action="store_true", help="list the faults and exit")
+    p.add_argument("--timeout", type=float, default=1800.0, help="per test run [s]")
+    p.add_argument("--keep", action="store_true", help="keep the temporary copy")
+    a = p.parse_args(argv)
+    faults = [f for f in FAULTS if not a.only or f.name in a.only]
+    if a.only and len(faults) != len(a.only):
+        print(f"unknown faults: {sorted(set(a.only) - {f.name for f in FAULTS})}", file=sys.stderr)
+        return 2
+    if a.list:
+        for f in faults:
+            print(f"{f.name:26s} {f.file:30s} {f.why}")
+        return 0
+    stale = check_targets(faults, ROOT)
+    if stale:
+        print("STALE FAULTS (the code they target changed; re-target them):\n  " + "\n  ".join(stale),
+              file=sys.stderr)
+        return 2
+    tmp = Path(tempfile.mkdtemp(prefix="soft_envs_mutation_"))
+    try:
+        copy_checkout(tmp)
+        suites = {("tests",)} if a.all_tests else {f.tests for f in faults}
+        print(f"copy: {tmp}; baseline: {len(suites)} test set(s) without faults", file=sys.stderr)
+        for tests in sorted(suites):
+            code, out, dt = run_tests(tmp, tests, a.timeout)
+            if code != 0:
+                print(f"BASELINE FAILS ({' '.join(tests)}, exit {code}, {dt:.0f} s): fix the suite first",
+                      out[-3000:], sep="\n", file=sys.stderr)
+                return 2
+            print(f"  baseline {' '.join(tests)}: passed in {dt:.0f} s", file=sys.stderr)
+        rows = []
+        for f in faults:
+            path = tmp / f.file
+            original, stat = path.read_text(), path.stat()
+            pyc = Path(importlib.util.cache_from_source(str(path)))
+            pyc.unlink(missing_ok=True)              # never a stale bytecode of another fault
+            path.write_text(original.replace(f.old, f.new))
+            try:
+                code, out, dt = run_tests(tmp, ("tests",) if a.all_tests else f.tests, a.timeout)
+            finally:
+                path.write_text(original)
+                os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns))    # numba's cache stays valid
+                pyc.unlink(missing_ok=True)
+            if code == 1:
+                verdict = first_failure(out)
+            elif code == 0:
+                verdict = "NOT CAUGHT"
+            else:
+                verdict = f"ERROR (pytest exit {code}: {first_failure(out)})"
+            rows.append((f.name, f.why, verdict, dt))
+            print(f"  {f.name}: {verdict} ({dt:.0f} s)", file=sys.stderr)
+    finally:
+        if not a.keep:
+            shutil.rmtree(tmp, ignore_errors=True)
+    print("\n| fault | what | caught by (first failing test) | time |\n|---|---|---|---|")
+    for name, why, verdict, dt in rows:
+        print(f"| {name} | {why} | {verdict} | {dt:.0f} s |")
+    missed = [r[0] for r in rows if r[2] == "NOT CAUGHT" or r[2].startswith("ERROR")]
+    print(f"\n{len(rows) - len(missed)}/{len(rows)} faults caught" + (f"; NOT caught: {missed}" if missed else ""))
+    return 1 if missed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

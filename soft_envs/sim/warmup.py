@@ -1,0 +1,164 @@
+"""Compiling the simulator's numba kernels ahead of their first use.
+
+Every kernel is ``@njit(cache=True)``: the first run on a machine compiles them (about 30 s of
+CPU time for a gait optimisation) and writes them to numba's cache (``__pycache__`` beside the
+sources, or ``$NUMBA_CACHE_DIR``); later runs load them in milliseconds.
+
+The largest kernel, the elastic term's projected Hessian (the Newton solver's fallback, almost
+half of the compile time), is first needed only when a step's exact Hessian is not positive
+definite, typically during a gait optimisation's seed search. :func:`compile_ahead` says that
+the kernels are being compiled and, when a core is idle, compiles that one in a child process
+(a thread would share the interpreter lock with the caller, and numba compiles mostly in
+Python) while the caller sets up its simulation, which compiles the kernels of a plain step at
+the same time on another core: the two compile disjoint sets of kernels. On a busy machine a
+child only takes CPU time from the caller, so none is started there.
+
+``python -m soft_envs.sim.warmup [ROBOT]`` compiles every kernel once, e.g. after installing.
+"""
+from __future__ import annotations
+
+import contextlib
+import importlib
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Iterator, TextIO
+
+import numpy as np
+
+__all__ = ["compile_kernels", "kernels_cached", "compile_ahead", "idle_core"]
+
+#: kernels whose cache entries tell whether the simulator has been compiled on this machine
+_SENTINELS = (("soft_envs.sim.materials", "fem_assemble"),
+              ("soft_envs.sim.psd_projection", "fem_assemble_projected"),
+              ("soft_envs.sim.cables", "cable_length_gradients"))
+#: longest wait for the child [s] (it takes ~15 s of CPU time); past it the caller goes on
+_WAIT = 300.0
+#: "0": compile in the caller's process only, as numba does by default; "1": always start the
+#: child; unset or "auto": start it when a core is idle (a busy machine gains nothing from it)
+ENV_SWITCH = "SOFT_ENVS_COMPILE_AHEAD"
+
+
+def idle_core() -> bool:
+    """Whether a core is free for a child process: the cores this process may use minus the
+    1-minute load average is at least one (without a load average: two cores or more)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:                                 # not Linux
+        cores = os.cpu_count() or 1
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):                      # Windows
+        return cores >= 2
+    return cores - load >= 1.0
+
+
+def kernels_cached() -> bool:
+    """Whether numba's cache holds the simulator's kernels for the current sources (a look at
+    the cache index of three kernels; False when the cache cannot be inspected)."""
+    try:
+        for module, name in _SENTINELS:
+            cache = getattr(importlib.import_module(module), name)._cache
+            if not cache._cache_file._load_index():       # {} when absent or stale
+                return False
+    except Exception:                                      # another numba's internals
+        return False
+    return True
+
+
+def compile_kernels(robot, *, dt: float = 0.033, gravity=(0.0, -9.81, 0.0), control: str = "length",
+                    everything: bool = True) -> None:
+    """Compile (or load from numba's cache) the kernels a simulation of ``robot`` needs, with
+    the argument types a real run passes. First the elastic term's projected Hessian (the
+    Newton solver's fallback, the largest kernel: 13.5 of the ~30 s of CPU time); with
+    ``everything`` then a 3-step rollout from the initial placement with forward
+    sensitivities (paper eqs. 10-11), every term's projected Hessian, the adjoint gradient,
+    cable tensions and the body frame. Without ``everything`` (what :func:`compile_ahead`'s
+    child does) nothing a plain step needs is compiled, so the child and the caller, which
+    compiles those while it sets up, never compile the same kernel."""
+    from .kinematics import BodyFrame
+    from .simulator import Simulator
+    sim = Simulator(robot, dt=dt, gravity=gravity, control=control)
+    system = sim.system
+    x = sim.initial_placement()
+    u = np.tile(robot.u_rest, (3, 1)) if control == "length" else np.zeros((3, robot.n_motors))
+    system.elastic.assemble_projected(x, x, u[0], None, np.zeros(system.n_dof), np.zeros(system.pattern.nnz + 1))
+    if not everything:
+        return
+    dudz = np.full((3, robot.n_motors, 1), 1e-3)
+    traj = sim.rollout(u, x0=x, dudz=dudz)
+    system.assemble(x, x, u[0], True, True, sim.initial_history(x))
+    sim.rollout_gradient(u, np.zeros_like(traj.x), x0=x, dudz=dudz, traj=traj)
+    sim.cable_tension(traj.x[-1], u[-1])
+    BodyFrame(x, robot.node_masses).rotation(traj.x[-1])
+
+
+@contextlib.contextmanager
+def compile_ahead(robot_spec: str | os.PathLike, out: TextIO | None = None) -> Iterator[bool]:
+    """Around the set-up of a simulation of ``robot_spec`` (a shipped robot's name or a
+    robot.toml path): when numba's cache lacks the simulator's kernels, say so on ``out``
+    (default stdout) and, when a core is idle (:func:`idle_core`; ``$SOFT_ENVS_COMPILE_AHEAD``
+    ``1`` always, ``0`` never), compile the largest of them in a child process
+    (:func:`compile_kernels` without ``everything``) while the block runs; on leaving the
+    block, wait for the child, so the kernel is in the cache when the caller first needs it.
+    Yields whether a child compiles. Nothing is said or started when the kernels are cached;
+    if the child fails, the caller compiles what it needs itself, as without this."""
+    if kernels_cached():
+        yield False
+        return
+    out = out or sys.stdout
+    print("compiling the simulator's kernels (first run only: numba caches them for the next runs)...",
+          file=out, flush=True)
+    switch = os.environ.get(ENV_SWITCH, "auto")
+    if switch == "0" or (switch != "1" and not idle_core()):
+        yield False
+        return
+    t0 = time.perf_counter()
+    with tempfile.TemporaryFile() as log:
+        child = subprocess.Popen([sys.executable, "-m", "soft_envs.sim.warmup", str(robot_spec), "--ahead"],
+                                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=log,
+                                 env=dict(os.environ, PYTHONPATH=_pythonpath()))
+        try:
+            yield True
+            child.wait(timeout=_WAIT)
+        except subprocess.TimeoutExpired:
+            pass
+        finally:
+            if child.poll() is None:                      # the block raised, or the child hangs
+                child.kill()
+                child.wait()
+        if child.returncode == 0:
+            print(f"kernels compiled ({time.perf_counter() - t0:.0f} s)", file=out, flush=True)
+        else:
+            log.seek(0)
+            last = log.read().decode(errors="replace").strip().splitlines()[-1:] or [f"exit {child.returncode}"]
+            print(f"compiling ahead failed ({last[0]}); compiling on first use instead", file=out, flush=True)
+
+
+def _pythonpath() -> str:
+    """The caller's import path for the child, so that it compiles the same sources."""
+    root = str(Path(__file__).resolve().parents[2])
+    rest = os.environ.get("PYTHONPATH", "")
+    return root + (os.pathsep + rest if rest else "")
+
+
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+    from . import load_robot
+    p = argparse.ArgumentParser(prog="python -m soft_envs.sim.warmup",
+                                description="Compile the simulator's numba kernels into numba's cache.")
+    p.add_argument("robot", nargs="?", default="tripod", help="shipped robot name or robot.toml path")
+    p.add_argument("--ahead", action="store_true",
+                   help="only the Newton fallback's projected Hessian (what compile_ahead's child compiles)")
+    args = p.parse_args(argv)
+    t0 = time.perf_counter()
+    compile_kernels(load_robot(args.robot), everything=not args.ahead)
+    print(f"simulator kernels compiled and cached ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,137 @@
+"""``trajopt robustness`` (issue #19) on a tiny gait: seeded perturbations, the actuation model,
+slopes in any direction, the report and its files, resuming, the in-process fallback of
+``--workers`` and picklable samples."""
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+import pickle
+
+import numpy as np
+import pytest
+
+from soft_envs.envs import load_robot
+from trajopt import GaitParameterization, GaitSpec
+from trajopt.cli import main
+from trajopt.results import Result
+from trajopt.robustness import (PERTURBATIONS, applied_controls, draw_perturbation, map_samples, perturbed_slope,
+                                run_sample)
+from trajopt.robustness_report import robustness_jobs
+
+GAIT = GaitSpec(n_prep=4, n_cycle=12, n_cycles=1, n_keyframes=2, symmetry=False)
+
+
+def tiny_result(tmp_path):
+    robot = load_robot("tripod")
+    param = GaitParameterization.for_robot(robot, GAIT)
+    z = param.initial_z(0.5, np.random.default_rng(0), noise=0.4)
+    u = param.controls(z)
+    K = len(u)
+    settings = {**GAIT.to_settings(), "keyframes": param.keyframes(z).tolist(), "heading_deg": 0.0,
+                "incline_deg": 0.0}
+    res = Result(robot="tripod", task="walk", motor_names=robot.motor_names, dt=0.033, z=z, u=u, u_post=u,
+                 target=np.zeros((K + 1, 2)), com=np.zeros((K + 1, 3)), settings=settings)
+    return res.save(tmp_path / "tiny.npz")
+
+
+def test_perturbations_are_seeded_per_sample_and_within_their_ranges():
+    a = [draw_perturbation(7, i) for i in range(50)]
+    assert draw_perturbation(7, 3) == a[3] and draw_perturbation(8, 3) != a[3]
+    for name, (kind, lo, hi) in PERTURBATIONS.items():
+        x = np.array([p[name] for p in a])
+        assert lo <= x.min() and x.max() <= hi and np.ptp(x) > 0.3 * (hi - lo) * (0.5 if kind == "log" else 1)
+
+
+def test_applied_controls_model_lag_speed_limit_and_jitter():
+    u = np.zeros((20, 2))
+    u[5:] = [0.01, 0.0]                         # a step of 10 mm
+    bounds = np.array([[0.0, 0.02], [0.0, 0.02]])
+    none = {"timing_jitter_s": 0.0, "motor_lag_s": 0.0, "motor_speed_rpm": 1e9}
+    rng = np.random.default_rng(0)
+    assert np.array_equal(applied_controls(u, 0.033, np.zeros(2), bounds, [0.005] * 2, none, rng), u)
+    slow = applied_controls(u, 0.033, np.zeros(2), bounds, [0.005] * 2, {**none, "motor_speed_rpm": 60.0}, rng)
+    per_step = 60.0 * 2 * math.pi / 60 * 0.005 * 0.033          # 1.04 mm per step
+    assert np.isclose(slow[5, 0], per_step) and np.isclose(slow[-1, 0], 0.01)
+    lag = applied_controls(u, 0.033, np.zeros(2), bounds, [0.005] * 2, {**none, "motor_lag_s": 0.1}, rng)
+    assert np.isclose(lag[5, 0], 0.01 * (1 - math.exp(-0.33)))
+    ramp = np.stack([np.linspace(0.0, 0.0095, 20), np.zeros(20)], axis=1)      # 0.5 mm per step
+    jit = applied_controls(ramp, 0.033, np.zeros(2), bounds, [0.005] * 2, {**none, "timing_jitter_s": 0.01}, rng)
+    err = np.abs(jit - ramp)[1:-1, 0] / (0.0005 * 0.01 / 0.033)                  # in units of the largest shift
+    assert 0.05 < err.max() <= 1.0 + 1e-9 and len(np.unique(np.round(err, 6))) > 10
+
+
+@pytest.mark.parametrize("incline,uphill,slope,direction", [(0, 0, 10, 135), (10, 0, 0, 0), (10, 90, 10, 90),
+                                                            (20, 0, 10, 180)])
+def test_perturbed_slope_composes_tilts(incline, uphill, slope, direction):
+    a, h = perturbed_slope(incline, uphill, slope, direction)
+    if incline == 0:
+        assert np.isclose(a, slope) and np.isclose(h % 360, direction)
+    elif slope == 0:
+        assert np.isclose(a, incline) and np.isclose(h, uphill)
+    elif direction == uphill:
+        assert np.isclose(a, incline + slope) and np.isclose(h, uphill)
+    else:
+        assert np.isclose(a, incline - slope) and np.isclose(h, uphill)
+
+
+def test_robustness_command_report_resume_and_fallback(tmp_path, capsys, monkeypatch):
+    """Without Ray, ``--workers 2`` runs in-process and says so."""
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "ray" else real(name, *a))
+    result = tiny_result(tmp_path)
+    out = tmp_path / "rob"
+    args = ["robustness", str(result), "--samples", "3", "--cycles", "1", "--out", str(out), "--seed", "5",
+            "--workers", "2"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "running in-process (--workers 2 needs" in text and "nominal speed" in text
+    report = json.loads((out / "report.json").read_text())
+    assert report["samples"] == 3 and 0.0 <= report["upright_fraction"] <= 1.0
+    q = report["speed_bl_per_min"]
+    assert q["p5"] <= q["median"] <= q["p95"] and np.isfinite(report["nominal"]["speed_bl_per_min"])
+    assert len(report["worst"]) == 3 and set(PERTURBATIONS) <= set(report["worst"][0])
+    assert (out / "robustness.png").stat().st_size > 10_000
+    assert len((out / "samples.csv").read_text().splitlines()) == 4
+    lines = (out / "samples.jsonl").read_text().splitlines()
+    assert len(lines) == 3
+    # a rerun with one more sample runs only that one and reuses the others exactly
+    assert main(args[:3] + ["4"] + args[4:]) == 0
+    assert "(3 done before)" in capsys.readouterr().out
+    assert (out / "samples.jsonl").read_text().splitlines()[:3] == lines
+    again = json.loads((out / "report.json").read_text())
+    assert again["samples"] == 4
+    # other settings in the same directory are refused
+    assert main(args[:-4] + ["--seed", "6"]) == 2
+    assert "holds a robustness run with other settings" in capsys.readouterr().err
+
+
+def test_samples_are_independent_picklable_calls(tmp_path):
+    res = Result.load(tiny_result(tmp_path))
+    nominal, jobs = robustness_jobs(res, 1, 2, seed=1)
+    job = pickle.loads(pickle.dumps(jobs[1]))
+    a = run_sample(job)
+    results, where = map_samples([jobs[1]], workers=1)
+    b = next(results)
+    assert where == "in-process"
+    for k in ("speed_bl_per_min", "heading_drift_deg_per_cycle", "max_tilt_deg"):
+        assert a[k] == b[k]
+    n = run_sample(nominal)
+    assert n["index"] == -1 and "friction" not in n
+
+
+def test_samples_on_ray_equal_the_in_process_ones(tmp_path):
+    """With Ray and ``trajopt sweep`` installed, ``--workers`` maps the same calls on Ray."""
+    ray = pytest.importorskip("ray")
+    if importlib.util.find_spec("trajopt.sweep") is None:
+        pytest.skip("trajopt sweep (the Ray runner) is not installed")
+    res = Result.load(tiny_result(tmp_path))
+    _, jobs = robustness_jobs(res, 1, 2, seed=3)
+    try:
+        results, where = map_samples(jobs, workers=2)
+        on_ray = sorted(results, key=lambda s: s["index"])
+    finally:
+        ray.shutdown()
+    assert where == "on Ray with 2 workers"
+    for a, b in zip(on_ray, (run_sample(j) for j in jobs)):
+        assert a["speed_bl_per_min"] == b["speed_bl_per_min"] and a["upright"] == b["upright"]

@@ -1,0 +1,221 @@
+"""``trajopt sweep``: sweep files, a local Ray with 2 CPUs, faults, resuming and Ctrl-C."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from trajopt import Result
+from trajopt.sweep import load_spec, read_status, run_sweep, write_summary
+from trajopt.sweep.runner import plan
+from trajopt.sweep.task import _argv
+
+ROOT = Path(__file__).resolve().parents[1]
+#: a tiny optimisation: one Gauss-Newton iteration on short cycles (a few seconds)
+TINY = ('iterations = 1\nseeds = 1\ncycle_steps = 12\nprep_steps = 4\ncycles = 1\nkeyframes = 2\n')
+
+
+def write(tmp_path: Path, text: str, name: str = "sweep.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def tiny_block(name: str, grid: str, robot: str = "tripod", extra: str = "") -> str:
+    return (f'[[runs]]\nkind = "optimize"\nname = "{name}"\n[runs.args]\nrobot = "{robot}"\n{TINY}{extra}'
+            f"[runs.grid]\n{grid}\n")
+
+
+def digest(path: Path) -> dict[str, str]:
+    return {str(p.relative_to(path)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(path.rglob("*")) if p.is_file()}
+
+
+# ----------------------------------------------------------------------------- sweep files (no Ray)
+def test_spec_expands_grids_names_and_arguments(tmp_path):
+    spec_path = write(tmp_path, '[sweep]\ndescription = "d"\n' + tiny_block(
+        "{robot}_v{speed:g}_f{contact_friction:g}", 'speed = [4.0, 6.5]\ncontact_friction = [500.0]',
+        extra="symmetry = false\n") + tiny_block("other{_k}", "_k = [1]", robot="robots/mine.toml"))
+    spec = load_spec(spec_path, tmp_path / "out")
+    assert spec.names() == ["tripod_v4_f500", "tripod_v6.5_f500", "other1"]
+    first = spec.runs[0]
+    assert first.contact() == {"friction": 500.0}
+    argv = first.argv()
+    assert argv[:2] == ["optimize", "tripod"] and "--no-symmetry" in argv
+    assert argv[argv.index("--cycle-steps") + 1] == "12" and argv[argv.index("--speed") + 1] == "4.0"
+    assert not any(a.startswith("--contact") or a.startswith("--_") for a in argv)
+    assert spec.runs[2].params["robot"] == str((tmp_path / "robots/mine.toml").resolve())
+
+
+@pytest.mark.parametrize("text, message", [
+    ('[[runs]]\nkind = "optimise"\n', "runs[0].kind must be one of"),
+    ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeeed = 3\n', "unknown argument 'speeed'"),
+    ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeed = "fast"\n', "argument --speed: must be a finite number > 0, got 'fast'"),
+    ('[[runs]]\nkind = "optimize"\n[runs.args]\nspeed = 3\n', "argument 'robot' is missing"),
+    ('[[runs]]\nkind = "optimize"\nname = "{robot}_{sped}"\n[runs.args]\nrobot = "tripod"\n',
+     "runs[0].name: {sped} is not a parameter"),
+    ('[[runs]]\nkind = "optimize"\nname = "same"\n[runs.args]\nrobot = "tripod"\n[runs.grid]\nspeed = [1, 2]\n',
+     "run name 'same' is made twice"),
+    ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nout = "x"\n', "'out' is set by the sweep"),
+    ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\n[runs.grid]\nspeed = 3\n',
+     "runs[0].grid.speed must be a non-empty list"),
+    ('[[runs]]\nkind = "evaluate"\n[runs.args]\nresult = "r.npz"\ncontact_friction = 1.0\n',
+     "applies to kind 'optimize' only"),
+    ('[[runs]]\nkind = "optimize"\nname = "a/b"\n[runs.args]\nrobot = "tripod"\n', "not a plain directory name"),
+    ("[[runs]\n", "not valid TOML"),
+    ("[sweep]\n", "no runs"),
+])
+def test_spec_errors_name_the_file_and_field(tmp_path, text, message):
+    path = write(tmp_path, text)
+    with pytest.raises(ValueError) as err:
+        load_spec(path)
+    assert str(path) in str(err.value) and message in str(err.value)
+
+
+def test_quick_arguments_keep_the_run_names(tmp_path, monkeypatch):
+    path = write(tmp_path, tiny_block("r{speed:g}", "speed = [4.0]") + "[runs.quick]\niterations = 2\n")
+    monkeypatch.delenv("SOFT_ENVS_QUICK", raising=False)
+    assert load_spec(path).runs[0].params["iterations"] == 1
+    monkeypatch.setenv("SOFT_ENVS_QUICK", "1")
+    from trajopt.sweep import quick_requested
+    quick = load_spec(path, quick=quick_requested())
+    assert quick.names() == ["r4"] and quick.runs[0].params["iterations"] == 2
+
+
+def test_contact_parameters_run_on_a_copy_of_the_robot_file(tmp_path):
+    import numpy as np
+    from soft_envs.sim import load_robot
+    from trajopt.sweep.task import _derived_robot
+    out = tmp_path / "out"
+    spec = load_spec(write(tmp_path, tiny_block("f{contact_friction:g}", "contact_friction = [250.0]\n"
+                                                "contact_stiffness = [3000.0]")), out)
+    run = spec.runs[0]
+    (out / run.name).mkdir(parents=True)
+    path = _derived_robot(run, out / run.name)
+    robot, base = load_robot(path), load_robot("tripod")
+    assert robot.contact.friction == 250.0 and robot.contact.stiffness == 3000.0
+    assert robot.contact.blend == base.contact.blend and robot.payload_mass == base.payload_mass
+    assert np.array_equal(robot.mesh.points, base.mesh.points)
+    assert _argv(run, out, out / run.name)[1] == str(path)
+
+
+@pytest.mark.parametrize("name", ["sweep_speeds.toml", "rl_seeds.toml"])
+def test_example_sweep_files_load_full_and_quick(name):
+    full = load_spec(ROOT / "examples" / name)
+    quick = load_spec(ROOT / "examples" / name, quick=True)
+    assert full.names() == quick.names() and len(full.runs) >= 4
+    robots = {r.params.get("robot") for r in full.runs if "robot" in r.params}
+    assert robots == {"tripod", "puppy"}
+
+
+# ----------------------------------------------------------------------------- on Ray (2 CPUs)
+@pytest.fixture(scope="module")
+def local_ray():
+    ray = pytest.importorskip("ray")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="ERROR")
+    try:
+        yield ray
+    finally:
+        ray.shutdown()
+
+
+def test_four_tiny_optimisations_write_results_and_summary(local_ray, tmp_path):
+    spec = load_spec(write(tmp_path, tiny_block("{robot}_v{speed:g}", 'robot = ["tripod"]\nspeed = [3.0, 4.0, 5.0, 6.0]')
+                           .replace('robot = "tripod"\n', "")), tmp_path / "out")
+    outcome = run_sweep(spec, tmp_path / "out")
+    assert not outcome.interrupted and outcome.count("done") == 4
+    for run, v in zip(spec.runs, (3.0, 4.0, 5.0, 6.0)):
+        res = Result.load(tmp_path / "out" / run.name / f"{run.name}.npz")
+        assert res.settings["speed_bl_per_min"] == v and res.settings["n_cycle"] == 12
+        assert read_status(tmp_path / "out" / run.name)["metrics"]["speed_bl_per_min"] == res.evaluation["speed_bl_per_min"]
+    written = write_summary(spec, outcome.statuses, tmp_path / "out")
+    assert [p.name for p in written] == ["summary.csv", "summary.md", "summary.png"]
+    csv_lines = (tmp_path / "out" / "summary.csv").read_text().splitlines()
+    assert len(csv_lines) == 5 and all(",done," in ln for ln in csv_lines[1:])
+
+
+def test_failed_run_is_reported_and_rerun_skips_finished_runs(local_ray, tmp_path):
+    text = (tiny_block("ok{speed:g}", "speed = [3.0, 4.0, 5.0]") + tiny_block("broken", "_x = [0]", robot="no_such_robot.toml")
+            + '[[runs]]\nkind = "evaluate"\nname = "eval3"\n[runs.args]\nresult = "{out}/ok3/ok3.npz"\ncycles = 1\n')
+    out = tmp_path / "out"
+    spec = load_spec(write(tmp_path, text), out)
+    outcome = run_sweep(spec, out)
+    assert outcome.count("done") == 4 and outcome.count("failed") == 1
+    # evaluations start after the optimisations they read
+    ev = json.loads((out / "eval3" / "evaluation.json").read_text())
+    assert outcome.statuses["eval3"]["started"] >= outcome.statuses["ok3"]["finished"]
+    optimised = outcome.statuses["ok3"]["metrics"]          # `trajopt evaluate` prints 3 decimals
+    assert ev["speed_bl_per_min"] == pytest.approx(optimised["speed_bl_per_min"], abs=6e-4)
+    assert ev["upright"] == optimised["upright"]
+    reason = outcome.statuses["broken"]["reason"]
+    assert "no_such_robot.toml" in reason and "not found" in reason
+    write_summary(spec, outcome.statuses, out, plot=False)
+    assert "no_such_robot.toml" in (out / "summary.md").read_text()
+    before = {name: digest(out / name) for name in ("ok3", "ok4", "ok5")}
+
+    again = run_sweep(load_spec(spec.path, out), out)
+    assert sorted(again.skipped) == ["eval3", "ok3", "ok4", "ok5"]
+    assert again.statuses["broken"]["status"] == "failed"           # retried, fails again
+    assert {name: digest(out / name) for name in before} == before   # finished runs untouched
+    # a run directory made with other arguments is never overwritten
+    changed = write(tmp_path, text.replace("speed = [3.0, 4.0, 5.0]", "speed = [3.0]").replace("seeds = 1", "seeds = 2"),
+                    "changed.toml")
+    with pytest.raises(ValueError, match="made with other arguments"):
+        run_sweep(load_spec(changed, out), out)
+
+
+def _wait_for(predicate, timeout: float, what: str) -> None:
+    t0 = time.time()
+    while not predicate():
+        if time.time() - t0 > timeout:
+            raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
+        time.sleep(0.25)
+
+
+def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path):
+    """Two tiny runs finish, then two long ones start: the worker of one is killed (recorded as
+    failed with the reason), then the sweep gets SIGINT: it exits 130, the other long run is
+    interrupted with its checkpoint saved for --resume, and the finished runs are untouched."""
+    # the long runs: Puppy gaits on the paper's 72-step cycle, far from converged when stopped
+    long_args = "iterations = 100\nseeds = 1\ncycles = 1\n"
+    text = (tiny_block("quick{speed:g}", "speed = [3.0, 4.0]")
+            + tiny_block("long{speed:g}", "speed = [5.0, 6.0]", robot="puppy").replace(TINY, long_args))
+    out = tmp_path / "out"
+    spec_path = write(tmp_path, text)
+    address = local_ray.get_runtime_context().gcs_address
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    proc = subprocess.Popen([sys.executable, "-m", "trajopt.cli", "sweep", str(spec_path), "--out", str(out),
+                             "--address", address, "--no-plot"], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        done = lambda n: (read_status(out / n) or {}).get("status") == "done"   # noqa: E731
+        _wait_for(lambda: done("quick3") and done("quick4"), 240, "the two tiny runs")
+        before = {n: digest(out / n) for n in ("quick3", "quick4")}
+        _wait_for(lambda: all((out / n / f"{n}.partial.npz").is_file() for n in ("long5", "long6")), 240,
+                  "the first checkpoints of the long runs")
+        os.kill(read_status(out / "long5")["pid"], signal.SIGKILL)
+        _wait_for(lambda: (read_status(out / "long5") or {}).get("status") == "failed", 60, "the killed run's status")
+        proc.send_signal(signal.SIGINT)
+        output, _ = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, output
+    assert {n: digest(out / n) for n in before} == before
+    killed = read_status(out / "long5")
+    assert killed["status"] == "failed" and "worker died" in killed["reason"]
+    stopped = read_status(out / "long6")
+    assert stopped["status"] == "interrupted", stopped
+    assert json.loads((out / "long6" / "long6.partial.json").read_text())["status"] == "interrupted"
+    assert (out / "summary.csv").is_file()
+    spec = load_spec(spec_path, out)
+    todo, finished = plan(spec, out)
+    assert sorted(finished) == ["quick3", "quick4"] and sorted(r.name for r in todo) == ["long5", "long6"]
+    assert "--resume" in _argv(spec.runs[3], out, out / "long6")     # continues from its checkpoint

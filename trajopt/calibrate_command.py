@@ -1,0 +1,186 @@
+"""``trajopt calibrate``: inputs (robot, markers, tracks, controls) and outputs (calibration.json,
+a new robot.toml with the fitted values, the before/after plot of the tracks). The fit itself is
+:func:`trajopt.calibrate.fit_parameters`."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from soft_envs.envs import PHYSICAL_PARAMETERS, MarkerSet, check_parameters, load_robot, parameter_values
+
+from .calibrate import CalibrationFit, MarkerData, fit_parameters
+from .results import Result, atomic_write_bytes
+from .tracks import read_tracks
+
+__all__ = ["run_calibrate", "read_marker_points", "write_calibrated_robot", "plot_tracks", "HEADER"]
+
+#: first line of every robot.toml that calibrate writes (it replaces only such files)
+HEADER = "# Calibrated by trajopt calibrate"
+
+
+def read_marker_points(path: str | Path, mesh) -> MarkerSet:
+    """Markers from a CSV with the header ``marker,x,y,z`` (rest positions [m] in the robot's
+    simulation frame), bound to ``mesh``; errors name the file and line."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: marker points file not found")
+    names, points = [], []
+    with path.open(newline="") as fh:
+        reader = csv.reader(fh)
+        header = [h.strip().lower() for h in next(reader, [])]
+        if header != ["marker", "x", "y", "z"]:
+            raise ValueError(f"{path}:1: the header must be marker,x,y,z, got {','.join(header)!r}")
+        for row in reader:
+            if not any(c.strip() for c in row):
+                continue
+            where = f"{path}:{reader.line_num}"
+            if len(row) != 4:
+                raise ValueError(f"{where}: expected 4 columns (marker,x,y,z), got {len(row)}")
+            try:
+                points.append([float(c) for c in row[1:]])
+            except ValueError:
+                raise ValueError(f"{where}: x, y, z must be numbers, got {row[1:]}") from None
+            names.append(row[0].strip())
+    if not names:
+        raise ValueError(f"{path}: no markers")
+    return MarkerSet.bind(mesh, names, points, source=str(path))
+
+
+def _parameter_names(text: str, robot) -> tuple[str, ...]:
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    if not names:
+        raise ValueError("--fit: give the parameters to fit, comma-separated, from: " + ", ".join(PHYSICAL_PARAMETERS))
+    try:
+        return check_parameters(robot, names)
+    except ValueError as exc:
+        raise ValueError(f"--fit: {exc}") from None
+
+
+def _output_toml(out: Path, source: Path) -> Path:
+    target = out / "robot.toml"
+    if target.resolve() == source.resolve():
+        raise ValueError(f"{target} is the input robot file: calibrate never overwrites it; use another --out")
+    if target.exists() and not target.read_text().startswith(HEADER):
+        raise ValueError(f"{target} exists and was not written by trajopt calibrate: use another --out")
+    return target
+
+
+def write_calibrated_robot(source: Path, target: Path, robot, names, values) -> Path:
+    """Write ``target``: the robot file ``source`` (comments and layout kept, through tomlkit)
+    with the parameters ``names`` set to ``values`` and its mesh path made relative to the new
+    file (absolute when the two share no folder but the root); checked by loading it back."""
+    import tomlkit
+    doc = tomlkit.parse(source.read_text())
+    mesh = (source.parent / str(doc["robot"]["mesh"])).resolve()
+    here = target.parent.resolve()
+    near = os.path.commonpath([mesh, here]) != os.path.sep          # relative unless only / is shared
+    doc["robot"]["mesh"] = os.path.relpath(mesh, here) if near else str(mesh)
+    place = {"youngs_modulus": ("material", "youngs_modulus"), "poisson_ratio": ("material", "poisson_ratio"),
+             "density": ("material", "density"), "payload_mass": ("payload", "mass"),
+             "contact_stiffness": ("contact", "stiffness"), "friction": ("contact", "friction"),
+             "friction_coefficient": ("contact", "friction_coefficient")}
+    for n, v in zip(names, values):
+        if n == "cable_stiffness":
+            ratio = float(v) / parameter_values(robot, [n])[0]
+            for table, tendon in zip(doc["tendons"], robot.tendons):
+                table["stiffness"] = float(tendon.stiffness * ratio)
+            continue
+        table, key = place[n]
+        if table not in doc:
+            doc[table] = tomlkit.table()
+        doc[table][key] = float(v)
+    fitted = ", ".join(f"{n} = {float(v):.6g}" for n, v in zip(names, values))
+    text = f"{HEADER} from {source} on {time.strftime('%Y-%m-%d %H:%M')}: {fitted}\n" + tomlkit.dumps(doc)
+    atomic_write_bytes(target, text.encode())
+    check = parameter_values(load_robot(target), names)
+    if not np.allclose(check, values, rtol=1e-12, atol=0):
+        raise RuntimeError(f"{target}: the written values {check} differ from the fitted ones {values}")
+    return target
+
+
+def plot_tracks(data: MarkerData, fit: CalibrationFit, path: Path) -> Path:
+    """Measured samples (dots) and simulated tracks (lines) per coordinate, before (left) and
+    after (right) the fit, in the measurements' frame; written atomically as PNG."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    t_sim = data.dt * np.arange(len(data.u) + 1)
+    fig, axes = plt.subplots(3, 2, figsize=(12, 8), sharex=True, sharey="row")
+    colors = plt.get_cmap("tab10")
+    for col, (pred, label, rms) in enumerate(((fit.predicted_before, "before", fit.rms_before_mm),
+                                               (fit.predicted_after, "after", fit.rms_after_mm))):
+        for c, axis in enumerate("xyz"):
+            ax = axes[c, col]
+            for i, name in enumerate(data.markers.names):
+                sel = data.marker_index == i
+                ax.plot(data.times[sel], 1e3 * data.values[sel, c], ".", ms=2, color=colors(i % 10))
+                ax.plot(t_sim, 1e3 * pred[:, i, c], "-", lw=1, color=colors(i % 10), label=name if c == 0 else None)
+            ax.set_ylabel(f"{axis} [mm]")
+            ax.grid(alpha=0.3)
+        axes[0, col].set_title(f"{label} the fit: RMS {rms:.2f} mm")
+        axes[2, col].set_xlabel("t [s]")
+    axes[0, 1].legend(fontsize=7, ncol=2, loc="best")
+    fig.suptitle("measured markers (dots) and simulated tracks (lines)")
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+    return path
+
+
+def _inputs(args) -> tuple[Any, MarkerSet, MarkerData, tuple[str, ...], Any]:
+    robot = load_robot(args.robot)
+    markers = (read_marker_points(args.marker_points, robot.mesh) if args.marker_points else robot.marker_set)
+    if not len(markers):
+        raise ValueError(f"{robot.source}: the robot has no [[markers]]; add them or give --marker-points FILE")
+    names = _parameter_names(args.fit, robot)
+    res = Result.load(args.controls)
+    if list(res.motor_names) != robot.motor_names:
+        raise ValueError(f"{args.controls}: motors {list(res.motor_names)} are not the robot's {robot.motor_names}")
+    u = res.u_post if args.play == "u_post" else res.u
+    tracks = read_tracks(args.markers, markers.names)
+    s = res.settings
+    data = MarkerData.from_tracks(tracks, robot, markers, u, float(res.dt), frame=args.frame,
+                                  incline_deg=float(s.get("incline_deg", 0.0)),
+                                  heading_deg=float(s.get("heading_deg", 0.0)))
+    return robot, markers, data, names, tracks
+
+
+def run_calibrate(args) -> int:
+    robot, markers, data, names, tracks = _inputs(args)
+    if robot.source.startswith("<"):
+        raise ValueError("calibrate needs a robot from a robot.toml (a shipped name or a path)")
+    out = Path(args.out)
+    target = _output_toml(out, Path(robot.source))
+    dropped = tracks.n_samples - len(data.times)
+    print(f"{robot.summary()}\n{len(data.times)} samples of {len(markers)} markers over {len(data.u) * data.dt:.2f} s "
+          f"(about {1.0 / tracks.median_interval():.3g} Hz per marker; "
+          f"{tracks.n_missing} missing, {dropped} outside the controls' span); fitting {', '.join(names)}")
+    t0 = time.perf_counter()
+    fit = fit_parameters(data, names, max_evaluations=args.max_evaluations)
+    out.mkdir(parents=True, exist_ok=True)
+    write_calibrated_robot(Path(robot.source), target, robot, names, fit.values)
+    plot = plot_tracks(data, fit, out / "tracks.png")
+    summary = {"robot": args.robot, "robot_toml": str(target), "markers": str(args.markers),
+               "controls": str(args.controls), "played": args.play, "frame": args.frame, "dt": data.dt,
+               "n_steps": len(data.u), "missing_samples": tracks.n_missing, "wall_time_s": time.perf_counter() - t0,
+               **fit.summary()}
+    atomic_write_bytes(out / "calibration.json", json.dumps(summary, indent=1).encode())
+    w = max(len(n) for n in names)
+    for n, a, b, e in zip(names, fit.initial, fit.values, fit.std_errors):
+        unit = PHYSICAL_PARAMETERS[n].unit
+        print(f"  {n.ljust(w)}  {a:.6g} -> {b:.6g} +- {e:.2g} {unit}".rstrip())
+    print(f"  RMS marker error {fit.rms_before_mm:.3f} mm -> {fit.rms_after_mm:.3f} mm "
+          f"({fit.iterations} rollouts; {fit.message})")
+    for warning in fit.warnings:
+        print(f"warning: {warning}")
+    print(f"wrote {target}, {plot}, {out / 'calibration.json'}")
+    return 0

@@ -1,0 +1,163 @@
+"""``trajopt robustness``: the run (resumable), its files and its plot. The replays themselves are
+:mod:`trajopt.robustness`.
+
+``DIR/settings.json`` (the gait file's hash, cycles, seed, ranges), ``DIR/samples.jsonl`` (one
+line per finished sample, appended as they finish), ``DIR/report.json`` and ``DIR/samples.csv``
+(written atomically at the end), ``DIR/robustness.png``.
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .replay import env_for_result, result_controls
+from .results import Result, atomic_write_bytes
+from .robustness import (DERIVED_NAMES, PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample,
+                         summarize)
+
+__all__ = ["run_robustness", "plot_robustness", "robustness_jobs"]
+
+
+def robustness_jobs(res: Result, cycles: int, samples: int, seed: int) -> tuple[SampleJob, list[SampleJob]]:
+    """``(nominal job, perturbed jobs)`` of a result played for ``cycles`` cycles."""
+    if cycles < 1 or samples < 1:
+        raise ValueError(f"--cycles and --samples must be >= 1, got {cycles} and {samples}")
+    env = env_for_result(res)
+    u, n_prep, n_cycle = result_controls(res, env.robot, cycles)
+    s = res.settings
+    common = dict(robot=res.robot, u=u, dt=float(res.dt), n_prep=n_prep, n_cycle=n_cycle,
+                  heading_deg=float(s.get("heading_deg", 0.0)), incline_deg=float(s.get("incline_deg", 0.0)),
+                  seed=int(seed))
+    return (SampleJob(index=-1, **common),
+            [SampleJob(index=i, perturbation=draw_perturbation(seed, i), **common) for i in range(samples)])
+
+
+def _settings(result_path: Path, cycles: int, seed: int) -> dict[str, Any]:
+    digest = hashlib.sha256(Path(result_path).read_bytes()).hexdigest()
+    return {"result": str(result_path), "result_sha256": digest, "cycles": int(cycles), "seed": int(seed),
+            "ranges": {k: list(v) for k, v in PERTURBATIONS.items()}}
+
+
+def _done_samples(out: Path, settings: dict) -> dict[int, dict]:
+    """The samples already finished in ``out`` by a run with the same settings (ValueError when
+    ``out`` holds a run with other settings)."""
+    sfile, lines = out / "settings.json", out / "samples.jsonl"
+    if not sfile.exists():
+        return {}
+    old = json.loads(sfile.read_text())
+    if {k: v for k, v in old.items() if k != "result"} != {k: v for k, v in settings.items() if k != "result"}:
+        raise ValueError(f"{out} holds a robustness run with other settings (gait file, cycles, seed or ranges): "
+                         "use another --out")
+    done = {}
+    if lines.exists():
+        for line in lines.read_text().splitlines():
+            try:
+                s = json.loads(line)
+            except json.JSONDecodeError:
+                continue                   # a line cut by an interruption: that sample runs again
+            done[int(s["index"])] = s
+    return done
+
+
+def _append(path: Path, sample: dict) -> None:
+    with path.open("a") as fh:
+        fh.write(json.dumps(sample) + "\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def plot_robustness(report: dict, samples: list[dict], path: Path) -> Path:
+    """Histogram of the speeds (nominal, median, 5th and 95th percentiles marked) and the speed
+    against each perturbation; written atomically as PNG."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    speed = np.array([s["speed_bl_per_min"] for s in samples], dtype=float)
+    up = np.array([bool(s["upright"]) for s in samples])
+    names = list(DERIVED_NAMES)
+    fig, axes = plt.subplots(3, 5, figsize=(17, 9))
+    ax = axes.flat[0]
+    ok = np.isfinite(speed)
+    ax.hist(speed[ok], bins=max(5, min(30, ok.sum() // 3)), color="0.6")
+    nominal = report["nominal"].get("speed_bl_per_min", np.nan)
+    ax.axvline(nominal, color="C3", lw=2, label=f"nominal {nominal:.2f}")
+    q = report["speed_bl_per_min"]
+    for key, style in (("median", "-"), ("p5", "--"), ("p95", "--")):
+        ax.axvline(q[key], color="k", ls=style, lw=1, label=f"{key} {q[key]:.2f}")
+    ax.set_xlabel("speed [BL/min]")
+    ax.set_title(f"{len(samples)} replays, {100 * report['upright_fraction']:.0f} % upright")
+    ax.legend(fontsize=7)
+    for ax, name in zip(axes.flat[1:], names):
+        x = np.array([s.get(name, np.nan) for s in samples], dtype=float)
+        ax.scatter(x[up & ok], speed[up & ok], s=8, color="C0", label="upright")
+        ax.scatter(x[~up & ok], speed[~up & ok], s=8, color="C3", marker="x", label="fell")
+        ax.axhline(nominal, color="C3", lw=1)
+        rho = report["speed_rank_correlation"].get(name)
+        ax.set_title(f"{name}" + (f" (rank corr. {rho:+.2f})" if rho is not None else ""), fontsize=9)
+        ax.set_ylabel("BL/min", fontsize=8)
+    axes.flat[1].legend(fontsize=7)
+    for ax in axes.flat[1 + len(names):]:
+        ax.axis("off")
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+    return path
+
+
+def _write_csv(path: Path, samples: list[dict]) -> None:
+    cols = ["index", *DERIVED_NAMES, "speed_bl_per_min", "upright", "heading_drift_deg_per_cycle", "max_tilt_deg",
+            "sim_failure"]
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, cols, extrasaction="ignore", lineterminator="\n")
+    w.writeheader()
+    for s in samples:
+        w.writerow(s)
+    atomic_write_bytes(path, buf.getvalue().encode())
+
+
+def run_robustness(args) -> int:
+    res = Result.load(args.result)
+    nominal_job, jobs = robustness_jobs(res, args.cycles, args.samples, args.seed)
+    out = Path(args.out)
+    settings = _settings(Path(args.result), args.cycles, args.seed)
+    done = _done_samples(out, settings)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(out / "settings.json", json.dumps(settings, indent=1).encode())
+    todo = [j for j in jobs if j.index not in done]
+    results, where = map_samples(todo, getattr(args, "workers", 1))
+    print(f"{res.summary()}\n{len(jobs)} replays of {args.cycles} cycles ({len(jobs) - len(todo)} done before), "
+          f"running {where}")
+    nominal = run_sample(nominal_job)
+    from tqdm import tqdm
+    for sample in tqdm(results, total=len(todo), desc="replays", unit="run", file=sys.stderr,
+                       disable=not sys.stderr.isatty()):
+        done[sample["index"]] = sample
+        _append(out / "samples.jsonl", sample)
+    samples = [done[j.index] for j in jobs]
+    report = summarize(nominal, samples)
+    report.update(result=str(args.result), cycles=args.cycles, seed=args.seed, backend=where)
+    atomic_write_bytes(out / "report.json", json.dumps(report, indent=1).encode())
+    _write_csv(out / "samples.csv", samples)
+    png = plot_robustness(report, samples, out / "robustness.png")
+    q, d = report["speed_bl_per_min"], report["heading_drift_deg_per_cycle"]
+    print(f"  nominal speed      {report['nominal'].get('speed_bl_per_min', float('nan')):.2f} BL/min "
+          f"(upright {report['nominal'].get('upright')})")
+    print(f"  perturbed speed    median {q['median']:.2f}, 5th-95th percentile {q['p5']:.2f} - {q['p95']:.2f} BL/min")
+    print(f"  upright            {100 * report['upright_fraction']:.0f} % of {len(samples)} "
+          f"({report['failed']} failed)")
+    print(f"  heading drift      median {d['median_abs']:.2f}, 95th percentile {d['p95_abs']:.2f} deg/cycle")
+    for w in report["worst"]:
+        keys = ", ".join(f"{k} {w[k]:.3g}" for k in PERTURBATIONS)
+        print(f"  worst: sample {w['index']}: {w['speed_bl_per_min']:.2f} BL/min, upright {w['upright']}: {keys}")
+    print(f"wrote {out / 'report.json'}, {out / 'samples.csv'}, {png}")
+    return 0

@@ -1,0 +1,223 @@
+"""Running a sweep: one Ray task per run, resuming, faults, Ctrl-C, progress.
+
+Runs whose ``status.json`` says ``done`` (with the same kind and parameters) are skipped;
+the others (never started, failed, interrupted, killed) are started, optimisations from their
+last checkpoint. A run that fails (exception, simulation error, killed worker) is recorded
+with its reason and the others go on. Ctrl-C cancels the runs in flight (an optimisation
+saves its last iterate for ``--resume``), leaves every finished run as it was, writes the
+summary and returns with ``interrupted = True``.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from .spec import Run, SweepSpec
+from .task import execute, read_status, write_status
+
+__all__ = ["run_sweep", "SweepOutcome", "plan", "start_ray"]
+
+#: seconds the runs in flight get to save themselves after Ctrl-C
+CANCEL_GRACE_S = 60.0
+
+
+@dataclass
+class SweepOutcome:
+    """What a sweep did: the final status of every run (by name), which were skipped as
+    already done, whether it was interrupted, and its wall time."""
+
+    statuses: dict[str, dict[str, Any]]
+    skipped: list[str] = field(default_factory=list)
+    interrupted: bool = False
+    wall_time_s: float = 0.0
+
+    def count(self, status: str) -> int:
+        return sum(1 for s in self.statuses.values() if s.get("status") == status)
+
+
+def plan(spec: SweepSpec, out: Path) -> tuple[list[Run], dict[str, dict]]:
+    """(runs to start, statuses of the runs already done). A run directory made with other
+    parameters is an error: the sweep never overwrites a result that is not its own."""
+    todo, done = [], {}
+    for run in spec.runs:
+        st = read_status(out / run.name)
+        if st is not None and (st.get("kind") != run.kind or st.get("params") != _jsonish(run.params)):
+            raise ValueError(f"{out / run.name}: holds run {run.name!r} made with other arguments "
+                             f"(kind {st.get('kind')!r}, {st.get('params')}); this sweep file asks for "
+                             f"{run.kind!r}, {run.params}. Use another --out, or move that directory away")
+        if st is not None and st.get("status") == "done":
+            done[run.name] = st
+        else:
+            todo.append(run)
+    return todo, done
+
+
+def _jsonish(params: dict) -> dict:
+    import json
+    return json.loads(json.dumps(params, default=str))
+
+
+def start_ray(workers: int | None = None, address: str | None = None):
+    """Connect to ``address`` ("auto", "ray://HOST:PORT", "HOST:PORT") or start a local Ray
+    with ``workers`` CPUs (default: all); reuse a Ray already initialised in this process.
+    Returns (ray module, whether we started it)."""
+    try:
+        import ray
+    except ImportError as exc:
+        raise ValueError("trajopt sweep needs Ray, which is not installed: pip install soft-envs[ray]") from exc
+    if ray.is_initialized():
+        return ray, False
+    kwargs: dict[str, Any] = {"log_to_driver": False, "configure_logging": True, "logging_level": "ERROR"}
+    if address:
+        try:
+            ray.init(address=address, **kwargs)
+        except (ConnectionError, RuntimeError, TimeoutError) as exc:
+            raise ValueError(f"--address {address}: cannot connect to a Ray cluster there ({exc}); start one "
+                             "with 'ray start --head' (see notes/ray.md) or leave --address out") from exc
+    else:
+        ray.init(num_cpus=int(workers or os.cpu_count() or 1), include_dashboard=False, **kwargs)
+    return ray, True
+
+
+class _Progress:
+    """A tqdm bar over runs on a terminal, plain lines otherwise."""
+
+    def __init__(self, total: int, stream=None):
+        self.stream = stream or sys.stderr
+        self.total, self.n = total, 0
+        self.bar = None
+        if total and hasattr(self.stream, "isatty") and self.stream.isatty():
+            from tqdm import tqdm
+            self.bar = tqdm(total=total, desc="sweep", unit="run", file=self.stream)
+
+    def line(self, text: str) -> None:
+        if self.bar is not None:
+            self.bar.write(text, file=self.stream)
+        else:
+            print(text, file=self.stream, flush=True)
+
+    def done(self, st: dict) -> None:
+        self.n += 1
+        m = st.get("metrics") or {}
+        fig = f", {m['speed_bl_per_min']:.2f} BL/min" if isinstance(m.get("speed_bl_per_min"), float) else ""
+        why = f": {st.get('reason')}" if st.get("status") != "done" and st.get("reason") else ""
+        self.line(f"[{self.n}/{self.total}] {st.get('status', '?'):<11} {st.get('run')} "
+                  f"({st.get('wall_time_s', 0.0):.1f} s{fig}){why}")
+        if self.bar is not None:
+            self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _crashed(run: Run, out: Path, exc: BaseException, started: float, status: str = "failed") -> dict:
+    """Status of a run whose task died without writing its own (killed worker, lost node)."""
+    st = read_status(out / run.name) or {"run": run.name, "kind": run.kind, "params": run.params,
+                                          "cpus": run.cpus, "options": run.options, "started": started}
+    if st.get("status") in ("done", "failed", "interrupted"):
+        return st                                   # the task recorded it before dying
+    first = (str(exc).strip().splitlines() or [""])[0]
+    reason = ("interrupted (Ctrl-C)" if status == "interrupted"
+              else f"worker died ({type(exc).__name__}): {first}".strip())
+    st.update(status=status, reason=reason, finished=time.time(), wall_time_s=time.time() - started)
+    if (out / run.name).is_dir():
+        write_status(out / run.name, st)
+    return st
+
+
+def run_sweep(spec: SweepSpec, out: str | os.PathLike, *, workers: int | None = None,
+              address: str | None = None, serial: bool = False,
+              on_status: Callable[[dict], None] | None = None, stream=None) -> SweepOutcome:
+    """Run the runs of ``spec`` not yet done under ``out`` (see the module docstring):
+    on Ray (``workers`` local CPUs, or the cluster at ``address``) or, with ``serial``, one
+    after another in this process."""
+    out = Path(out).resolve()
+    todo, done = plan(spec, out)          # checks before anything is written
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    progress = _Progress(len(todo), stream)
+    if done:
+        progress.line(f"{len(done)} of {len(spec.runs)} runs already done in {out}: skipped")
+    statuses: dict[str, dict] = dict(done)
+    outcome = SweepOutcome(statuses=statuses, skipped=sorted(done))
+
+    def record(st: dict) -> None:
+        statuses[st["run"]] = st
+        progress.done(st)
+        if on_status is not None:
+            on_status(st)
+
+    try:
+        if serial:
+            _run_serial(todo, out, record)
+        else:
+            outcome.interrupted = _run_ray(todo, out, workers, address, record, progress)
+    except KeyboardInterrupt:
+        outcome.interrupted = True
+    finally:
+        progress.close()
+    for run in spec.runs:                 # what the files say is authoritative
+        st = read_status(out / run.name)
+        if st is not None:
+            statuses[run.name] = st
+    outcome.wall_time_s = time.perf_counter() - t0
+    return outcome
+
+
+def _run_serial(todo: list[Run], out: Path, record) -> None:
+    for phase in (0, 1):
+        for run in (r for r in todo if r.phase == phase):
+            st = execute(run, out, threads=None)
+            record(st)
+            if st["status"] == "interrupted":
+                raise KeyboardInterrupt
+
+
+def _run_ray(todo: list[Run], out: Path, workers, address, record, progress) -> bool:
+    if not todo:
+        return False
+    ray, started = start_ray(workers, address)
+    remote = ray.remote(execute)
+    pending: dict[Any, tuple[Run, float]] = {}
+    try:
+        for phase in (0, 1):
+            for run in (r for r in todo if r.phase == phase):
+                ref = remote.options(num_cpus=run.cpus, max_retries=0, name=f"sweep:{run.name}").remote(run, out)
+                pending[ref] = (run, time.time())
+            while pending:
+                ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
+                for ref in ready:
+                    run, t_start = pending.pop(ref)
+                    try:
+                        st = ray.get(ref)
+                    except ray.exceptions.TaskCancelledError as exc:
+                        st = _crashed(run, out, exc, t_start, "interrupted")
+                    except ray.exceptions.RayError as exc:      # killed worker, lost node, OOM
+                        st = _crashed(run, out, exc, t_start)
+                    record(st)
+        return False
+    except KeyboardInterrupt:
+        progress.line(f"interrupted: stopping {len(pending)} runs in flight (they save what they can)")
+        for ref in pending:
+            ray.cancel(ref)
+        deadline = time.time() + CANCEL_GRACE_S
+        while pending and time.time() < deadline:
+            ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=1.0)
+            for ref in ready:
+                run, t_start = pending.pop(ref)
+                try:
+                    st = ray.get(ref)
+                except ray.exceptions.RayError as exc:
+                    st = _crashed(run, out, exc, t_start, "interrupted")
+                record(st)
+        for run, t_start in pending.values():
+            record(_crashed(run, out, KeyboardInterrupt(), t_start, "interrupted"))
+        return True
+    finally:
+        if started:
+            ray.shutdown()

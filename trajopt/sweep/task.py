@@ -1,0 +1,224 @@
+"""One run of a sweep, as a Ray task executes it (or in-process with ``--serial``).
+
+:func:`execute` runs the same code path as the single command (``trajopt.cli.main`` with the
+run's arguments, ``--out DIR/<run>``), its output going to ``DIR/<run>/log.txt``, and keeps
+``DIR/<run>/status.json`` (atomic writes) up to date: ``running`` when it starts, then
+``done``, ``failed`` (with the reason) or ``interrupted``. A rerun of an interrupted
+optimisation continues from its last Gauss-Newton checkpoint (``trajopt optimize --resume``);
+an interrupted RL training starts again.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import platform
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+from ..results import Result, atomic_write_bytes, partial_path
+from .spec import Run
+
+__all__ = ["execute", "read_status", "write_status", "STATUS_NAME", "LOG_NAME", "result_path"]
+
+STATUS_NAME = "status.json"
+LOG_NAME = "log.txt"
+POLICY_RESULT = "policy.npz"          # rl-train: the policy exported as a trajopt Result
+CURVE_NAME = "curve.json"             # rl-train with evaluate_checkpoints: [[steps, BL/min], ...]
+EVALUATION_NAME = "evaluation.json"   # evaluate / rl-evaluate
+
+
+def read_status(run_dir: Path) -> dict[str, Any] | None:
+    """The run's status.json, or None when there is none (or it cannot be read)."""
+    path = Path(run_dir) / STATUS_NAME
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def write_status(run_dir: Path, status: dict[str, Any]) -> None:
+    atomic_write_bytes(Path(run_dir) / STATUS_NAME, json.dumps(status, indent=1, default=str).encode())
+
+
+def result_path(run: Run, run_dir: Path) -> Path:
+    """The file the run's main figure is read from."""
+    if run.kind == "optimize":
+        return run_dir / f"{run.name}.npz"
+    if run.kind == "rl-train":
+        return run_dir / POLICY_RESULT
+    return run_dir / EVALUATION_NAME
+
+
+class _Tee(io.TextIOBase):
+    def __init__(self, *streams):
+        self._streams = streams
+
+    def write(self, s: str) -> int:
+        for st in self._streams:
+            st.write(s)
+        return len(s)
+
+    def flush(self) -> None:
+        for st in self._streams:
+            st.flush()
+
+
+def _derived_robot(run: Run, run_dir: Path) -> Path:
+    """A copy of the run's robot.toml with its [contact] fields replaced (mesh path made
+    absolute), written to ``run_dir/robot.toml``."""
+    import tomllib
+    import tomli_w
+    robot = str(run.params["robot"])
+    if robot.endswith(".toml"):
+        src = Path(robot)
+    else:                                   # where load_robot finds shipped robots, in its order
+        import soft_envs
+        from importlib.resources import files
+        src = Path(soft_envs.__file__).resolve().parents[1] / "assets" / robot / "robot.toml"
+        if not src.is_file():
+            src = Path(str(files("soft_envs.assets") / robot / "robot.toml"))
+    if not src.is_file():
+        raise ValueError(f"robot {robot!r}: robot file {src} not found")
+    doc = tomllib.loads(src.read_text())
+    doc.setdefault("robot", {})
+    if "mesh" in doc["robot"]:
+        doc["robot"]["mesh"] = str((src.parent / doc["robot"]["mesh"]).resolve())
+    doc.setdefault("contact", {}).update(run.contact())
+    path = run_dir / "robot.toml"
+    atomic_write_bytes(path, tomli_w.dumps(doc).encode())
+    return path
+
+
+def _resumable(path: Path) -> bool:
+    """An optimisation checkpoint (``NAME.partial.npz``) left by an interrupted or killed run."""
+    meta = path.with_suffix(".json")
+    try:
+        return path.is_file() and json.loads(meta.read_text()).get("status") in ("running", "interrupted")
+    except (OSError, ValueError):
+        return False
+
+
+def _argv(run: Run, out: Path, run_dir: Path) -> list[str]:
+    robot_file = _derived_robot(run, run_dir) if run.contact() else None
+    argv = run.argv(robot_file)
+    if run.kind == "optimize":
+        argv += ["--out", str(run_dir), "--name", run.name, "--quiet"]
+        if _resumable(partial_path(result_path(run, run_dir))):
+            argv.append("--resume")
+    elif run.kind == "rl-train":
+        argv += ["--out", str(out), "--name", run.name, "--no-progress", "--overwrite"]
+        if "n_envs" not in run.params:
+            argv += ["--n-envs", str(run.cpus)]
+    elif run.kind in ("rl-evaluate", "evaluate"):
+        argv.append("--json")
+    return argv
+
+
+def _metrics(run: Run, run_dir: Path, stdout: str) -> dict[str, Any]:
+    """The figures the summary shows, read from the files the run wrote."""
+    m: dict[str, Any] = {}
+    if run.kind == "optimize":
+        res = Result.load(result_path(run, run_dir))
+        ev = res.evaluation
+        m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"),
+                 target_bl_per_min=res.settings.get("speed_bl_per_min"), objective=ev.get("objective"),
+                 gn_iterations=len(res.history), result_status=res.status,
+                 sim_steps=ev.get("optimization_sim_steps"), result=str(result_path(run, run_dir)))
+    elif run.kind == "rl-train":
+        from ..rl.training import CONFIG_NAME
+        cfg = json.loads((run_dir / CONFIG_NAME).read_text())
+        m.update(timesteps=cfg.get("timesteps_done"), sim_steps=cfg.get("sim_steps"),
+                 train_wall_time_s=cfg.get("wall_time_s"), result_status=cfg.get("status"))
+        if run.options.get("export", True):
+            from ..rl.evaluate import export_result
+            ev = export_result(run_dir, run_dir / POLICY_RESULT).evaluation
+            m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"),
+                     result=str(run_dir / POLICY_RESULT))
+        if run.options.get("evaluate_checkpoints"):
+            m["curve"] = _checkpoint_curve(run_dir, int(cfg["env"]["frame_skip"]))
+    elif run.kind == "rl-evaluate":
+        ev = json.loads(stdout[stdout.index("{"):])
+        atomic_write_bytes(run_dir / EVALUATION_NAME, json.dumps(ev, indent=1).encode())
+        m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"))
+    else:                                                  # evaluate --json: one JSON object
+        ev = json.loads(stdout[stdout.index("{"):])
+        atomic_write_bytes(run_dir / EVALUATION_NAME, json.dumps(ev, indent=1).encode())
+        m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"))
+    return m
+
+
+def _checkpoint_curve(run_dir: Path, frame_skip: int) -> list[list[float]]:
+    """trajopt's metric for every checkpoint of an RL run (speed vs simulation steps)."""
+    from ..rl.evaluate import evaluate_policy_metric, load_policy
+    from ..rl.training import checkpoint_steps
+    curve = []
+    for ck in sorted((run_dir / "checkpoints").glob("model_*_steps.zip"), key=checkpoint_steps):
+        ev = evaluate_policy_metric(load_policy(ck))
+        curve.append([checkpoint_steps(ck) * frame_skip, ev["speed_bl_per_min"]])
+    atomic_write_bytes(run_dir / CURVE_NAME, json.dumps(curve).encode())
+    return curve
+
+
+def _reason(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0] if text else ''}".strip()
+
+
+def execute(run: Run, out: str | os.PathLike, threads: int | None = None) -> dict[str, Any]:
+    """Run ``run`` under ``out/run.name`` and return its final status (also in status.json).
+    ``threads``: cap the compute threads of this process (default: the run's CPUs)."""
+    from soft_envs.envs.threads import limit_threads
+    from ..cli import main as trajopt_main
+
+    out = Path(out)
+    run_dir = out / run.name
+    t0, cpu0 = time.time(), time.process_time()
+    status: dict[str, Any] = {"run": run.name, "kind": run.kind, "params": run.params, "cpus": run.cpus,
+                              "options": run.options, "status": "running", "started": t0,
+                              "host": platform.node(), "pid": os.getpid()}
+    if not out.is_dir():
+        status.update(status="failed", reason=f"the sweep directory {out} is not visible on host "
+                      f"{platform.node()}: on a cluster, --out must be on a filesystem every node shares")
+        return status
+    run_dir.mkdir(parents=True, exist_ok=True)
+    write_status(run_dir, status)
+    limit_threads(threads or run.cpus)
+    out_buf, err_buf = io.StringIO(), io.StringIO()
+    code: int | None = None
+    try:
+        with open(run_dir / LOG_NAME, "a") as log:
+            log.write(f"\n=== {time.strftime('%Y-%m-%d %H:%M:%S')} on {platform.node()} (pid {os.getpid()})\n")
+            try:
+                argv = _argv(run, out, run_dir)
+                status["argv"] = ["trajopt", *argv]
+                log.write("$ trajopt " + " ".join(argv) + "\n")
+                log.flush()
+                with contextlib.redirect_stdout(_Tee(log, out_buf)), contextlib.redirect_stderr(_Tee(log, err_buf)):
+                    try:
+                        code = int(trajopt_main(argv) or 0)
+                    except SystemExit as exc:       # argparse (the spec was checked, so rare)
+                        code = exc.code if isinstance(exc.code, int) else 2
+                if code == 130:
+                    status.update(status="interrupted", reason="interrupted (Ctrl-C or cancelled)")
+                elif code not in (0, 1) or (code == 1 and run.kind not in ("evaluate", "rl-evaluate")):
+                    lines = [ln for ln in err_buf.getvalue().splitlines() if ln.strip()]
+                    reason = lines[-1] if lines else f"exit code {code}"
+                    status.update(status="failed", reason=reason.removeprefix("trajopt: error: "))
+                else:
+                    status.update(status="done", metrics=_metrics(run, run_dir, out_buf.getvalue()))
+            except KeyboardInterrupt:
+                status.update(status="interrupted", reason="interrupted (Ctrl-C or cancelled)")
+            except Exception as exc:                # SimulationError, bad files, bugs: recorded
+                traceback.print_exc(file=log)
+                status.update(status="failed", reason=_reason(exc))
+    finally:
+        status.update(exit_code=code, finished=time.time(), wall_time_s=time.time() - t0,
+                      cpu_time_s=time.process_time() - cpu0)     # this process (not its subprocesses)
+        if status["status"] == "running":           # left by a BaseException we do not handle
+            status.update(status="interrupted", reason="stopped before the run ended")
+        write_status(run_dir, status)
+    return status
