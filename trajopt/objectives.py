@@ -10,7 +10,7 @@ r"""The gait objective as a residual vector with its Jacobian (for Gauss-Newton)
   best-fit rotation (:class:`~trajopt.heading.HeadingMeasure`) at states k = 1..K, with its exact
   Jacobian through the rollout's ``dxdz``. COM tracking alone lets the body follow a curve
   partly sideways; this term asks it to face along the path.
-* Slack eating (paper eq. 13): ``r_slack,k,t = sqrt(w_slack / (K T)) max(eps - Gamma_kt, 0) / range``:
+* Slack eating (paper eq. 13, :func:`slack_eating_residual`): ``r_slack,k,t = sqrt(w_slack / (K T)) max(eps - Gamma_kt, 0) / range``:
   its square is the one-sided quadratic Q(eps - Gamma); it drives every cable to be at least
   slightly taut (eps, default 0.05 mm), removing the flat slack regions of the landscape.
   ``range`` is the mean contraction range of the motors.
@@ -29,7 +29,7 @@ import numpy as np
 
 from .heading import HeadingMeasure
 
-__all__ = ["ObjectiveWeights", "HeadingTarget", "gait_residuals"]
+__all__ = ["ObjectiveWeights", "HeadingTarget", "gait_residuals", "slack_eating_residual"]
 
 
 #: the turn's default heading weight (:meth:`ObjectiveWeights.for_task`): a heading error of
@@ -74,6 +74,20 @@ def _heading_residual(traj, heading: HeadingTarget, s: float, need_jac: bool):
     return s * (heading.measure.yaws(traj.x)[1:] - heading.yaw[1:]), None
 
 
+def slack_eating_residual(gamma: np.ndarray, dgammadz: np.ndarray | None, eps: float, scale: float):
+    r"""The slack-eating regulariser (paper eq. 13) as residuals: ``(r, J)`` with
+    ``r = scale max(eps - Gamma, 0)`` for every cable deformation ``gamma`` (K, T) [m], so that
+    ``0.5 |r|^2 = scale^2 sum_k,t Q(eps - Gamma_kt)`` with the one-sided quadratic
+    ``Q(s) = max(s, 0)^2 / 2``: it pulls every cable to be at least ``eps`` taut, removing the
+    flat slack regions of the objective. ``J = -scale dGamma/dz`` on the active entries, from
+    ``dgammadz`` (K, T, nz) (None: no Jacobian)."""
+    active = gamma < eps
+    r = (scale * np.where(active, eps - gamma, 0.0)).ravel()
+    if dgammadz is None:
+        return r, None
+    return r, (-scale * np.where(active[:, :, None], dgammadz, 0.0)).reshape(r.size, dgammadz.shape[-1])
+
+
 def gait_residuals(traj, target: np.ndarray, z: np.ndarray, param, body_length: float,
                    weights: ObjectiveWeights, need_jac: bool = True, heading: HeadingTarget | None = None):
     """``(r, J, terms)``: residual vector, its Jacobian (or None) and the objective's terms
@@ -85,13 +99,10 @@ def gait_residuals(traj, target: np.ndarray, z: np.ndarray, param, body_length: 
     use_heading = heading is not None and weights.heading > 0
     r_hd, J_hd = (_heading_residual(traj, heading, np.sqrt(weights.heading / K), need_jac) if use_heading
                   else (np.zeros(0), np.zeros((0, len(z)))))
-    gam = traj.cable_deformation[1:]
-    T = gam.shape[1]
     lo, hi = param.bounds()
-    rng_u = float(np.mean(hi - lo))
-    s_sl = np.sqrt(weights.slack / max(K * T, 1)) / rng_u
-    active = gam < weights.slack_eps
-    r_sl = (s_sl * np.where(active, weights.slack_eps - gam, 0.0)).ravel()
+    gam = traj.cable_deformation[1:]
+    s_sl = np.sqrt(weights.slack / max(gam.size, 1)) / float(np.mean(hi - lo))
+    r_sl, J_sl = slack_eating_residual(gam, traj.dgammadz[1:] if need_jac else None, weights.slack_eps, s_sl)
     nz = len(z)
     rng_z = hi - lo
     s_mag = np.sqrt(weights.magnitude / nz)
@@ -108,7 +119,6 @@ def gait_residuals(traj, target: np.ndarray, z: np.ndarray, param, body_length: 
     if not need_jac:
         return r, None, terms
     J_com = (s_com * traj.dcomdz[1:, [0, 2], :]).reshape(-1, nz)
-    J_sl = (-s_sl * np.where(active[:, :, None], traj.dgammadz[1:], 0.0)).reshape(-1, nz)
     J_mag = np.diag(s_mag / rng_z)
     J_sm = s_sm * Dz
     return r, np.vstack([J_com, J_hd, J_sl, J_mag, J_sm]), terms
