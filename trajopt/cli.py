@@ -31,7 +31,7 @@ import numpy as np
 from .argtypes import (cycles, file_name, frame_size, integer, number, output_dir, output_file, positive_float,
                        positive_int, slope_deg, steps)
 from .files import RESULTS_DIR
-from .gait import DEFAULT_EVAL_CYCLES, GaitSpec
+from .gait import DEFAULT_EVAL_CYCLES, TURN_KEYFRAMES, GaitSpec
 
 __all__ = ["main", "build_parser", "RESULTS_DIR"]
 
@@ -49,7 +49,8 @@ def _add_optimize(sub) -> None:
     p.add_argument("--angle", type=slope_deg, default=20.0, help="slope [deg] (task incline)")
     p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
                    help="ground contact law: paper (II-C, viscous-like friction, Table I) or coulomb "
-                        "(friction bounded by mu N, feet that stick); default: the robot file's")
+                        "(friction bounded by mu N, feet that stick); default: the robot file's, coulomb "
+                        "for the turn (it pivots on a foot that sticks)")
     sym = p.add_mutually_exclusive_group()
     sym.add_argument("--symmetry", dest="symmetry", action="store_true", default=None,
                      help="bilateral symmetry on (default for walk and incline)")
@@ -58,8 +59,8 @@ def _add_optimize(sub) -> None:
     p.add_argument("--iterations", type=integer(0, 100_000), default=10,
                    help="Gauss-Newton iterations at most (0: evaluate the starting gait)")
     paper = GaitSpec()
-    p.add_argument("--keyframes", type=steps, default=paper.n_keyframes,
-                   help=f"spline keyframes per cycle (default {paper.n_keyframes}, the paper's)")
+    p.add_argument("--keyframes", type=steps, default=None,
+                   help=f"spline keyframes per cycle (default {paper.n_keyframes}, the paper's; turn {TURN_KEYFRAMES})")
     p.add_argument("--cycle-steps", type=steps, default=paper.n_cycle,
                    help=f"simulation steps per gait cycle (default {paper.n_cycle}, the paper's)")
     p.add_argument("--prep-steps", type=integer(0, 100_000), default=paper.n_prep,

@@ -21,7 +21,7 @@ from .evaluation import evaluate_result
 from .files import RESULTS_DIR
 from .gait import GaitSpec
 from .gauss_newton import GaussNewtonOptions
-from .optimize import optimize_gait
+from .optimize import TASK_CONTACT, optimize_gait
 from .progress import IterationProgress
 from .results import Result, partial_path, result_path
 
@@ -47,16 +47,31 @@ def _print_table(rows: list[tuple[str, str]]) -> None:
         print(f"  {k.ljust(w)}  {v}")
 
 
-def evaluation_rows(ev: dict) -> list[tuple[str, str]]:
+def evaluation_rows(ev: dict, task: str = "walk") -> list[tuple[str, str]]:
     """The rows of an evaluation (speed, per cycle, heading, tilt, upright), or the simulation
-    failure's reason when the replay failed."""
+    failure's reason when the replay failed. The heading is the yaw of the best-fit rotation of
+    all nodes. A turn's speed is along its COM path sampled once per cycle (along a fixed
+    direction it averages out; every step's path adds the sway within a stride); a turn also
+    shows its heading per cycle and over the optimised horizon, with the COM's RMS distance from
+    the quarter circle."""
     if "sim_failure" in ev:
         return [("simulation", f"FAILED: {ev['sim_failure']}"), ("upright", "False (the simulation failed)")]
-    return [("speed", f"{ev['speed_bl_per_min']:.3f} BL/min over {ev['cycles']} cycles"),
-            ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
-            ("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg"),
-            ("max tilt", f"{ev.get('max_tilt_deg', float('nan')):.1f} deg"),
-            ("upright", "yes" if ev["upright"] else "NO: it fell (tilt over 60 deg or COM below half its height)")]
+    nan = float("nan")
+    if task != "turn":
+        rows = [("speed", f"{ev['speed_bl_per_min']:.3f} BL/min over {ev['cycles']} cycles"),
+                ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
+                ("heading change", f"{ev.get('heading_change_deg', nan):+.1f} deg over {ev['cycles']} cycles")]
+    else:
+        rows = [("speed", f"{ev.get('cycle_path_speed_bl_per_min', nan):.2f} BL/min along the COM path "
+                          f"(cycle to cycle) over {ev['cycles']} cycles"),
+                ("heading change", f"{ev.get('heading_change_deg', nan):+.1f} deg over {ev['cycles']} cycles"),
+                ("heading per cycle", " ".join(f"{v:+.1f}" for v in ev.get("heading_per_cycle_deg", [])))]
+        if "horizon_heading_change_deg" in ev:
+            rows.append(("heading, horizon", f"{ev['horizon_heading_change_deg']:+.1f} deg over the optimised "
+                                             f"{ev['horizon_steps']} steps; COM {ev['horizon_rms_to_target_bl']:.3f} "
+                                             "BL RMS from the target"))
+    return rows + [("max tilt", f"{ev.get('max_tilt_deg', nan):.1f} deg"),
+                   ("upright", "yes" if ev["upright"] else "NO: it fell (tilt over 60 deg or COM below half its height)")]
 
 
 # ---------------------------------------------------------------------- optimize: files
@@ -139,9 +154,11 @@ def run_optimize(args) -> int:
     warm = Result.load(args.warm_start) if args.warm_start else None
     if warm is not None:
         warm.settings["source"] = str(args.warm_start)
+    contact = args.contact or TASK_CONTACT.get(task)          # the turn pivots on feet that stick
     with compile_ahead(args.robot):            # first run on a machine: numba compiles meanwhile
-        env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading, contact=args.contact)
+        env = make_gradient_env(args.robot, incline_deg=incline, heading_deg=args.heading, contact=contact)
     print(f"{env.robot.summary()}; task {task}; {env.contact_model} contact law"
+          + (f" (the {task}'s default; --contact paper for the paper's)" if contact and not args.contact else "")
           + (f", slope {incline:g} deg" if incline else ""))
     print(f"writes {out} (+ .json) when it finishes; checkpoints in {partial} until then")
     done_before = len(resume.history) if resume else 0
@@ -187,7 +204,7 @@ def _report(res: Result, path: Path, seconds: float) -> None:
             ("iterations", str(len(res.history))),
             ("objective", f"{ev['objective']:.5g}"),
             ("target speed", f"{res.settings['speed_bl_per_min']:g} BL/min")]
-    rows += evaluation_rows(ev)
+    rows += evaluation_rows(ev, res.task)
     rows.append(("simulation steps", str(ev["optimization_sim_steps"])))
     _print_table(rows)
     print(f"\nnext:\n  trajopt render {path}      # animation: {RESULTS_DIR / (path.stem + '.gif')}\n"
@@ -202,5 +219,5 @@ def run_evaluate(args) -> int:
         print(json.dumps({k: v for k, v in ev.items() if k != "com"}, allow_nan=True))
     else:
         print(res.summary())
-        _print_table(evaluation_rows(ev))
+        _print_table(evaluation_rows(ev, res.task))
     return 0 if ev["upright"] else 1

@@ -8,6 +8,12 @@ along the target direction over the repeated cycles (from the end of the prep ph
 of the last cycle); per-cycle speeds show whether the gait is periodic. "Upright" means the
 body's up axis never tilts more than ``max_tilt_deg`` from vertical and the COM never drops
 below half of its rest height.
+
+The heading is the yaw of the best-fit rotation of all nodes from the rest shape
+(:class:`~soft_envs.envs.BodyFrame`), not the direction of the COM path: a gait that walks
+sideways along a curve does not turn. It is reported over the whole rollout and per cycle, and,
+given the optimisation's ``target`` path (K+1, 2), over that horizon (prep + the optimised
+cycles) together with the RMS distance of the COM from the target (turns: the quarter circle).
 """
 from __future__ import annotations
 
@@ -52,12 +58,27 @@ def _count_cycles(n_steps: int, n_prep: int, n_cycle: int) -> int:
     return n_cycles
 
 
+def _horizon(com: np.ndarray, head: np.ndarray, target: np.ndarray, body_length: float) -> dict[str, Any]:
+    """Heading change and RMS distance [BL] of the COM from ``target`` over states 1..K_t."""
+    target = np.asarray(target, dtype=np.float64)
+    k = len(target) - 1
+    if target.ndim != 2 or target.shape[1] != 2 or not 1 <= k <= len(com) - 1:
+        raise ValueError(f"target must be a (K+1, 2) path with 1 <= K <= {len(com) - 1}, got {target.shape}")
+    dist = np.linalg.norm(com[1:k + 1][:, [0, 2]] - target[1:], axis=1)
+    return {"horizon_steps": int(k), "horizon_heading_change_deg": float(np.degrees(head[k] - head[0])),
+            "horizon_rms_to_target_bl": float(np.sqrt(np.mean(dist ** 2)) / body_length)}
+
+
 def measure_gait(traj: Any, env: GradientEnv, *, n_prep: int, n_cycle: int, heading_deg: float = 0.0,
-                 max_tilt_deg: float = 60.0) -> dict[str, Any]:
-    """Speed, per-cycle speeds, path speed, heading change, tilt and uprightness of a finished
-    trajectory ``traj`` (anything with ``x`` (K+1, n, 3) and ``com`` (K+1, 3) of simulation steps
-    of ``env.timestep`` seconds, state 0 the start) of ``env.robot``: prep ``n_prep`` steps, then
-    cycles of ``n_cycle`` steps, measured along ``heading_deg``."""
+                 max_tilt_deg: float = 60.0, target: np.ndarray | None = None) -> dict[str, Any]:
+    """Speed, per-cycle speeds, path speeds (of every step, and of the COM sampled once per cycle,
+    which leaves out the sway within a stride: a turn's speed along its circle), heading change
+    (whole and per cycle), tilt and
+    uprightness of a finished trajectory ``traj`` (anything with ``x`` (K+1, n, 3) and ``com``
+    (K+1, 3) of simulation steps of ``env.timestep`` seconds, state 0 the start) of
+    ``env.robot``: prep ``n_prep`` steps, then cycles of ``n_cycle`` steps, measured along
+    ``heading_deg``. With ``target`` (K_t+1, 2), K_t <= K, the optimised horizon's figures too:
+    ``horizon_heading_change_deg`` and ``horizon_rms_to_target_bl``."""
     robot, dt = env.robot, env.timestep
     K = len(traj.x) - 1
     n_cycles = _count_cycles(K, n_prep, n_cycle)
@@ -75,23 +96,27 @@ def measure_gait(traj: Any, env: GradientEnv, *, n_prep: int, n_cycle: int, head
     com_h = com[:, 1]
     upright = bool(tilt.max() <= max_tilt_deg and com_h.min() >= 0.5 * com_h[0])
     path = np.linalg.norm(np.diff(com[marks[0]:, [0, 2]], axis=0), axis=1).sum()
+    chords = np.linalg.norm(np.diff(com[marks][:, [0, 2]], axis=0), axis=1).sum()
     return {
         "cycles": int(n_cycles),
         "speed_bl_per_min": float(mean),
         "speed_per_cycle_bl_per_min": [float(v) for v in per_cycle],
         "path_speed_bl_per_min": mps_to_bl_per_min(path / (n_cycles * n_cycle * dt), bl),
+        "cycle_path_speed_bl_per_min": mps_to_bl_per_min(chords / (n_cycles * n_cycle * dt), bl),
         "heading_change_deg": float(np.degrees(head[-1] - head[0])),
+        "heading_per_cycle_deg": [float(v) for v in np.degrees(np.diff(head[marks]))],
         "max_tilt_deg": float(tilt.max()),
         "upright": upright,
         "sim_steps": int(K),
         "com": np.asarray(com).tolist(),
-    }
+    } | ({} if target is None else _horizon(com, head, target, bl))
 
 
 def evaluate_controls(env: GradientEnv, u: np.ndarray, *, n_prep: int, n_cycle: int, heading_deg: float = 0.0,
-                      max_tilt_deg: float = 60.0) -> dict[str, Any]:
-    """Play ``u`` (prep + N cycles) from ``env``'s reset state and :func:`measure_gait` it; a
-    failed simulation gives ``speed_bl_per_min`` NaN, ``upright`` False and ``sim_failure``."""
+                      max_tilt_deg: float = 60.0, target: np.ndarray | None = None) -> dict[str, Any]:
+    """Play ``u`` (prep + N cycles) from ``env``'s reset state and :func:`measure_gait` it
+    (``target``: see there); a failed simulation gives ``speed_bl_per_min`` NaN, ``upright``
+    False and ``sim_failure``."""
     n_cycles = _count_cycles(len(u), n_prep, n_cycle)
     try:
         traj = env.rollout(u)
@@ -99,7 +124,7 @@ def evaluate_controls(env: GradientEnv, u: np.ndarray, *, n_prep: int, n_cycle: 
         return {"cycles": n_cycles, "speed_bl_per_min": float("nan"), "upright": False,
                 "sim_failure": str(err)}
     return measure_gait(traj, env, n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading_deg,
-                        max_tilt_deg=max_tilt_deg)
+                        max_tilt_deg=max_tilt_deg, target=target)
 
 
 def evaluate_result(res, n_cycles: int | None = None, *, ignore_robot_mismatch: bool = False) -> dict[str, Any]:
@@ -107,12 +132,14 @@ def evaluate_result(res, n_cycles: int | None = None, *, ignore_robot_mismatch: 
     cycles (default: as it was evaluated, else :data:`DEFAULT_EVAL_CYCLES`), on the physics it
     was made on (another robot is refused unless ``ignore_robot_mismatch``, see
     :func:`trajopt.replay.env_for_result`); keyframe results are re-expanded, others (like
-    exported RL gaits) play their ``u``."""
+    exported RL gaits) play their ``u``. The optimised horizon's heading and distance to
+    ``res.target`` are measured when the played controls cover it."""
     from .replay import env_for_result, result_controls
     cycles = int(res.settings.get("eval_cycles", DEFAULT_EVAL_CYCLES)) if n_cycles is None else int(n_cycles)
     if cycles < 1:
         raise ValueError(f"the number of cycles must be >= 1, got {cycles}")
     env = env_for_result(res, ignore_robot_mismatch=ignore_robot_mismatch)
     u, n_prep, n_cycle = result_controls(res, env.robot, cycles)
+    target = res.target if 2 <= len(res.target) <= len(u) + 1 else None     # the optimised horizon
     return evaluate_controls(env, u, n_prep=n_prep, n_cycle=n_cycle,
-                             heading_deg=float(res.settings.get("heading_deg", 0.0)))
+                             heading_deg=float(res.settings.get("heading_deg", 0.0)), target=target)

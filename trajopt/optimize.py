@@ -28,16 +28,21 @@ from soft_envs.envs import GradientEnv, SimulationError, as_gradient_env
 from .evaluation import DEFAULT_EVAL_CYCLES, evaluate_controls, zero_slack_controls
 from .gait import GaitSpec
 from .gauss_newton import GaussNewtonOptions, GaussNewtonResult, gauss_newton
-from .objectives import ObjectiveWeights, gait_residuals
+from .heading import HeadingMeasure
+from .objectives import HeadingTarget, ObjectiveWeights, gait_residuals
 from .parameterization import GaitParameterization
 from .results import Result
 from .robot_match import describe_difference, fingerprint_of
-from .targets import bl_per_min_to_mps, from_array, quarter_circle, straight_line
+from .targets import bl_per_min_to_mps, from_array, quarter_circle, quarter_circle_heading, straight_line
 
 __all__ = ["optimize_gait", "GaitProblem", "Start", "Recorder", "build_problem", "choose_start", "check_resume",
-           "finish", "DEFAULT_SPEED", "TASKS"]
+           "finish", "DEFAULT_SPEED", "TASKS", "TASK_CONTACT"]
 
 TASKS = ("walk", "turn", "incline", "custom")
+#: the contact law a task runs on when none is chosen (None: the robot file's). The turn pivots
+#: on feet that stick, which the paper's viscous-like friction cannot hold: with it the Puppy
+#: turns about 36 degrees per cycle at most, with the Coulomb law 43 (notes/turn.md)
+TASK_CONTACT = {"turn": "coulomb"}
 #: default target speeds [BL/min], a little above the paper's Table I (Tripod 6.1, Puppy 8.6)
 DEFAULT_SPEED = {"tripod": 8.0, "puppy": 10.0}
 #: the settings a resumed run must share with the interrupted one (besides the task)
@@ -49,14 +54,17 @@ class GaitProblem:
     """The shooting problem: parameters z -> controls -> rollout -> residuals and Jacobian.
 
     Counts the simulation steps it spends (``sim_steps``; a rollout with sensitivities counts
-    its steps once, like the paper's forward sensitivity recurrence alongside the steps)."""
+    its steps once, like the paper's forward sensitivity recurrence alongside the steps).
+    ``heading``: target headings of the body for the heading term (used when
+    ``weights.heading > 0``; the rollouts then keep ``dxdz``)."""
 
     def __init__(self, env: GradientEnv, param: GaitParameterization, target: np.ndarray,
-                 weights: ObjectiveWeights):
+                 weights: ObjectiveWeights, heading: HeadingTarget | None = None):
         self.env = env
         self.param = param
         self.target = target
         self.weights = weights
+        self.heading = heading
         self.dudz = param.dudz()
         self.u_offset = param.offset()
         self.sim_steps = 0
@@ -69,11 +77,12 @@ class GaitProblem:
 
     def __call__(self, z: np.ndarray, need_jac: bool = True):
         u = self.controls(z)
-        traj = self.env.rollout(u, dudz=self.dudz if need_jac else None)
+        with_heading = self.heading is not None and self.weights.heading > 0
+        traj = self.env.rollout(u, dudz=self.dudz if need_jac else None, store_dxdz=need_jac and with_heading)
         self.sim_steps += len(u)
         self.rollouts += 1
         r, J, terms = gait_residuals(traj, self.target, z, self.param, self.env.robot.body_length,
-                                     self.weights, need_jac)
+                                     self.weights, need_jac, self.heading)
         if need_jac:
             self.last_traj = traj
         return r, J, {"terms": terms}
@@ -113,7 +122,12 @@ def build_problem(env: GradientEnv, task: str, gait: GaitSpec, *, speed_bl_per_m
     objective's ``weights``."""
     param = GaitParameterization.for_robot(env.robot, gait)
     path = _target_path(task, env, param.n_steps(), speed_bl_per_min, heading_deg, turn, target)
-    return GaitProblem(env, param, path, weights)
+    heading = None
+    if task == "turn" and target is None:       # the body turns as the arc does, from where it faces
+        v = bl_per_min_to_mps(speed_bl_per_min, env.robot.body_length)
+        measure = HeadingMeasure(env.reset_state()[0], env.robot.node_masses)
+        heading = HeadingTarget(measure, quarter_circle_heading(param.n_steps(), env.timestep, v, 0.0, turn))
+    return GaitProblem(env, param, path, weights, heading)
 
 
 # ---------------------------------------------------------------------- 2. the start
@@ -164,7 +178,11 @@ def choose_start(problem: GaitProblem, *, resume: Result | None = None, z0: np.n
                  warm_start: Result | None = None, n_seeds: int = 8) -> Start:
     """Continue ``resume`` (check its settings with :func:`check_resume` first), or start at
     ``z0``, or at the best objective among ``warm_start``'s keyframes and ``param.seeds(n_seeds)``
-    (cheap rollouts without sensitivities; ``n_seeds=0`` with a warm start: the warm start)."""
+    (cheap rollouts without sensitivities; ``n_seeds=0`` with a warm start: the warm start). The
+    warm start's keyframes may be fewer, repeated (:meth:`GaitParameterization.keyframes_from`).
+    For a turn (a problem with target headings) the warm start with either side's motors
+    played backwards (:meth:`GaitParameterization.one_side_reversed`, tank turns) are candidates
+    too: the walk's strides alone hardly rotate the body, and Gauss-Newton is local."""
     param = problem.param
     if resume is not None:
         start = _resumed(resume)
@@ -174,10 +192,15 @@ def choose_start(problem: GaitProblem, *, resume: Result | None = None, z0: np.n
         candidates = []
         if warm_start is not None:
             kf = np.asarray(warm_start.settings.get("keyframes"), dtype=np.float64)
-            if kf.shape != (param.n_motors, param.n_keyframes):
-                raise ValueError(f"warm start has keyframes of shape {kf.shape}, this problem needs "
-                                 f"({param.n_motors}, {param.n_keyframes})")
+            try:
+                kf = param.keyframes_from(kf)
+            except ValueError as err:
+                source = warm_start.settings.get("source")
+                raise ValueError(f"{source + ': ' if source else ''}warm start: {err}") from None
             candidates.append(np.clip(param.z_from_keyframes(kf), *param.bounds()))
+            if problem.heading is not None and not param.symmetry:      # a turn: tank turns too
+                candidates += [np.clip(param.z_from_keyframes(param.one_side_reversed(kf, side)), *param.bounds())
+                               for side in (0, 1)]
         candidates += param.seeds(n_seeds) if (n_seeds > 0 or not candidates) else []
         start = Start(z=candidates[0] if len(candidates) == 1 else _best_seed(problem, candidates))
     if start.z.shape != (param.nz,):
@@ -229,7 +252,8 @@ def finish(recorder: Recorder, gn: GaussNewtonResult, eval_cycles: int, heading_
     result.u_post = zero_slack_controls(result.u, traj.cable_deformation, robot.tendon_motor, robot.u_bounds)
     gait = problem.param.gait
     result.evaluation = evaluate_controls(env, problem.param.controls(z, eval_cycles), n_prep=gait.n_prep,
-                                          n_cycle=gait.n_cycle, heading_deg=heading_deg)
+                                          n_cycle=gait.n_cycle, heading_deg=heading_deg,
+                                          target=problem.target if eval_cycles >= gait.n_cycles else None)
     result.evaluation["optimization_sim_steps"] = problem.sim_steps
     result.evaluation["optimization_wall_time_s"] = time.perf_counter() - recorder.t_start
     result.evaluation["objective"] = gn.objective
@@ -238,7 +262,7 @@ def finish(recorder: Recorder, gn: GaussNewtonResult, eval_cycles: int, heading_
 
 def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
                   speed_bl_per_min: float | None = None, heading_deg: float = 0.0, turn: str = "right",
-                  target: np.ndarray | None = None, weights: ObjectiveWeights = ObjectiveWeights(),
+                  target: np.ndarray | None = None, weights: ObjectiveWeights | None = None,
                   options: GaussNewtonOptions = GaussNewtonOptions(), warm_start: Result | None = None,
                   z0: np.ndarray | None = None, n_seeds: int = 8, eval_cycles: int = DEFAULT_EVAL_CYCLES,
                   robot_spec: str | None = None,
@@ -246,12 +270,16 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
                   resume: Result | None = None) -> Result:
     """Optimise a gait and return a :class:`Result` (evaluated over ``eval_cycles`` cycles).
 
-    ``env``: a Gymnasium env offering :class:`~soft_envs.envs.GradientEnv`, or a robot / name /
-    robot.toml path (:func:`~soft_envs.envs.make_gradient_env`).
+    ``env``: a Gymnasium env offering :class:`~soft_envs.envs.GradientEnv` (its contact law is
+    used), or a robot / name / robot.toml path (:func:`~soft_envs.envs.make_gradient_env`, with
+    the task's contact law :data:`TASK_CONTACT`: Coulomb for the turn, else the robot file's).
     ``gait``: the control trajectory's shape; default ``GaitSpec.for_task(task)``, the paper's
-    24 + 2 x 72 steps and 4 keyframes, symmetric except for the turn (paper IV-B).
+    24 + 2 x 72 steps and 4 keyframes, symmetric except for the turn (paper IV-B), which has 12
+    keyframes (:data:`~trajopt.gait.TURN_KEYFRAMES`). ``weights``: default
+    ``ObjectiveWeights.for_task(task)`` (the turn also tracks the body's heading).
     ``warm_start``: another result whose keyframes are a starting candidate (e.g. turn from walk;
-    symmetric and asymmetric parameterisations are converted). The start is the best objective
+    symmetric and asymmetric parameterisations are converted, and 4 keyframes repeated to 12). The
+    start is the best objective
     among the warm start and ``param.seeds(n_seeds)`` (cheap rollouts without sensitivities);
     ``n_seeds=0`` with a warm start starts from the warm start alone. ``resume``: continue an
     interrupted result (same settings; its z, history and damping are picked up).
@@ -262,7 +290,7 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
         raise ValueError(f"task must be one of {TASKS}, got {task!r}")
     if task == "custom" and target is None:
         raise ValueError("task='custom' needs a target array")
-    env = as_gradient_env(env)
+    env = as_gradient_env(env, contact=TASK_CONTACT.get(task))
     if env.control_mode != "length":
         raise ValueError("optimize_gait optimises contracted cable lengths; the environment uses "
                          f"{env.control_mode!r} control")
@@ -270,6 +298,7 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
         raise ValueError(f"eval_cycles must be >= 1, got {eval_cycles}")
     robot = env.robot
     gait = GaitSpec.for_task(task) if gait is None else gait
+    weights = ObjectiveWeights.for_task(task) if weights is None else weights
     speed = float(speed_bl_per_min if speed_bl_per_min is not None else DEFAULT_SPEED.get(robot.name, 8.0))
     settings = {**gait.to_settings(), "speed_bl_per_min": speed, "heading_deg": heading_deg, "turn": turn,
                 "incline_deg": float(env.incline_deg), "weights": weights.to_dict(),

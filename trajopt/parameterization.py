@@ -179,6 +179,31 @@ class GaitParameterization:
         hi = np.repeat(self._zbounds[:, 1], self.n_keyframes)
         return lo, hi
 
+    def keyframes_from(self, keyframes: np.ndarray) -> np.ndarray:
+        """Another gait's keyframes (n_motors, k) as this gait's (n_motors, n_keyframes): the same
+        when k equals ``n_keyframes``; when ``n_keyframes`` is a multiple of k, the cycle is
+        repeated ``n_keyframes / k`` times (that many strides per cycle: the paper's 4-keyframe
+        walk warm-starts the 12-keyframe turn as three quicker strides)."""
+        kf = np.asarray(keyframes, dtype=np.float64)
+        if kf.ndim != 2 or kf.shape[0] != self.n_motors or kf.shape[1] < 1 or self.n_keyframes % kf.shape[1]:
+            raise ValueError(f"keyframes of shape {kf.shape} do not fit a gait of ({self.n_motors}, "
+                             f"{self.n_keyframes}): need {self.n_motors} motors and a number of keyframes "
+                             f"that divides {self.n_keyframes}")
+        return np.tile(kf, (1, self.n_keyframes // kf.shape[1]))
+
+    def one_side_reversed(self, keyframes: np.ndarray, side: int) -> np.ndarray:
+        """Keyframes (n_motors, n_keyframes) with one side's motors playing their cycle backwards
+        in time (``k_j -> k_{-j}``): ``side`` 0 is the first motor of each mirror pair (the
+        Puppy's left), 1 the other. A walk with one side stepping backwards turns on the spot
+        towards that side (a tank turn): a start for the turn."""
+        if side not in (0, 1):
+            raise ValueError(f"side must be 0 or 1, got {side!r}")
+        kf = np.array(keyframes, dtype=np.float64).reshape(self.n_motors, self.n_keyframes)
+        m = np.arange(self.n_motors)
+        motors = m[(self.mirror_map > m) if side == 0 else (self.mirror_map < m)]
+        kf[motors] = kf[motors][:, (-np.arange(self.n_keyframes)) % self.n_keyframes]
+        return kf
+
     def z_from_keyframes(self, keyframes: np.ndarray) -> np.ndarray:
         """Parameters from full keyframes (n_motors, n_keyframes) (mirror motors are dropped)."""
         kf = np.asarray(keyframes, dtype=np.float64).reshape(self.n_motors, self.n_keyframes)

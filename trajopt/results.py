@@ -227,6 +227,10 @@ class Result:
         parts = [f"{self.robot} {self.task}", f"{len(self.u)} steps x {len(self.motor_names)} motors"]
         if "sim_failure" in ev:
             parts.append(f"its evaluation's simulation failed ({ev['sim_failure']})")
+        elif self.task == "turn" and ev.get("cycle_path_speed_bl_per_min") is not None:
+            parts.append(f"{ev['cycle_path_speed_bl_per_min']:.2f} BL/min along its path "
+                         f"over {ev.get('cycles')} cycles")
+            parts.append("upright" if ev.get("upright") else "FELL")
         elif speed is not None:
             parts.append(f"{speed:.2f} BL/min over {ev.get('cycles')} cycles")
             parts.append("upright" if ev.get("upright") else "FELL")

@@ -10,7 +10,7 @@ import numpy as np
 
 from soft_envs.envs import heading_vector
 
-__all__ = ["straight_line", "quarter_circle", "from_array", "bl_per_min_to_mps"]
+__all__ = ["straight_line", "quarter_circle", "quarter_circle_heading", "from_array", "bl_per_min_to_mps"]
 
 
 def bl_per_min_to_mps(speed_bl_per_min: float, body_length: float) -> float:
@@ -34,19 +34,31 @@ def quarter_circle(start, n_steps: int, dt: float, speed: float, heading_deg: fl
     """COM moving at ``speed`` along a circular arc that starts tangent to ``heading_deg`` and
     turns ``direction`` ("right" or "left"). By default the radius makes the arc exactly a
     quarter circle over the horizon: ``R = 2 speed T / pi``."""
+    sgn, theta, R = _arc_angles(n_steps, dt, speed, direction, radius)
+    fwd = _unit(heading_deg)
+    side = sgn * np.array([-fwd[1], fwd[0]])                # +90 degrees towards +z for "right"
+    pts = R * np.sin(theta)[:, None] * fwd[None, :] + R * (1 - np.cos(theta))[:, None] * side[None, :]
+    return np.asarray(start, dtype=np.float64)[None, :] + pts
+
+
+def _arc_angles(n_steps: int, dt: float, speed: float, direction: str, radius: float | None):
+    """``(sign, theta, R)``: +1 for a right turn (towards +z), -1 for a left one; the angle
+    (K+1,) [rad] swept along the arc at each state; the radius [m]."""
     if direction not in ("right", "left"):
         raise ValueError(f"direction must be 'right' or 'left', got {direction!r}")
     T = n_steps * dt
     R = 2.0 * speed * T / np.pi if radius is None else float(radius)
     if not R > 0:
         raise ValueError("the turning radius must be positive (speed > 0)")
-    sgn = 1.0 if direction == "right" else -1.0             # right = towards +z
-    t = np.arange(n_steps + 1) * dt
-    theta = speed * t / R
-    fwd = _unit(heading_deg)
-    side = sgn * np.array([-fwd[1], fwd[0]])                # +90 degrees towards +z for "right"
-    pts = R * np.sin(theta)[:, None] * fwd[None, :] + R * (1 - np.cos(theta))[:, None] * side[None, :]
-    return np.asarray(start, dtype=np.float64)[None, :] + pts
+    return (1.0 if direction == "right" else -1.0), speed * np.arange(n_steps + 1) * dt / R, R
+
+
+def quarter_circle_heading(n_steps: int, dt: float, speed: float, heading_deg: float = 0.0,
+                           direction: str = "right", radius: float | None = None) -> np.ndarray:
+    """Heading [rad] (K+1,) of the tangent of :func:`quarter_circle` (same arguments) at each
+    state, from +x towards +z: ``heading_deg`` turning by ``speed t / R`` to ``direction``."""
+    sgn, theta, _ = _arc_angles(n_steps, dt, speed, direction, radius)
+    return np.radians(heading_deg) + sgn * theta
 
 
 def from_array(target, n_steps: int) -> np.ndarray:
