@@ -33,7 +33,7 @@ __all__ = ["ObjectiveWeights", "HeadingTarget", "gait_residuals", "slack_eating_
 
 
 #: the turn's default heading weight (:meth:`ObjectiveWeights.for_task`): a heading error of
-#: 1 rad costs as much as a COM error of 1 body length (0.1 and 0.3 turned less: notes/turn.md)
+#: 1 rad costs as much as a COM error of 1 body length (weights 0.1 and 0.3 turned less)
 TURN_HEADING_WEIGHT = 1.0
 
 

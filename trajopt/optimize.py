@@ -41,7 +41,7 @@ __all__ = ["optimize_gait", "GaitProblem", "Start", "Recorder", "build_problem",
 TASKS = ("walk", "turn", "incline", "custom")
 #: the contact law a task runs on when none is chosen (None: the robot file's). The turn pivots
 #: on feet that stick, which the paper's viscous-like friction cannot hold: with it the Puppy
-#: turns about 36 degrees per cycle at most, with the Coulomb law 43 (notes/turn.md)
+#: turns 36 degrees per cycle (74 over the horizon), with the Coulomb law 43 (89; the README's turn row)
 TASK_CONTACT = {"turn": "coulomb"}
 #: default target speeds [BL/min], a little above the paper's Table I (Tripod 6.1, Puppy 8.6)
 DEFAULT_SPEED = {"tripod": 8.0, "puppy": 10.0}

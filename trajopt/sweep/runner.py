@@ -77,7 +77,7 @@ def start_ray(workers: int | None = None, address: str | None = None):
             ray.init(address=address, **kwargs)
         except (ConnectionError, RuntimeError, TimeoutError) as exc:
             raise ValueError(f"--address {address}: cannot connect to a Ray cluster there ({exc}); start one "
-                             "with 'ray start --head' (see notes/ray.md) or leave --address out") from exc
+                             "with 'ray start --head' (see docs/scale.md) or leave --address out") from exc
     else:
         ray.init(num_cpus=int(workers or os.cpu_count() or 1), include_dashboard=False, **kwargs)
     return ray, True
