@@ -22,17 +22,17 @@ from trajopt.robustness_report import robustness_jobs
 GAIT = GaitSpec(n_prep=4, n_cycle=12, n_cycles=1, n_keyframes=2, symmetry=False)
 
 
-def tiny_result(tmp_path):
+def tiny_result(tmp_path, contact: str | None = None):
     robot = load_robot("tripod")
     param = GaitParameterization.for_robot(robot, GAIT)
     z = param.initial_z(0.5, np.random.default_rng(0), noise=0.4)
     u = param.controls(z)
     K = len(u)
     settings = {**GAIT.to_settings(), "keyframes": param.keyframes(z).tolist(), "heading_deg": 0.0,
-                "incline_deg": 0.0}
+                "incline_deg": 0.0, **({"contact": contact} if contact else {})}
     res = Result(robot="tripod", task="walk", motor_names=robot.motor_names, dt=0.033, z=z, u=u, u_post=u,
                  target=np.zeros((K + 1, 2)), com=np.zeros((K + 1, 3)), settings=settings)
-    return res.save(tmp_path / "tiny.npz")
+    return res.save(tmp_path / f"tiny{'_' + contact if contact else ''}.npz")
 
 
 def test_perturbations_are_seeded_per_sample_and_within_their_ranges():
@@ -118,6 +118,20 @@ def test_samples_are_independent_picklable_calls(tmp_path):
         assert a[k] == b[k]
     n = run_sample(nominal)
     assert n["index"] == -1 and "friction" not in n
+
+
+def test_replays_use_the_gaits_contact_law(tmp_path):
+    """A gait made under the Coulomb law is replayed under it: the nominal replay is the
+    evaluation of the result (``trajopt evaluate``), and differs from the paper's law."""
+    from trajopt.evaluation import evaluate_result
+    speeds = {}
+    for law in ("paper", "coulomb"):
+        res = Result.load(tiny_result(tmp_path, law))
+        nominal, jobs = robustness_jobs(res, 2, 1, seed=1)
+        assert nominal.contact == law and jobs[0].contact == law
+        speeds[law] = run_sample(nominal)["speed_bl_per_min"]
+        assert speeds[law] == pytest.approx(evaluate_result(res, 2)["speed_bl_per_min"], rel=1e-12, abs=1e-12)
+    assert speeds["paper"] != speeds["coulomb"]
 
 
 def test_samples_on_ray_equal_the_in_process_ones(tmp_path):

@@ -45,7 +45,8 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from soft_envs.envs import SimulationError, load_robot, make_gradient_env, parameter_values, with_parameters
+from soft_envs.envs import (SimulationError, load_robot, make_gradient_env, parameter_values, with_contact_law,
+                           with_parameters)
 
 from .evaluation import measure_gait
 
@@ -87,6 +88,7 @@ class SampleJob:
     seed: int
     index: int
     perturbation: dict | None = None          # None: the nominal replay
+    contact: str | None = None                # the gait's contact law (None: the robot file's)
 
 
 def perturbed_slope(incline_deg: float, uphill_deg: float, slope_deg: float, direction_deg: float
@@ -129,7 +131,7 @@ def run_sample(job: SampleJob) -> dict[str, Any]:
     """Replay one sample (the nominal gait when ``job.perturbation`` is None): speed [BL/min],
     upright, heading drift [deg per cycle], max tilt, or the simulation failure."""
     t0 = time.perf_counter()
-    robot = load_robot(job.robot)
+    robot = with_contact_law(load_robot(job.robot), job.contact)
     u, incline, uphill = np.asarray(job.u, dtype=np.float64), job.incline_deg, job.heading_deg
     p = job.perturbation
     if p is not None:

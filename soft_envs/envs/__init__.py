@@ -14,7 +14,7 @@ It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`
 from ..sim import Robot, SimulationError, Trajectory, load_robot
 from ..sim.robot_file import robot_fingerprint
 from ..sim.warmup import compile_ahead
-from .base import MOTOR_NO_LOAD_RPM, PAPER_GAIT_PERIOD, PAPER_TIMESTEP, SoftRobotEnv
+from .base import MOTOR_NO_LOAD_RPM, PAPER_GAIT_PERIOD, PAPER_TIMESTEP, SoftRobotEnv, with_contact_law
 from .domain import DEFAULT_DOMAIN_RANDOMIZATION
 from .identification import (PHYSICAL_PARAMETERS, Marker, MarkerSet, check_parameters, parameter_values,
                              with_parameters)
@@ -30,4 +30,4 @@ __all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv", "make
            "tilt_deg_of", "wrap_angle", "heading_vector", "cable_points", "strain_energy_density",
            "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION",
            "PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "check_parameters", "Marker", "MarkerSet",
-           "compile_ahead"]
+           "compile_ahead", "with_contact_law"]

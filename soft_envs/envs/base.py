@@ -36,7 +36,7 @@ from .threads import limit_threads_in_worker
 from .hooks import GradientHooksMixin
 from .viewer import EnvViewer, RenderingMixin
 
-__all__ = ["SoftRobotEnv", "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM"]
+__all__ = ["SoftRobotEnv", "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "with_contact_law"]
 
 PAPER_TIMESTEP = 0.033              # [s] the paper's simulation time step h
 PAPER_GAIT_PERIOD = 72 * PAPER_TIMESTEP   # [s] the paper's gait cycle: 72 steps
@@ -45,12 +45,15 @@ _TRAIL_LENGTH = 3000                # COM trail points kept for rendering
 _RENDER_MODES = RENDER_MODES
 
 
-def _with_contact(robot: Robot, contact: str | None) -> Robot:
+def with_contact_law(robot: Robot, contact: str | None) -> Robot:
     """``robot`` with its contact law switched to ``contact`` ("paper" or "coulomb"; None keeps
     the robot file's), the law's parameters as the robot file gives them."""
     if contact is None or contact == robot.contact.model:
         return robot
     return robot.replace(contact=dataclasses.replace(robot.contact, model=contact))
+
+
+_with_contact = with_contact_law
 
 
 class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
