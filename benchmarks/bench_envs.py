@@ -203,6 +203,48 @@ def _processes(actions: str, n: int = 2) -> float:
     return float(sum(rates))
 
 
+class BusyEnv(gym.Env):
+    """No simulator: each step busy-waits ``step_s`` seconds (one environment step's time),
+    so ``AsyncVectorEnv`` over it measures the vector machinery's own ceiling on this machine
+    (pipes, process wake-ups, shared-memory observations)."""
+
+    def __init__(self, step_s: float = 0.004):
+        self.step_s = float(step_s)
+        self.observation_space = gym.spaces.Box(-1.0, 1.0, (20,), dtype=np.float64)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float64)
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        return np.zeros(20), {}
+
+    def step(self, action):
+        t = time.perf_counter()
+        while time.perf_counter() - t < self.step_s:
+            pass
+        return np.zeros(20), 0.0, False, False, {}
+
+
+def busy_ceiling(step_s: float, steps: int = VEC_STEPS) -> float:
+    """Steps/s of ``AsyncVectorEnv`` over two :class:`BusyEnv` over one such env's steps/s."""
+    import functools
+    one = BusyEnv(step_s)
+    one.reset()
+    t = time.perf_counter()
+    for _ in range(steps):
+        one.step(None)
+    single = steps / (time.perf_counter() - t)
+    venv = gym.vector.AsyncVectorEnv([functools.partial(BusyEnv, step_s)] * 2)
+    venv.reset(seed=0)
+    a = np.zeros((2, 2))
+    venv.step(a)
+    t = time.perf_counter()
+    for _ in range(steps):
+        venv.step(a)
+    rate = 2 * steps / (time.perf_counter() - t)
+    venv.close()
+    return rate / single
+
+
 def bench_vector(actions: str = "random") -> list[dict]:
     """Alternating rounds; best figure of each kind."""
     try:
@@ -242,6 +284,10 @@ def bench_vector(actions: str = "random") -> list[dict]:
     for r in rows[1:]:
         print(f"{actions} actions, {r['vector env']}: {r['env steps/s']:.0f} env steps/s vs one environment's {single:.0f}: "
               f"{r['x one env']:.2f}x (target >= 1.7x)")
+    ceiling = max(busy_ceiling(cpu.mean()) for _ in range(VEC_ROUNDS))
+    print(f"{actions} actions: the same AsyncVectorEnv over a busy-loop environment of the same step time "
+          f"({1e3 * cpu.mean():.2f} ms, no simulator): {ceiling:.2f}x one such environment: the vector "
+          "machinery's own ceiling on this machine")
     return rows
 
 
