@@ -47,6 +47,7 @@ ENVS = ("tests/test_env_rewards.py", "tests/test_envs.py")
 PHYSICS = ("tests/test_physics_magnitudes.py", "tests/test_reference_rollouts.py", "tests/test_dynamics.py",
            "tests/test_static.py")
 HARDWARE = ("tests/test_cli_paths.py", "tests/test_hardware_config.py", "tests/test_hardware_playback.py")
+TURN = ("tests/test_turn.py",)
 COULOMB = ("tests/test_physics_magnitudes.py", "tests/test_coulomb_anchors.py", "tests/test_coulomb.py",
            "tests/test_energy_derivatives.py", "tests/test_sensitivity.py")
 
@@ -163,6 +164,17 @@ FAULTS = [
           "/ self.spool_radius / (2 * math.pi) * self.counts_per_rev",
           "/ self.spool_radius / math.pi * self.counts_per_rev", HARDWARE,
           "cable length -> encoder counts without the 2 pi"),
+    # ------------------------------------------------------------------ the turn, slack eating, robustness
+    Fault("heading_jacobian_sign", "trajopt/objectives.py",
+          "return s * (yaw[1:] - heading.yaw[1:]), s * dyaw[1:]",
+          "return s * (yaw[1:] - heading.yaw[1:]), -s * dyaw[1:]", TURN,
+          "the heading term's Jacobian with the wrong sign (the turn's Gauss-Newton would step away)"),
+    Fault("slack_eating_inactive", "trajopt/objectives.py",
+          "active = gamma < eps", "active = gamma < -eps", OPT,
+          "slack eating (eq. 13) only on cables more than eps slack instead of less than eps taut"),
+    Fault("robustness_contact_law", "trajopt/robustness.py",
+          "robot = with_contact_law(load_robot(job.robot), job.contact)", "robot = load_robot(job.robot)",
+          ("tests/test_robustness.py",), "robustness replays a Coulomb gait under the robot file's (paper) law"),
 ]
 
 
