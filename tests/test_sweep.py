@@ -106,7 +106,7 @@ def test_contact_parameters_run_on_a_copy_of_the_robot_file(tmp_path):
     assert _argv(run, out, out / run.name)[1] == str(path)
 
 
-@pytest.mark.parametrize("name", ["sweep_speeds.toml", "rl_seeds.toml"])
+@pytest.mark.parametrize("name", ["sweep_speeds.toml", "rl_seeds.toml", "rl_seeds_coulomb.toml"])
 def test_example_sweep_files_load_full_and_quick(name):
     full = load_spec(ROOT / "examples" / name)
     quick = load_spec(ROOT / "examples" / name, quick=True)
