@@ -34,6 +34,19 @@ def normal_forces(x, nodes, k_n, eps_n):
     return out
 
 
+@njit(cache=True, inline="always")
+def normal_penalty(x, n, k_n, eps_n, grad, hdata, slot, want_grad, want_hess):
+    """The normal penalty ``Q_n(-y)`` of node ``n`` (paper II-C; both contact laws): adds its
+    gradient (``want_grad``) and its Hessian entry ``hdata[slot]`` (``want_hess``). Returns
+    the energy."""
+    s = -x[n, 1]
+    if want_grad:
+        grad[3 * n + 1] -= dQ(s, k_n, eps_n)
+    if want_hess:
+        hdata[slot] += d2Q(s, k_n, eps_n)
+    return Q(s, k_n, eps_n)
+
+
 @njit(cache=True)
 def contact_assemble(x, x_prev, nodes, k_n, eps_n, mu_f, grad, hdata, diag_map, want_grad=True,
                      want_hess=True):
@@ -43,12 +56,7 @@ def contact_assemble(x, x_prev, nodes, k_n, eps_n, mu_f, grad, hdata, diag_map, 
     total = 0.0
     for c in range(nodes.shape[0]):
         n = nodes[c]
-        s = -x[n, 1]
-        total += Q(s, k_n, eps_n)
-        if want_grad:
-            grad[3 * n + 1] -= dQ(s, k_n, eps_n)
-        if want_hess:
-            hdata[diag_map[c, 1]] += d2Q(s, k_n, eps_n)
+        total += normal_penalty(x, n, k_n, eps_n, grad, hdata, diag_map[c, 1], want_grad, want_hess)
         N = dQ(-x_prev[n, 1], k_n, eps_n)
         if N > 0.0:
             dx = x[n, 0] - x_prev[n, 0]

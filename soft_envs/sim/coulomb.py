@@ -35,8 +35,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .cables import Q, d2Q, dQ
-from .contact import normal_forces
+from .cables import d2Q, dQ
+from .contact import normal_forces, normal_penalty
 from .terms import EnergyTerm
 
 __all__ = ["CoulombContact", "bristle_potential", "coulomb_assemble"]
@@ -75,12 +75,7 @@ def coulomb_assemble(x, x_prev, anchors, nodes, k_n, eps_n, mu, rs, grad, hdata,
     total = 0.0
     for c in range(nodes.shape[0]):
         n = nodes[c]
-        s = -x[n, 1]
-        total += Q(s, k_n, eps_n)
-        if want_grad:
-            grad[3 * n + 1] -= dQ(s, k_n, eps_n)
-        if want_hess:
-            hdata[slots[c, 4]] += d2Q(s, k_n, eps_n)
+        total += normal_penalty(x, n, k_n, eps_n, grad, hdata, slots[c, 4], want_grad, want_hess)
         a, _, dx, dz, G, w, cw = _friction(x, x_prev, anchors, n, c, k_n, eps_n, mu, rs)
         if a == 0.0:
             continue
