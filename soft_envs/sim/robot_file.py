@@ -272,50 +272,10 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
         tets = tets[:, [0, 2, 1, 3]]
     mesh = TetMesh(pts, tets, source=str(mesh_file))
     pay = tables["payload"]
-    nodes_spec = pay.get("nodes", "top")
-    if isinstance(nodes_spec, str):
-        if nodes_spec != "top":
-            raise ValueError(f"{src}: [payload].nodes must be \"top\" or a list of node indices")
-        tol = float(pay.get("top_tolerance", 1e-4))
-        payload_nodes = np.flatnonzero(pts[:, 1] >= pts[:, 1].max() - tol)
-    else:
-        payload_nodes = _index_list(nodes_spec, "[payload].nodes", mesh.n_nodes, src)
-    fixed = tables["fixed"]
-    fixed_nodes = _index_list(fixed.get("nodes", []), "[fixed].nodes", mesh.n_nodes, src)
-    if "box" in fixed:
-        try:
-            box = np.asarray(fixed["box"], dtype=np.float64)
-        except (TypeError, ValueError):
-            box = np.zeros(0)
-        if box.shape != (3, 2):
-            raise ValueError(f"{src}: [fixed].box must be [[x0, x1], [y0, y1], [z0, z1]] (mesh frame and units)")
-        q = raw.points            # mesh frame and units, like the tendon points
-        inside = np.all((q >= box[:, 0] - 1e-12) & (q <= box[:, 1] + 1e-12), axis=1)
-        fixed_nodes = np.union1d(fixed_nodes, np.flatnonzero(inside))
-    tendons = []
-    raw_t = doc.get("tendons", [])
-    if not isinstance(raw_t, list):
-        raise ValueError(f"{src}: tendons must be an array of tables [[tendons]]")
-    for i, t in enumerate(raw_t):
-        _check_table(t, _TENDON, f"tendons[{i}]", src)
-        try:
-            points = to_sim(np.asarray(t["points"], dtype=np.float64))
-        except (ValueError, TypeError) as exc:
-            raise ValueError(f"{src}: tendons[{i}].points must be a list of [x, y, z]") from exc
-        if points.ndim != 2 or points.shape[1] != 3:
-            raise ValueError(f"{src}: tendons[{i}].points must be a list of [x, y, z]")
-        tendons.append(Tendon(t["name"], points, float(t.get("stiffness", 1e5)),
-                              None if "rest_length" not in t else float(t["rest_length"])))
-    motors = []
-    raw_m = doc.get("motors", [])
-    if not isinstance(raw_m, list):
-        raise ValueError(f"{src}: motors must be an array of tables [[motors]]")
-    for i, m in enumerate(raw_m):
-        _check_table(m, _MOTOR, f"motors[{i}]", src)
-        if not all(isinstance(s, str) for s in m["tendons"]):
-            raise ValueError(f"{src}: motors[{i}].tendons must be a list of tendon names")
-        motors.append(Motor(m["name"], tuple(m["tendons"]), m.get("mirror"), float(m.get("u_min", 0.0)),
-                            float(m["u_max"]), float(m.get("spool_radius", 0.005))))
+    payload_nodes = _payload_nodes(pay, pts, src)
+    fixed_nodes = _fixed_nodes(tables["fixed"], raw.points, mesh.n_nodes, src)
+    tendons = _tendons(doc.get("tendons", []), to_sim, src)
+    motors = _motors(doc.get("motors", []), src)
     markers = _markers(doc.get("markers", []), to_sim, src)
     mat = tables["material"]
     try:
@@ -335,6 +295,66 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
     except ValueError as exc:
         msg = str(exc)
         raise ValueError(msg if msg.startswith(src) else f"{src}: {msg}") from exc
+
+
+def _payload_nodes(pay: dict, pts: np.ndarray, src: str) -> np.ndarray:
+    """``[payload].nodes``: ``"top"`` (the nodes within ``top_tolerance`` of the highest one, in
+    the simulation frame) or a list of node indices."""
+    nodes_spec = pay.get("nodes", "top")
+    if isinstance(nodes_spec, str):
+        if nodes_spec != "top":
+            raise ValueError(f"{src}: [payload].nodes must be \"top\" or a list of node indices")
+        tol = float(pay.get("top_tolerance", 1e-4))
+        return np.flatnonzero(pts[:, 1] >= pts[:, 1].max() - tol)
+    return _index_list(nodes_spec, "[payload].nodes", len(pts), src)
+
+
+def _fixed_nodes(fixed: dict, mesh_points: np.ndarray, n_nodes: int, src: str) -> np.ndarray:
+    """``[fixed]``: node indices and / or the nodes inside ``box`` (mesh frame and units)."""
+    fixed_nodes = _index_list(fixed.get("nodes", []), "[fixed].nodes", n_nodes, src)
+    if "box" in fixed:
+        try:
+            box = np.asarray(fixed["box"], dtype=np.float64)
+        except (TypeError, ValueError):
+            box = np.zeros(0)
+        if box.shape != (3, 2):
+            raise ValueError(f"{src}: [fixed].box must be [[x0, x1], [y0, y1], [z0, z1]] (mesh frame and units)")
+        q = mesh_points            # mesh frame and units, like the tendon points
+        inside = np.all((q >= box[:, 0] - 1e-12) & (q <= box[:, 1] + 1e-12), axis=1)
+        fixed_nodes = np.union1d(fixed_nodes, np.flatnonzero(inside))
+    return fixed_nodes
+
+
+def _tendons(raw_t: Any, to_sim, src: str) -> list[Tendon]:
+    """The ``[[tendons]]`` tables, their points mapped to the simulation frame by ``to_sim``."""
+    if not isinstance(raw_t, list):
+        raise ValueError(f"{src}: tendons must be an array of tables [[tendons]]")
+    tendons = []
+    for i, t in enumerate(raw_t):
+        _check_table(t, _TENDON, f"tendons[{i}]", src)
+        try:
+            points = to_sim(np.asarray(t["points"], dtype=np.float64))
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"{src}: tendons[{i}].points must be a list of [x, y, z]") from exc
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise ValueError(f"{src}: tendons[{i}].points must be a list of [x, y, z]")
+        tendons.append(Tendon(t["name"], points, float(t.get("stiffness", 1e5)),
+                              None if "rest_length" not in t else float(t["rest_length"])))
+    return tendons
+
+
+def _motors(raw_m: Any, src: str) -> list[Motor]:
+    """The ``[[motors]]`` tables."""
+    if not isinstance(raw_m, list):
+        raise ValueError(f"{src}: motors must be an array of tables [[motors]]")
+    motors = []
+    for i, m in enumerate(raw_m):
+        _check_table(m, _MOTOR, f"motors[{i}]", src)
+        if not all(isinstance(s, str) for s in m["tendons"]):
+            raise ValueError(f"{src}: motors[{i}].tendons must be a list of tendon names")
+        motors.append(Motor(m["name"], tuple(m["tendons"]), m.get("mirror"), float(m.get("u_min", 0.0)),
+                            float(m["u_max"]), float(m.get("spool_radius", 0.005))))
+    return motors
 
 
 def _markers(raw: Any, to_sim, src: str) -> tuple[Marker, ...]:
