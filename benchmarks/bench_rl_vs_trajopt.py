@@ -40,7 +40,7 @@ import soft_envs  # noqa: F401
 from trajopt import Result
 from trajopt.gait import GaitSpec
 from trajopt.replay import env_for_result, result_parameterization
-from trajopt.rl.envs import GAIT, ROBOT_IDS
+from trajopt.rl.envs import GAIT, env_id
 from trajopt.rl.evaluate import play_controls_in_env, run_metric
 
 N_PREP, N_CYCLE = GAIT.n_prep, GAIT.n_cycle
@@ -66,11 +66,12 @@ def dominant_period(u: np.ndarray) -> float:
 def trajopt_row(run_dir: Path, name: str) -> dict:
     res = Result.load(run_dir / f"{name}.npz")
     s, ev = res.settings, res.evaluation
-    param = result_parameterization(res, env_for_result(res).robot)
+    physics = env_for_result(res)            # the result's robot and contact law
+    param = result_parameterization(res, physics.robot)
     u = param.controls(res.z, int(s["eval_cycles"]))
     in_env = {}
     for tag, kw in (("no_limit", {"motor_speed_rpm": None}), ("motor_limit", {})):
-        env = gym.make(ROBOT_IDS[res.robot], reset_noise_scale=0.0, terminate_when_unhealthy=False,
+        env = gym.make(env_id(res.robot, physics.contact_model), reset_noise_scale=0.0, terminate_when_unhealthy=False,
                        max_episode_steps=len(u), **kw)
         acts = env.unwrapped.control_to_action(u)
         rec = play_controls_in_env(env, lambda obs, k, acts=acts: acts[k], len(u), seed=0)
