@@ -26,7 +26,6 @@ Needs the ``bench`` extra: pip install -e .[bench]
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import os
@@ -40,8 +39,8 @@ import numpy as np
 import soft_envs  # noqa: F401  (registers the environment ids)
 from common import gait_controls, random_controls, report
 from mujoco_flex import FlexModel
-from soft_envs.envs.base import MOTOR_NO_LOAD_RPM
-from soft_envs.sim import ContactParams, Simulator, load_robot
+from soft_envs.envs import MOTOR_NO_LOAD_RPM, with_contact_law
+from soft_envs.sim import Simulator, load_robot
 from soft_envs.sim.kinematics import BodyFrame, tilt_deg_of
 
 DT = 0.033
@@ -55,18 +54,6 @@ TARGETS = {"gait_x": 1.0, "random_x": 1.5, "gait_factorizations": 4.0,
 MJ_VARIANTS = {"mujoco": {}, "mujoco_default_contact": {"exact_contact_diagonal": False},
                "mujoco_10_iterations": {"iterations": 10}}
 STILL_TOL = 1e-4          # [m] largest node motion over the timed standing run that counts as still
-
-
-def contact_laws_available() -> list[str]:
-    """The contact laws the installed simulator offers (``ContactParams(model=...)``)."""
-    fields = {f.name for f in dataclasses.fields(ContactParams)}
-    return ["paper", "coulomb"] if "model" in fields else ["paper"]
-
-
-def with_contact_law(robot, law: str):
-    if "model" not in {f.name for f in dataclasses.fields(ContactParams)}:
-        return robot            # only the paper's law exists
-    return robot.replace(contact=dataclasses.replace(robot.contact, model=law))
 
 
 def motor_rate(robot, dt: float) -> np.ndarray:
@@ -202,18 +189,13 @@ def parse_args():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--robots", nargs="+", default=["tripod", "puppy"], choices=sorted(ENV_NAMES))
     p.add_argument("--contact", nargs="+", default=None, choices=["paper", "coulomb"],
-                   help="contact laws to time (default: every law the installed code offers)")
+                   help="contact laws to time (default: both)")
     p.add_argument("--rounds", type=int, default=3, help="alternating timing rounds (best of each figure)")
     p.add_argument("--steps", type=int, default=168, help="steps per timed run (MuJoCo and ours)")
     p.add_argument("--env-steps", type=int, default=300, help="environment steps per timed run")
     p.add_argument("--settle", type=int, default=300, help="MuJoCo steps to settle before timing")
     a = p.parse_args()
-    available = contact_laws_available()
-    a.contact = a.contact or available
-    missing = [law for law in a.contact if law not in available]
-    if missing:
-        p.error(f"--contact {' '.join(missing)}: the installed soft_envs offers only {available} "
-                "(soft_envs.sim.ContactParams has no 'model' field)")
+    a.contact = a.contact or ["paper", "coulomb"]
     for name in ("rounds", "steps", "env_steps", "settle"):
         if getattr(a, name) < (2 if name == "steps" else 1):
             p.error(f"--{name.replace('_', '-')} must be at least {2 if name == 'steps' else 1}")

@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import functools
+import shutil
+from pathlib import Path
 
 import meshio
 import numpy as np
@@ -9,6 +11,7 @@ import pytest
 
 from soft_envs.sim import Robot, Simulator, load_robot
 from soft_envs.sim.meshgen import voxel_tet_mesh
+from soft_envs.sim.robot_file import asset_path
 
 
 def block_mesh(nx=3, ny=2, nz=1, size=(0.06, 0.02, 0.02)) -> meshio.Mesh:
@@ -48,3 +51,12 @@ def tripod():
 @pytest.fixture(scope="session")
 def puppy():
     return shipped("puppy")
+
+
+@pytest.fixture
+def robot_dir(tmp_path) -> Path:
+    """A copy of the shipped Tripod's robot.toml and mesh in ``tmp_path``, to edit."""
+    src = asset_path("tripod").parent
+    shutil.copy(src / "tripod.vtu", tmp_path / "tripod.vtu")
+    shutil.copy(src / "robot.toml", tmp_path / "robot.toml")
+    return tmp_path

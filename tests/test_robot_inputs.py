@@ -4,8 +4,6 @@ numbers in any field; and the robot fingerprint that ties a result to its robot 
 from __future__ import annotations
 
 import re
-import shutil
-from pathlib import Path
 
 import meshio
 import numpy as np
@@ -14,7 +12,6 @@ import pytest
 from soft_envs.sim import load_robot
 from soft_envs.sim.mesh import TetMesh, load_mesh
 from soft_envs.sim.meshgen import voxel_tet_mesh
-from soft_envs.sim.robot_file import asset_path
 
 
 def block(origin=(0.0, 0.0, 0.0), n=(2, 1, 1), size=(0.04, 0.02, 0.02)):
@@ -42,14 +39,6 @@ def test_two_bodies_apart_are_refused(tmp_path):
     with pytest.raises(ValueError, match=r"two\.vtu: the mesh is 2 disconnected bodies .* are 0\.64 apart\); a robot "
                                          r"must be one connected body"):
         load_mesh(tmp_path / "two.vtu")
-
-
-@pytest.fixture
-def robot_dir(tmp_path) -> Path:
-    src = asset_path("tripod").parent
-    shutil.copy(src / "tripod.vtu", tmp_path / "tripod.vtu")
-    shutil.copy(src / "robot.toml", tmp_path / "robot.toml")
-    return tmp_path
 
 
 def test_a_robot_file_that_is_not_utf8_names_the_file(robot_dir):

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import re
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -94,14 +93,6 @@ def test_fine_variants_load():
 
 
 # ---------------------------------------------------------------- bad robot files
-@pytest.fixture
-def robot_dir(tmp_path) -> Path:
-    src = asset_path("tripod").parent
-    shutil.copy(src / "tripod.vtu", tmp_path / "tripod.vtu")
-    shutil.copy(src / "robot.toml", tmp_path / "robot.toml")
-    return tmp_path
-
-
 def edit(path: Path, old: str, new: str, count: int = 1) -> Path:
     text = path.read_text()
     assert old in text, old

@@ -4,7 +4,6 @@ a new robot.toml with the fitted values, the before/after plot of the tracks). T
 from __future__ import annotations
 
 import csv
-import io
 import json
 import os
 import time
@@ -16,6 +15,7 @@ import numpy as np
 from soft_envs.envs import PHYSICAL_PARAMETERS, MarkerSet, check_parameters, load_robot, parameter_values
 
 from .calibrate import CalibrationFit, MarkerData, fit_parameters
+from .files import atomic_write_png
 from .results import Result, atomic_write_bytes
 from .tracks import read_tracks
 
@@ -129,10 +129,10 @@ def plot_tracks(data: MarkerData, fit: CalibrationFit, path: Path) -> Path:
     axes[0, 1].legend(fontsize=7, ncol=2, loc="best")
     fig.suptitle("measured markers (dots) and simulated tracks (lines)")
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    try:
+        atomic_write_png(fig, path, dpi=100)
+    finally:
+        plt.close(fig)
     return path
 
 

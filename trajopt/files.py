@@ -137,6 +137,15 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
             fh.write(data)
 
 
+def atomic_write_png(fig, path: str | os.PathLike, *, dpi: int) -> Path:
+    """A matplotlib figure written as PNG to ``path`` atomically (see :func:`atomic_output`)."""
+    import io
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    atomic_write_bytes(path, buf.getvalue())
+    return Path(path)
+
+
 def check_output_dir(path: str | os.PathLike, what: str) -> Path:
     """``path`` as a directory outputs can be written to (existing and writable, or creatable
     under a writable parent); otherwise a ValueError naming ``what`` (e.g. ``--out``) and the

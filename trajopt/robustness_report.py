@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from .files import atomic_write_png
 from .replay import env_for_result, result_controls
 from .results import Result, atomic_write_bytes
 from .robustness import (DERIVED_NAMES, PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample,
@@ -107,10 +108,10 @@ def plot_robustness(report: dict, samples: list[dict], path: Path) -> Path:
     for ax in axes.flat[1 + len(names):]:
         ax.axis("off")
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    try:
+        atomic_write_png(fig, path, dpi=90)
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -53,9 +53,6 @@ def with_contact_law(robot: Robot, contact: str | None) -> Robot:
     return robot.replace(contact=dataclasses.replace(robot.contact, model=contact))
 
 
-_with_contact = with_contact_law
-
-
 class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.ndarray]):
     """A cable-driven soft robot on the ground plane (see the module docstring and the
     per-robot subclasses for the specification, keywords included)."""
@@ -103,7 +100,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         if not isinstance(robot, (str, os.PathLike, Robot)):
             raise ValueError(f"robot must be a shipped name, a robot.toml path or a Robot, got {type(robot).__name__}")
         limit_threads_in_worker()      # a vector-env worker: one BLAS/numba thread (threads.py)
-        self._base_robot = _with_contact(robot if isinstance(robot, Robot) else load_robot(robot), contact)
+        self._base_robot = with_contact_law(robot if isinstance(robot, Robot) else load_robot(robot), contact)
         if self._base_robot.n_motors == 0:
             raise ValueError(f"robot {self._base_robot.name!r} has no motors")
         self.frame_skip = int(frame_skip)

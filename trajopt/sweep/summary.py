@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from ..files import atomic_write_png
 from ..results import atomic_write_bytes
 from .spec import SweepSpec
 
@@ -97,8 +98,8 @@ def _plot(rows: list[dict], path: Path) -> Path:
     ax.set_title("main figure per run")
     ax.grid(True, axis="x", alpha=0.3)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, dpi=110, format="png")
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    try:
+        atomic_write_png(fig, path, dpi=110)
+    finally:
+        plt.close(fig)
     return path
