@@ -167,7 +167,7 @@ def near_solution(name, K) -> list[dict]:
     robot = coulomb(name)
     sim, traj, _, _ = counted_rollout(robot, "gait", K)
     u = traj.u
-    hist = [sim.rest_history()]
+    hist = [sim.system.resolve_history(None, traj.x[0])]      # as the rollout started
     for k in range(K):
         hist.append(sim.system.next_history(traj.x[k + 1], traj.x[k], hist[-1]) if sim.system.has_history else None)
     rng = np.random.default_rng(0)
