@@ -11,53 +11,37 @@ and Hessian at a mid-rollout state. ``compare`` reports the largest relative dif
 each array (``|a - b|_max / |b|_max``) and exits 1 when one exceeds ``--rtol``.
 
 Only the public API of :mod:`soft_envs.sim` is used, so the script runs unchanged on both
-sides of a refactor.
+sides of a refactor. The cases are those of the regression test, ``tests/data/make_reference.py``
+(``cases(K)``), with longer rollouts.
 """
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from soft_envs.sim import Simulator, incline_gravity, load_robot
+from soft_envs.sim import Simulator
 
 K = 60          # steps per case: long enough for contacts and cables to switch many times
 NZ = 5          # parameters of the random dudz
 
 
-def _gait(robot, K: int, dt: float = 0.033, period: int = 36) -> np.ndarray:
-    t = np.arange(K) * dt
-    lo, hi = robot.u_bounds[:, 0], robot.u_bounds[:, 1]
-    u = np.empty((K, robot.n_motors))
-    for m in range(robot.n_motors):
-        ph = 2 * np.pi * m / robot.n_motors
-        u[:, m] = lo[m] + (hi[m] - lo[m]) * 0.5 * (1 - np.cos(2 * np.pi * t / (period * dt) + ph))
-    return u
-
-
-def _random(robot, K: int, rng, du_max: float = 1.7e-3) -> np.ndarray:
-    lo, hi = robot.u_bounds[:, 0], robot.u_bounds[:, 1]
-    target = rng.uniform(lo, hi, size=(K, robot.n_motors))
-    u = np.empty_like(target)
-    cur = np.clip(0.0, lo, hi)
-    for k in range(K):
-        cur = cur + np.clip(target[k] - cur, -du_max, du_max)
-        u[k] = cur
-    return u
+def _load_case_generator():
+    """``tests/data/make_reference.py``: the regression test's cases, one definition for both."""
+    path = Path(__file__).resolve().parents[1] / "tests" / "data" / "make_reference.py"
+    spec = importlib.util.spec_from_file_location("make_reference", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def cases():
-    for name in ("tripod", "puppy"):
-        robot = load_robot(name)
-        rng = np.random.default_rng(1234)
-        gait = _gait(robot, K)
-        yield f"{name}/gait", robot, dict(), gait
-        yield f"{name}/random", robot, dict(), _random(robot, K, rng)
-        yield f"{name}/zero", robot, dict(), np.zeros((K, robot.n_motors))
-        yield f"{name}/tension", robot, dict(control="tension"), 2.0 * gait / robot.u_bounds[:, 1].max()
-        yield f"{name}/slope10", robot, dict(gravity=incline_gravity(10.0)), gait
+    """The regression test's cases (smooth gait, random and zero controls, tension control, a
+    10-degree slope; both robots), ``K`` steps each."""
+    return _load_case_generator().cases(K)
 
 
 def record(ref_points: dict | None = None) -> dict[str, np.ndarray]:

@@ -201,9 +201,9 @@ def linearly_implicit(name, K) -> list[dict]:
             solver.iterations = n
             sim.newton = solver
             try:
-                com = sim.rollout(u).com
-                dev = 1e3 * float(np.abs(com - ref.com).max())
-                sink = -1e3 * float(sim.rollout(u).x[:, :, 1].min()) if n == 1 else np.nan
+                traj = sim.rollout(u)
+                dev = 1e3 * float(np.abs(traj.com - ref.com).max())
+                sink = -1e3 * float(traj.x[:, :, 1].min()) if n == 1 else np.nan
             except SimulationError as e:
                 dev, sink = f"failed: {e}", np.nan
             rows.append({"robot": name, "controls": kind, "iterations_per_step": n, "steps": K,

@@ -129,11 +129,7 @@ def plot_tracks(data: MarkerData, fit: CalibrationFit, path: Path) -> Path:
     axes[0, 1].legend(fontsize=7, ncol=2, loc="best")
     fig.suptitle("measured markers (dots) and simulated tracks (lines)")
     fig.tight_layout()
-    try:
-        atomic_write_png(fig, path, dpi=100)
-    finally:
-        plt.close(fig)
-    return path
+    return atomic_write_png(fig, path, dpi=100)
 
 
 def _inputs(args) -> tuple[Any, MarkerSet, MarkerData, tuple[str, ...], Any]:

@@ -138,11 +138,17 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
 
 
 def atomic_write_png(fig, path: str | os.PathLike, *, dpi: int) -> Path:
-    """A matplotlib figure written as PNG to ``path`` atomically (see :func:`atomic_output`)."""
+    """A matplotlib figure written as PNG to ``path`` atomically (see :func:`atomic_output`),
+    then closed (also when writing fails)."""
     import io
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    atomic_write_bytes(path, buf.getvalue())
+
+    import matplotlib.pyplot as plt
+    try:
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=dpi)
+        atomic_write_bytes(path, buf.getvalue())
+    finally:
+        plt.close(fig)
     return Path(path)
 
 

@@ -108,11 +108,7 @@ def plot_robustness(report: dict, samples: list[dict], path: Path) -> Path:
     for ax in axes.flat[1 + len(names):]:
         ax.axis("off")
     fig.tight_layout()
-    try:
-        atomic_write_png(fig, path, dpi=90)
-    finally:
-        plt.close(fig)
-    return path
+    return atomic_write_png(fig, path, dpi=90)
 
 
 def _write_csv(path: Path, samples: list[dict]) -> None:

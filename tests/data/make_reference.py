@@ -69,8 +69,9 @@ def random_controls(robot, K: int, rng, du_max: float = 1.7e-3) -> np.ndarray:
     return u
 
 
-def cases():
-    """``(name, robot, Simulator keyword arguments, controls)`` of every case."""
+def cases(K: int = K):
+    """``(name, robot, Simulator keyword arguments, controls)`` of every case, ``K`` steps each
+    (``benchmarks/reference_rollouts.py`` uses the same cases, longer)."""
     for name in ("tripod", "puppy"):
         robot = load_robot(name)
         rng = np.random.default_rng(1234)

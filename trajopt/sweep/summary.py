@@ -98,8 +98,4 @@ def _plot(rows: list[dict], path: Path) -> Path:
     ax.set_title("main figure per run")
     ax.grid(True, axis="x", alpha=0.3)
     fig.tight_layout()
-    try:
-        atomic_write_png(fig, path, dpi=110)
-    finally:
-        plt.close(fig)
-    return path
+    return atomic_write_png(fig, path, dpi=110)
