@@ -106,7 +106,11 @@ class TrackingMonitor:
 
 
 class Progress:
-    """Plain progress lines (no carriage returns: readable in log files), every ``every`` steps."""
+    """Plain progress lines (no carriage returns: readable in log files), every ``every`` steps.
+
+    A stream that fails (a terminal closed under a running playback, SIGHUP) is dropped, never
+    raised: printing must not stand between a playback and its stop sequence.
+    """
 
     def __init__(self, stream: TextIO | None, n_steps: int, every: int | None = None) -> None:
         self.stream = stream
@@ -119,10 +123,14 @@ class Progress:
         if self.stream is None or (done % self.every and done != self.n_steps):
             return
         err = "n/a" if max_error is None else f"{max_error} counts"
-        print(f"trajopt play: step {done}/{self.n_steps} ({100 * done / self.n_steps:3.0f} %), t = {t:.2f} s, "
-              f"max tracking error {err}, lateness {lateness:+.3f} steps", file=self.stream, flush=True)
+        self.say(f"step {done}/{self.n_steps} ({100 * done / self.n_steps:3.0f} %), t = {t:.2f} s, "
+                 f"max tracking error {err}, lateness {lateness:+.3f} steps")
 
     def say(self, text: str) -> None:
         """Print one line (pre-flight, stop)."""
-        if self.stream is not None:
+        if self.stream is None:
+            return
+        try:
             print(f"trajopt play: {text}", file=self.stream, flush=True)
+        except (OSError, ValueError):  # EIO on a hung-up terminal, a closed file
+            self.stream = None

@@ -14,10 +14,15 @@ motor per step on the grid ``start + k * dt`` (absolute deadlines, so sleep
 errors never accumulate), read every encoder back, append commanded vs
 measured counts to a CSV flushed after each row and abort when a motor stays
 off its target (:class:`~.monitor.TrackingMonitor`); finally -- also on any
-error or Ctrl-C -- stop both channels of every reachable controller and confirm
-each stop by reading it back (:func:`~.stop.stop_motors`).  The
+exception, Ctrl-C (SIGINT), SIGTERM or SIGHUP (:class:`~.signals.StopSignals`
+raises them as KeyboardInterrupt / :class:`~.signals.Terminated` until the stop
+begins, then holds them) -- stop both channels of every reachable controller
+and confirm each stop by reading it back (:func:`~.stop.stop_motors`).  The
 :class:`~.stop.StopReport` is in the summary, or attached to the exception
-raised (``exc.stop_report``, and a note).
+raised (``exc.stop_report``, and a note).  A signal held during the stop is
+raised once the stop has ended (instead of a summary, or of a non-signal error,
+which becomes its context).  SIGKILL cannot be caught: the controllers' own
+serial timeout is the only remedy (docs/failure-modes.md).
 
 **Assumption**: when playback starts, the robot rests at its assembly pose
 (every cable just taut, ``u = 0``).  The pre-flight check resets the encoders
@@ -27,6 +32,7 @@ there, so encoder 0 means ``u = 0``.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import sys
@@ -39,6 +45,7 @@ from .config import HardwareConfig
 from .driver import RoboClaw, open_serial
 from .errors import PlaybackError
 from .monitor import CsvLog, Progress, TrackingMonitor
+from .signals import StopSignals, interruption, signal_label, signal_of
 from .stop import StopReport, stop_motors
 from .trajectory import TrajectoryPlan, describe_plan, iter_command_stream, plan_trajectory
 
@@ -211,6 +218,21 @@ class _Run:
         log.info("stop: %s", report)  # the report itself travels with the summary or the exception
         return report
 
+    def finish(self, held: Sequence[int]) -> StopReport:
+        """Stop (never raises), then close the log and the ports.
+
+        ``held``: the signals the playback's :class:`StopSignals` held outside :func:`stop_motors`
+        (while announcing the stop, while closing); they join the report's.
+        """
+        try:
+            report = self.stop()
+        finally:
+            self.close()
+        if held:
+            report = dataclasses.replace(report, signals=report.signals + tuple(held),
+                                         interruptions=report.interruptions + tuple(map(signal_label, held)))
+        return report
+
     def close(self) -> None:
         if self.csv is not None:
             self.csv.close()
@@ -267,8 +289,10 @@ def play_trajectory(u_post: Any, dt: float, motor_names: Sequence[str], config: 
         PlaybackError: pre-flight failure (e.g. low battery, unsupported firmware);
             :class:`TrackingError` when a motor stays off its target.
         RoboClawError: communication failure.
-        Any of these, and KeyboardInterrupt, only after the stop sequence ran: its
-        :class:`StopReport` is ``exc.stop_report`` (and a note on the exception).
+        KeyboardInterrupt / :class:`~.signals.Terminated`: SIGINT / SIGTERM, SIGHUP received
+            (during the playback or its stop).
+        Any of these only after the stop sequence ran: its :class:`StopReport` is
+        ``exc.stop_report`` (and a note on the exception).
     """
     config = config.with_port_override(port_override)
     plan = plan_trajectory(u_post, dt, motor_names, config, loops)
@@ -282,24 +306,44 @@ def play_trajectory(u_post: Any, dt: float, motor_names: Sequence[str], config: 
             raise ValueError(f"playback log {os.fspath(log_path)} already exists; choose another name") from None
         except OSError as exc:
             raise ValueError(f"cannot write the playback log {os.fspath(log_path)}: {exc}") from exc
-    try:
-        run.open(open_port or _default_open)
-        run.preflight(zero_encoders)
-        if plan.needs_preroll:
-            run.preroll(preroll_tolerance)
-        run.stream()
-    except BaseException as exc:  # includes KeyboardInterrupt: stop first, then re-raise
-        report = run.stop()
+    guard = StopSignals(notify=run.progress.say)
+    with guard:  # SIGINT / SIGTERM / SIGHUP: raised (into the stop below) until the stop begins, then held
         try:
-            exc.stop_report = report  # type: ignore[attr-defined]
-        except AttributeError:  # pragma: no cover - exception types without __dict__
-            pass
-        _add_note(exc, str(report))
-        if run.csv is not None and run.csv.rows:
-            _add_note(exc, f"playback log kept at {run.csv.path} ({run.csv.rows} steps)")
-        raise
-    else:
-        report = run.stop()
-    finally:
-        run.close()
+            run.open(open_port or _default_open)
+            run.preflight(zero_encoders)
+            if plan.needs_preroll:
+                run.preroll(preroll_tolerance)
+            run.stream()
+        except BaseException as exc:  # includes KeyboardInterrupt and Terminated: stop first, then re-raise
+            guard.holding = True  # first statement: no signal can end the stop from here on
+            report = run.finish(guard.held)
+            _attach(exc, report, run)
+            signalled = _held_interruption(report) if signal_of(exc) is None else None
+            if signalled is None:
+                raise
+            _add_note(signalled, f"received while stopping after {type(exc).__name__}: {exc}")
+            _attach(signalled, report, run)
+            raise signalled  # noqa: B904 - the error is its context: the signal came while handling it
+        guard.holding = True
+        report = run.finish(guard.held)
+        signalled = _held_interruption(report)
+        if signalled is not None:  # a signal during the final stop: the run ends as interrupted
+            _attach(signalled, report, run)
+            raise signalled
     return run.summary(report)
+
+
+def _attach(exc: BaseException, report: StopReport, run: _Run) -> None:
+    """Give ``exc`` the stop report (``exc.stop_report`` and a note) and say where the log is kept."""
+    try:
+        exc.stop_report = report  # type: ignore[attr-defined]
+    except AttributeError:  # pragma: no cover - exception types without __dict__
+        pass
+    _add_note(exc, str(report))
+    if run.csv is not None and run.csv.rows:
+        _add_note(exc, f"playback log kept at {run.csv.path} ({run.csv.rows} steps)")
+
+
+def _held_interruption(report: StopReport) -> BaseException | None:
+    """The exception of the first signal held during the stop (KeyboardInterrupt / Terminated), if any."""
+    return interruption(report.signals[0]) if report.signals else None

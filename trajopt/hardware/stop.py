@@ -10,8 +10,9 @@ gets its duty 0 once more.
 
 Nothing ends the sequence part-way: every step catches everything (timeouts,
 port errors, a KeyboardInterrupt raised by a hook, any other exception),
-records it and retries an interrupted step; in the main thread Ctrl-C (SIGINT)
-is recorded instead of raised until the sequence ends.  Its duration is bounded
+records it and retries an interrupted step; in the main thread Ctrl-C (SIGINT),
+SIGTERM and SIGHUP are recorded instead of raised until the sequence ends
+(:class:`~.signals.StopSignals`).  Its duration is bounded
 by the drivers' timeouts and retries (a controller that does not answer at all
 costs about ``2 * (max(retries, 2) + 1) * 2 * timeout`` s: two channels, each
 attempt a probe of the line and the write).
@@ -23,16 +24,14 @@ have been acknowledged).
 
 from __future__ import annotations
 
-import contextlib
-import signal
 import sys
-import threading
 import time
 from dataclasses import dataclass
-from typing import Callable, Iterator, Mapping, Sequence, TypeVar
+from typing import Callable, Mapping, Sequence, TypeVar
 
 from .driver import RoboClaw
 from .errors import RoboClawError
+from .signals import StopSignals
 
 T = TypeVar("T")
 
@@ -68,7 +67,8 @@ class StopReport:
 
     channels: tuple[ChannelStop, ...] = ()
     unreached: tuple[str, ...] = ()  # motors on ports that never opened: nothing was sent to them
-    interruptions: tuple[str, ...] = ()  # Ctrl-C and exceptions that arrived during the stop
+    interruptions: tuple[str, ...] = ()  # Ctrl-C, SIGTERM, SIGHUP and exceptions that arrived during the stop
+    signals: tuple[int, ...] = ()  # the signals among them (SIGINT, SIGTERM, SIGHUP), in order
 
     @property
     def all_confirmed(self) -> bool:
@@ -97,29 +97,6 @@ class StopReport:
         if self.interruptions:
             parts.append("held back until the stop ended: " + ", ".join(self.interruptions))
         return "; ".join(parts) if parts else "no controller to stop"
-
-
-@contextlib.contextmanager
-def _sigint_held(held: list[str], notify: Callable[[str], None] | None) -> Iterator[None]:
-    """Record SIGINT instead of raising KeyboardInterrupt (main thread only)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def on_sigint(signum: int, frame: object) -> None:
-        held.append("Ctrl-C")
-        if notify is not None:
-            notify("stopping the motors first: Ctrl-C is held until the stop sequence ends")
-
-    try:
-        previous = signal.signal(signal.SIGINT, on_sigint)
-    except (ValueError, OSError):  # pragma: no cover - not the main interpreter
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous if previous is not None else signal.default_int_handler)
 
 
 def _guarded(call: Callable[[], T], held: list[str]) -> tuple[T | None, str | None]:
@@ -201,20 +178,28 @@ def stop_motors(drivers: Mapping[tuple[str, int], RoboClaw], names: Mapping[tupl
         names: motor name of each ``(port, address, channel)`` (labels of the report).
         unreached: descriptions of motors on ports that never opened (copied to the report).
         clock, sleep: real time for the standstill check.
-        notify: called with a message when a Ctrl-C is held back (default: print to stderr).
+        notify: called with a message when a signal is held back (default: print to stderr).
     """
     names = names or {}
     held: list[str] = []
     results: list[ChannelStop] = []
-    say = notify or (lambda text: print(f"trajopt play: {text}", file=sys.stderr, flush=True))
-    with _sigint_held(held, say):
+    say = notify or _print_to_stderr
+    signals = StopSignals(holding=True, notify=say, labels=held)
+    with signals:
         for (port, address), drv in drivers.items():
             outcome, why = _guarded(lambda: _stop_controller(drv, held, clock, sleep), held)  # noqa: B023
             for ch in (1, 2):
                 label = names.get((port, address, ch), f"{port} {address:#04x} M{ch} (unused)")
                 ok, detail = (outcome or {}).get(ch, (False, why or "stop not attempted"))
                 results.append(ChannelStop(label, port, address, ch, ok, detail))
-    return StopReport(tuple(results), tuple(unreached), tuple(held))
+    return StopReport(tuple(results), tuple(unreached), tuple(held), tuple(signals.held))
+
+
+def _print_to_stderr(text: str) -> None:
+    try:
+        print(f"trajopt play: {text}", file=sys.stderr, flush=True)
+    except (OSError, ValueError):  # a closed terminal (SIGHUP) must not break the stop
+        pass
 
 
 def stop_all_reachable(drivers: Mapping[tuple[str, int], RoboClaw]) -> list[str]:
