@@ -239,6 +239,58 @@ def test_one_ctrl_c_exits_130_with_motors_confirmed(emu: RoboClawEmulator, tmp_p
     assert stopped_after_last_move(emu)
 
 
+# --------------------------------------------------------------------------- a stop acknowledged is not yet confirmed
+END = 16  # steps of the short playbacks below: the stop's first packet is at_step(END)
+
+
+def test_stop_acknowledged_but_encoder_read_back_unanswered_is_not_confirmed(
+        emu: RoboClawEmulator, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Every duty 0 of the stop is acknowledged, but M1's encoder never answers: front is not confirmed."""
+    from trajopt.results import Result
+
+    u = smooth_u(END, 0.004)
+    result = str(Result(robot="tripod", task="walk", motor_names=NAMES, dt=DT, z=np.zeros(1), u=u, u_post=u,
+                        target=np.zeros((0, 2)), com=np.zeros((0, 3))).save(tmp_path / "gait.npz"))
+    emu.after_packets(at_step(END), lambda: emu.inject_no_reply(None, command=P.Cmd.READ_ENCODER_M1))
+    code = cli(result, "--hardware", tripod_toml(tmp_path, emu.port), "--log", str(tmp_path / "p.csv"))
+    err = capsys.readouterr().err
+    assert code == 3, err
+    assert "motors confirmed stopped: back;" in err
+    assert "NOT confirmed stopped (cut their power): front (duty 0 acknowledged but the encoder could not be " \
+           "read: " in err
+    stop = emu.received[at_step(END) - 1:]
+    assert stop[0].command == P.Cmd.DUTY_M1 and stop[0].answered  # the stop's duty 0 itself was acknowledged
+    assert emu.snapshot().modes == ("idle", "idle")  # (indeed stopped: the report is conservative)
+
+
+def test_motor_still_moving_after_an_acknowledged_stop_is_not_confirmed(emu: RoboClawEmulator) -> None:
+    """back acknowledges every duty 0 but keeps turning: it must not be called stopped."""
+    emu.after_packets(at_step(END), lambda: emu.run_away(2, 3000.0))
+    summary = play_trajectory(smooth_u(END, 0.004), DT, NAMES, tripod_config(), port_override=emu.port)
+    assert summary.stop is not None and not summary.stop.all_confirmed
+    assert summary.stop.confirmed == ("front",)
+    (back,) = summary.stop.unconfirmed
+    assert back.label == "back" and back.detail.startswith("duty 0 acknowledged but the motor still moves (")
+    stop = emu.received[at_step(END) - 1:]
+    assert stop[0].command == P.Cmd.DUTY_M1 and all(p.answered for p in stop)  # every duty 0 acknowledged
+    assert [p.command for p in stop].count(P.Cmd.DUTY_M2) == 2  # sent once more: still moving
+    assert emu.snapshot().velocities[1] == 3000.0
+
+
+def test_motor_still_moving_exits_3_naming_it(emu: RoboClawEmulator, tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    from trajopt.results import Result
+
+    u = smooth_u(END, 0.004)
+    result = str(Result(robot="tripod", task="walk", motor_names=NAMES, dt=DT, z=np.zeros(1), u=u, u_post=u,
+                        target=np.zeros((0, 2)), com=np.zeros((0, 3))).save(tmp_path / "gait.npz"))
+    emu.after_packets(at_step(END), lambda: emu.run_away(1, -2500.0))
+    code = cli(result, "--hardware", tripod_toml(tmp_path, emu.port), "--log", str(tmp_path / "p.csv"))
+    err = capsys.readouterr().err
+    assert code == 3, err
+    assert "NOT confirmed stopped (cut their power): front (duty 0 acknowledged but the motor still moves" in err
+
+
 # --------------------------------------------------------------------------- defect 2: replies matched to requests
 def test_late_ack_is_not_taken_for_the_stop(emu: RoboClawEmulator, tmp_path: Path, result_file: str,
                                             capsys: pytest.CaptureFixture[str]) -> None:

@@ -14,7 +14,9 @@ The encoder position is a float integrated with small fixed sub-steps:
   0) start when the current move has arrived; flag 1 clears the queue.
 
 A *jammed* channel (a snagged cable, a stalled motor) does not move whatever
-it is commanded: its encoder count stays put.
+it is commanded: its encoder count stays put.  A *runaway* channel (a shorted
+H-bridge, a controller past its own fault handling) turns at a fixed speed
+whatever it is commanded, duty 0 included, and still acknowledges every command.
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ class ChannelModel:
     queue: deque[Move] = field(default_factory=deque)
     pid: tuple[int, int, int, int, int, int, int] = (0, 0, 0, 0, 0, 0, 0)  # raw P, I, D, MaxI, DZ, Min, Max
     jammed: bool = False
+    runaway: float | None = None  # counts/s it turns at whatever it is commanded; None = obeys
 
     @property
     def count(self) -> int:
@@ -87,6 +90,10 @@ class ChannelModel:
         """Integrate the model over ``h`` seconds (call with small ``h``)."""
         if self.jammed:
             self.vel = 0.0
+            return
+        if self.runaway is not None:
+            self.vel = self.runaway
+            self.pos += self.vel * h
             return
         if self.mode == "duty":
             self.vel = self.duty / 32767.0 * self.no_load_speed

@@ -22,6 +22,7 @@ valid packets (``None`` = forever), optionally only for one ``command``:
 * :meth:`inject_partial_reply` -- executed, only the first bytes of the reply leave;
 * :meth:`inject_bad_crc` / :meth:`inject_bad_ack` -- corrupted read CRC / ACK byte 0x00;
 * :meth:`jam` -- a channel cannot move (snagged cable): its encoder stays put;
+* :meth:`run_away` -- a channel turns whatever it is commanded (duty 0 acknowledged, motor still moving);
 * :meth:`disconnect` / :meth:`disconnect_after` -- the port disappears (unplugged);
 * :meth:`after_packets` -- run any of these at a chosen packet.
 """
@@ -193,6 +194,13 @@ class RoboClawEmulator:
         with self._lock:
             self._advance(self._clock())
             self._controller(address).channels[P.check_channel(channel) - 1].jammed = bool(jammed)
+
+    def run_away(self, channel: int, speed: float | None, address: int | None = None) -> None:
+        """Motor ``channel`` turns at ``speed`` counts/s whatever it is commanded (``None``: obeys again)."""
+        with self._lock:
+            self._advance(self._clock())
+            self._controller(address).channels[P.check_channel(channel) - 1].runaway = \
+                None if speed is None else float(speed)
 
     def clear_faults(self) -> None:
         """Cancel all pending injected faults (not a disconnect that already happened, nor a jam)."""
