@@ -4,10 +4,12 @@ slopes, and report the spread of its speed.
 Run:  python examples/gait_robustness.py                (a few minutes)
       SOFT_ENVS_QUICK=1 python examples/gait_robustness.py   (tiny settings, as CI runs it)
 
-It uses ``tripod_walk.npz`` if ``examples/optimize_tripod_walk.py`` has written it here, otherwise
-a hand-made keyframe gait of the Tripod. The same from the shell:
+It uses ``results/tripod_walk_example.npz`` if ``examples/optimize_tripod_walk.py`` has written it,
+otherwise a hand-made keyframe gait of the Tripod, and writes results/robustness_example/
+(results/robustness_example_quick/ quick; the README's ``trajopt robustness`` command writes
+results/robustness/). The same from the shell:
 
-    trajopt robustness tripod_walk.npz --samples 32 --cycles 4 --out results/robustness
+    trajopt robustness results/tripod_walk_example.npz --samples 32 --cycles 4 --out results/robustness_example
 """
 import os
 from pathlib import Path
@@ -20,8 +22,8 @@ from trajopt.cli import main
 from trajopt.results import Result
 
 QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"
-OUT = Path("results") / "robustness"
-gait_file = Path("tripod_walk.npz")
+OUT = Path("results") / ("robustness_example_quick" if QUICK else "robustness_example")
+gait_file = Path("results") / "tripod_walk_example.npz"
 if QUICK or not gait_file.is_file():
     robot = load_robot("tripod")
     spec = GaitSpec(n_prep=4, n_cycle=12, n_cycles=1, n_keyframes=2, symmetry=False) if QUICK else GaitSpec()

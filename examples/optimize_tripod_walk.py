@@ -5,11 +5,12 @@ Run:  python examples/optimize_tripod_walk.py      (about half a minute)
 The optimiser reaches the physics through the Gymnasium environment's gradient hooks (the
 `soft_envs.envs.GradientEnv` protocol on `env.unwrapped`): every Gauss-Newton iteration is one
 rollout with exact sensitivities (dx/dz of all 168 states) plus a short line search. A robot of
-your own works the same way: `optimize_gait("my_robot/robot.toml", task="walk")` builds a bare
+your own works the same way: `optimize_gait("results/my_robot/robot.toml", task="walk")` builds a bare
 environment for it (`soft_envs.envs.make_gradient_env`); `gait=trajopt.GaitSpec(...)` changes the
 phase lengths and keyframes. The same thing from the shell: `trajopt optimize tripod --task walk`.
 
-SOFT_ENVS_QUICK=1 (the project's convention for CI) shrinks the work to a smoke test.
+SOFT_ENVS_QUICK=1 (the project's convention for CI) shrinks the work to a smoke test and writes
+results/tripod_walk_example_quick.npz instead of results/tripod_walk_example.npz.
 """
 import os
 
@@ -38,7 +39,8 @@ ev = result.evaluation
 print(f"speed per cycle [BL/min]: {[round(v, 2) for v in ev['speed_per_cycle_bl_per_min']]} "
       f"(paper's Tripod: 6.1)")
 
-path = result.save("results/tripod_walk_example.npz")   # .npz + .json (one unit), written atomically
+# .npz + .json (one unit), written atomically; a quick run has its own name and never replaces a full one
+path = result.save("results/tripod_walk_example_quick.npz" if QUICK else "results/tripod_walk_example.npz")
 again = Result.load(path)
 print(f"saved {path}; keyframes per motor [mm]:")
 for name, kf in zip(again.motor_names, again.settings["keyframes"]):

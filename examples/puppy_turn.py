@@ -41,5 +41,5 @@ print(f"heading over the optimised horizon: {ev['horizon_heading_change_deg']:+.
       f"(target +90); the COM {ev['horizon_rms_to_target_bl']:.3f} body lengths (RMS) from the quarter circle")
 print("heading per cycle [deg], 6 cycles:", " ".join(f"{v:+.1f}" for v in ev["heading_per_cycle_deg"]))
 print(f"speed along the path: {ev['cycle_path_speed_bl_per_min']:.2f} BL/min; upright: {ev['upright']}")
-path = turn.save("results/puppy_turn_example.npz")
+path = turn.save("results/puppy_turn_example_quick.npz" if QUICK else "results/puppy_turn_example.npz")
 print(f"saved {path}; watch it with: trajopt render {path}")

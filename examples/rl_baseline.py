@@ -23,13 +23,14 @@ TRAIN = (dict(timesteps=64, n_envs=1, vec_env="dummy", progress_bar=False,
               hyperparams=dict(n_steps=32, batch_size=32, n_epochs=1, policy_kwargs=dict(net_arch=[8])))
          if QUICK else dict(timesteps=8000, progress_bar=True))
 CYCLES = dict(n_cycles=1) if QUICK else {}
+NAME = "tripod_ppo_example_quick" if QUICK else "tripod_ppo_example"   # a quick run never replaces a full one
 
 
 def main() -> None:
     # 1. Train. Episodes are 168 steps (trajopt's horizon); the hyper-parameters are the documented
     #    defaults of trajopt/rl/hyperparams.py; n_envs defaults to the number of CPU cores.
     #    8000 steps take about a minute on two cores (the simulator does ~150 Tripod steps/s/core).
-    run = train("tripod", "ppo", seed=0, out="results/runs", name="tripod_ppo_example", overwrite=True, **TRAIN)
+    run = train("tripod", "ppo", seed=0, out="results/runs", name=NAME, overwrite=True, **TRAIN)
     print(f"trained {run.timesteps} steps in {run.wall_time_s:.0f} s -> {run.run_dir}")
 
     # 2. Evaluate: deterministic policy, closed loop, from the exact rest state (like trajopt).
@@ -38,8 +39,8 @@ def main() -> None:
           f"(per cycle: {', '.join(f'{v:.1f}' for v in ev['speed_per_cycle_bl_per_min'])})")
 
     # 3. Export the policy's controls as a trajopt Result (render / play it like an optimised gait).
-    result = export_result(run.run_dir, "results/tripod_ppo_example.npz", overwrite=True, **CYCLES)
-    print(f"exported: {result.summary()}  (try: trajopt render results/tripod_ppo_example.npz --overwrite)")
+    result = export_result(run.run_dir, f"results/{NAME}.npz", overwrite=True, **CYCLES)
+    print(f"exported: {result.summary()}  (try: trajopt render results/{NAME}.npz --overwrite)")
 
     # 4. Optional: a trajopt gait, measured the same way.
     if len(sys.argv) > 1:

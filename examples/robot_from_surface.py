@@ -24,7 +24,7 @@ from trajopt import GaitSpec, GaussNewtonOptions, optimize_gait
 
 QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"
 SURFACE = Path(__file__).resolve().parent / "data" / "quadruped.obj"
-OUT = Path("results") / "quadruped"
+OUT = Path("results") / ("quadruped_quick" if QUICK else "quadruped")   # quick: a coarser mesh, its own folder
 
 # 1. surface -> tet mesh + robot.toml (overwritten: this folder is the example's own output)
 mesh, vtu, toml = make_robot(SURFACE, OUT, scale=1e-3, up="+z", forward="+x", tendons="legs",

@@ -2,10 +2,10 @@
 
 The project-wide convention is the environment variable ``SOFT_ENVS_QUICK=1``: every example
 reads it and shrinks its work (iterations, timesteps, cycles) to a smoke test. Each script runs
-in a subprocess with it set, in a temporary working directory that is also its TMPDIR (examples
-may write files there), with this checkout first on the import path. It must exit with 0, print
-what it promises (``EXPECTED``, checked line by line) and write the files it says it writes
-(``WRITES``). Every script in ``examples/`` needs an ``EXPECTED`` entry and must read
+in a subprocess with it set, in a temporary working directory (its TMPDIR a folder ``tmp`` in it),
+with this checkout first on the import path. It must exit with 0, print what it promises
+(``EXPECTED``, checked line by line), write the files it says it writes (``WRITES``) and write
+nothing in the working directory outside ``results/``; a quick run writes names of its own. Every script in ``examples/`` needs an ``EXPECTED`` entry and must read
 ``SOFT_ENVS_QUICK``: a new example without them fails here until it is covered.
 """
 from __future__ import annotations
@@ -28,14 +28,14 @@ EXPECTED = {
     "gym_random_agent.py": [r"observation: 38 numbers", r"summed reward terms: \{'reward_forward'",
                             r"COM displacement: x [+-]\d+\.\d+ mm", r"saved a 480x360 frame to "],
     "optimize_tripod_walk.py": [r"iteration 1: objective \S+ -> \S+", r"speed per cycle \[BL/min\]: \[\S+\]",
-                                r"saved results/tripod_walk_example\.npz", r"front: \[", r"back: \["],
+                                r"saved results/tripod_walk_example_quick\.npz", r"front: \[", r"back: \["],
     "calibrate_from_markers.py": [r"\d+ samples of 8 markers over",
                                   r"youngs_modulus +\d+ -> \d+ \+- \S+ Pa",
                                   r"RMS marker error \d+\.\d+ mm -> \d+\.\d+ mm",
-                                  r"wrote results/calibration/fit/robot\.toml"],
+                                  r"wrote results/calibration_quick/fit/robot\.toml"],
     "gait_robustness.py": [r"\d+ replays of \d+ cycles .*running in-process", r"nominal speed +[+-]?\d+\.\d+ BL/min",
                            r"perturbed speed +median [+-]?\d+\.\d+, 5th-95th percentile",
-                           r"wrote results/robustness/report\.json"],
+                           r"wrote results/robustness_example_quick/report\.json"],
     "play_on_emulator.py": [r"robot 'tripod': motors \['front', 'back'\]",
                             r"30/30 steps sent in \d+\.\d+ s; .*motors confirmed stopped: front, back",
                             r"aborted: motor 'front' .*: tracking error \d+ counts",
@@ -45,25 +45,25 @@ EXPECTED = {
     "puppy_turn.py": [r"puppy walk, \d+ steps x 8 motors", r"puppy turn, \d+ steps x 8 motors, .* along its path",
                       r"heading over the optimised horizon: [+-]\d+\.\d deg \(target \+90\)",
                       r"heading per cycle \[deg\], 6 cycles:( [+-]\d+\.\d){6}",
-                      r"saved results/puppy_turn_example\.npz"],
+                      r"saved results/puppy_turn_example_quick\.npz"],
     "robot_from_surface.py": [r"meshed quadruped\.obj: \d+ nodes, \d+ tets",
                               r"mass +body \d+\.\d g \+ payload \d+\.\d g on \d+ top nodes",
-                              r"picture: results/quadruped/quadruped\.png", r"iteration 1: objective \S+ -> \S+",
+                              r"picture: results/quadruped_quick/quadruped\.png", r"iteration 1: objective \S+ -> \S+",
                               r"speed: [+-]?\d+\.\d+ body lengths/min over 1 cycles",
-                              r"saved results/quadruped/quadruped_walk\.npz"],
+                              r"saved results/quadruped_quick/quadruped_walk\.npz"],
 }
 #: files (relative to the working directory) an example must leave behind
 WRITES = {
-    "optimize_tripod_walk.py": ["results/tripod_walk_example.npz", "results/tripod_walk_example.json"],
-    "calibrate_from_markers.py": ["results/calibration/fit/robot.toml", "results/calibration/fit/tracks.png",
-                                  "results/calibration/fit/calibration.json"],
-    "gait_robustness.py": ["results/robustness/report.json", "results/robustness/samples.csv",
-                           "results/robustness/robustness.png"],
-    "rl_baseline.py": ["results/tripod_ppo_example.npz"],
-    "puppy_turn.py": ["results/puppy_turn_example.npz", "results/puppy_turn_example.json"],
-    "robot_from_surface.py": ["results/quadruped/robot.toml", "results/quadruped/quadruped.vtu",
-                              "results/quadruped/quadruped.png", "results/quadruped/quadruped_walk.npz",
-                              "results/quadruped/quadruped_walk.json"],
+    "optimize_tripod_walk.py": ["results/tripod_walk_example_quick.npz", "results/tripod_walk_example_quick.json"],
+    "calibrate_from_markers.py": ["results/calibration_quick/fit/robot.toml", "results/calibration_quick/fit/tracks.png",
+                                  "results/calibration_quick/fit/calibration.json"],
+    "gait_robustness.py": ["results/robustness_example_quick/report.json", "results/robustness_example_quick/samples.csv",
+                           "results/robustness_example_quick/robustness.png"],
+    "rl_baseline.py": ["results/tripod_ppo_example_quick.npz"],
+    "puppy_turn.py": ["results/puppy_turn_example_quick.npz", "results/puppy_turn_example_quick.json"],
+    "robot_from_surface.py": ["results/quadruped_quick/robot.toml", "results/quadruped_quick/quadruped.vtu",
+                              "results/quadruped_quick/quadruped.png", "results/quadruped_quick/quadruped_walk.npz",
+                              "results/quadruped_quick/quadruped_walk.json"],
 }
 #: modules an example needs beyond the core install (skipped with a reason when missing)
 NEEDS = {"rl_baseline.py": "stable_baselines3", "play_on_emulator.py": "serial", "robot_from_surface.py": "gmsh"}
@@ -85,7 +85,8 @@ def test_every_example_is_covered():
 def test_example_runs_quick(script, tmp_path):
     if script.name in NEEDS:
         pytest.importorskip(NEEDS[script.name])
-    env = {**os.environ, "SOFT_ENVS_QUICK": "1", "MPLBACKEND": "Agg", "TMPDIR": str(tmp_path),
+    (tmp_path / "tmp").mkdir()
+    env = {**os.environ, "SOFT_ENVS_QUICK": "1", "MPLBACKEND": "Agg", "TMPDIR": str(tmp_path / "tmp"),
            "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
                           timeout=300)
@@ -95,3 +96,15 @@ def test_example_runs_quick(script, tmp_path):
         assert re.search(pattern, out), f"{script.name}: no match for {pattern!r} in its output:\n{out}"
     for name in WRITES.get(script.name, []):
         assert (tmp_path / name).is_file() and (tmp_path / name).stat().st_size > 0, f"{script.name}: no {name}"
+    outside = sorted(p.name for p in tmp_path.iterdir() if p.name not in ("results", "tmp"))
+    assert not outside, f"{script.name} wrote outside results/: {outside}"
+
+
+def test_quick_runs_have_their_own_file_names():
+    """A quick run (SOFT_ENVS_QUICK=1) never replaces what the full run of the same example wrote:
+    every file an example writes when quick is under a name or folder that says ``quick``."""
+    not_quick = [(s, n) for s, names in WRITES.items() for n in names if "quick" not in n]
+    assert not not_quick, f"quick runs writing the full run's names: {not_quick}"
+    for script in EXAMPLES:
+        if script.name in WRITES:
+            assert re.search(r"quick", script.read_text().split('"""', 2)[-1]), script.name
