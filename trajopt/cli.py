@@ -9,11 +9,11 @@
     trajopt plot results/tripod_walk.npz                   # results/plots/
     trajopt play results/tripod_walk.npz --hardware hw.toml [--dry-run]
     trajopt rl train tripod --algo ppo --timesteps 20000   # results/runs/tripod_ppo_seed0/
-    trajopt mesh body.stl --scale 0.001 --up +z --out my_robot/
-    trajopt check my_robot/robot.toml
-    trajopt sweep examples/sweep_speeds.toml --out sweeps/speeds [--workers N] [--address auto]
-    trajopt calibrate tripod --markers tracks.csv --controls results/tripod_walk.npz --fit youngs_modulus,friction --out calib/
-    trajopt robustness results/tripod_walk.npz --samples 64 --cycles 4 --out robustness/
+    trajopt mesh examples/data/quadruped.obj --scale 0.001 --up +z --out results/my_robot
+    trajopt check results/my_robot/robot.toml
+    trajopt sweep examples/sweep_speeds.toml --out results/sweeps/speeds [--workers N] [--address auto]
+    trajopt calibrate tripod --markers examples/data/tripod_tracks.csv --controls examples/data/tripod_gait.npz --marker-points examples/data/tripod_markers.csv --fit youngs_modulus --out results/calib
+    trajopt robustness results/tripod_walk.npz --samples 64 --cycles 4 --out results/robustness [--overwrite]
 
 Everything the commands write goes under results/ by default (RESULTS_DIR). A file that exists
 is never replaced without --overwrite; a result is only used with the robot it was made for
@@ -184,6 +184,8 @@ def _add_identification_commands(sub) -> None:
     p.add_argument("--out", type=Path, required=True, help="output directory (report.json, samples.csv, robustness.png)")
     p.add_argument("--seed", type=int, default=0, help="seed of the perturbations")
     p.add_argument("--workers", type=int, default=1, help="parallel workers (Ray, when installed with trajopt sweep)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a robustness run with other settings in --out (its samples are discarded)")
     p.set_defaults(func=_cmd_robustness)
 
 

@@ -56,7 +56,7 @@ def _done_samples(out: Path, settings: dict) -> dict[int, dict]:
     old = json.loads(sfile.read_text())
     if {k: v for k, v in old.items() if k != "result"} != {k: v for k, v in settings.items() if k != "result"}:
         raise ValueError(f"{out} holds a robustness run with other settings (gait file, cycles, seed or ranges): "
-                         "use another --out")
+                         "use another --out, or --overwrite to replace it")
     done = {}
     if lines.exists():
         for line in lines.read_text().splitlines():
@@ -127,6 +127,9 @@ def run_robustness(args) -> int:
     nominal_job, jobs = robustness_jobs(res, args.cycles, args.samples, args.seed)
     out = Path(args.out)
     settings = _settings(Path(args.result), args.cycles, args.seed)
+    if getattr(args, "overwrite", False):      # a new run from scratch: its samples replace the old ones
+        (out / "samples.jsonl").unlink(missing_ok=True)
+        (out / "settings.json").unlink(missing_ok=True)
     done = _done_samples(out, settings)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(out / "settings.json", json.dumps(settings, indent=1).encode())
