@@ -4,6 +4,7 @@ without --overwrite, checkpoints beside the finished result, a failure's reason 
 progress lines in log files, and one results folder."""
 from __future__ import annotations
 
+import argparse
 import contextlib
 import io
 import shutil
@@ -206,3 +207,31 @@ def test_commands_write_under_one_results_folder(tiny, tmp_path, monkeypatch, ca
 def test_the_rl_example_does_not_collide_with_the_readme_command():
     text = (ROOT / "examples" / "rl_baseline.py").read_text()
     assert 'name="tripod_ppo_example"' in text and 'out="results/runs"' in text
+
+
+def _output_dir_options(parser, prefix=()):
+    """``(command words, option)`` of every option of every (sub)command that names an output folder."""
+    from trajopt.argtypes import output_dir
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for word, sub in action.choices.items():
+                yield from _output_dir_options(sub, (*prefix, word))
+        elif action.type is output_dir:
+            yield prefix, action.option_strings[-1]
+
+
+def test_an_output_folder_that_is_an_existing_file_is_refused_by_every_command(tmp_path, capsys):
+    """``--out FILE`` (issue #26 item 7): exit 2 and one line naming the argument and the path,
+    for every command that writes into a folder (optimize, plot, export, mesh, calibrate,
+    robustness, sweep, rl train ...); nothing is written."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a directory")
+    options = list(_output_dir_options(build_parser()))
+    commands = {words[0] if words[0] != "rl" else " ".join(words) for words, _ in options}
+    assert {"optimize", "plot", "export", "mesh", "calibrate", "robustness", "sweep", "rl train"} <= commands
+    for words, option in options:
+        code, out, err = run([*words, option, blocker], capsys)
+        lines = err.strip().splitlines()
+        assert code == 2 and len(lines) == 1 and f"argument {option}" in lines[0], (words, option, err)
+        assert str(blocker) in lines[0] and "not a directory" in lines[0], (words, option, err)
+    assert blocker.read_text() == "not a directory" and sorted(tmp_path.iterdir()) == [blocker]

@@ -168,7 +168,7 @@ def _add_identification_commands(sub) -> None:
     p.add_argument("--markers", type=Path, required=True, help="tracks CSV: t,marker,x,y,z [s, m]")
     p.add_argument("--controls", type=Path, required=True, help="the result whose controls were played")
     p.add_argument("--fit", required=True, help="comma-separated parameters, e.g. youngs_modulus,poisson_ratio,friction")
-    p.add_argument("--out", type=Path, required=True, help="output directory (robot.toml, calibration.json, tracks.png)")
+    p.add_argument("--out", type=output_dir, required=True, help="output directory (robot.toml, calibration.json, tracks.png)")
     p.add_argument("--marker-points", type=Path, default=None,
                    help="CSV marker,x,y,z of rest positions [m, robot frame] (default: the robot's [[markers]])")
     p.add_argument("--frame", choices=["robot", "camera"], default="robot",
@@ -181,7 +181,7 @@ def _add_identification_commands(sub) -> None:
     p.add_argument("result", type=Path)
     p.add_argument("--samples", type=int, default=32, help="perturbed replays")
     p.add_argument("--cycles", type=int, default=4, help="gait cycles per replay")
-    p.add_argument("--out", type=Path, required=True, help="output directory (report.json, samples.csv, robustness.png)")
+    p.add_argument("--out", type=output_dir, required=True, help="output directory (report.json, samples.csv, robustness.png)")
     p.add_argument("--seed", type=int, default=0, help="seed of the perturbations")
     p.add_argument("--workers", type=int, default=1, help="parallel workers (Ray, when installed with trajopt sweep)")
     p.add_argument("--overwrite", action="store_true",

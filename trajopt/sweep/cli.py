@@ -4,6 +4,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..argtypes import output_dir
+
 __all__ = ["add_sweep_parser", "run_sweep_command"]
 
 
@@ -13,7 +15,7 @@ def add_sweep_parser(sub) -> argparse.ArgumentParser:
         description="Run every run of a sweep file as a Ray task writing under DIR/<run>/; a rerun "
                     "skips finished runs and restarts the others. Needs pip install soft-envs[ray].")
     p.add_argument("spec", type=Path, help="sweep file (TOML), e.g. examples/sweep_speeds.toml")
-    p.add_argument("--out", type=Path, required=True, help="sweep directory (one sub-directory per run)")
+    p.add_argument("--out", type=output_dir, required=True, help="sweep directory (one sub-directory per run)")
     p.add_argument("--workers", type=int, default=None, help="CPUs of the local Ray (default: all cores)")
     p.add_argument("--address", default=None,
                    help="an existing Ray cluster: auto (this node's), HOST:PORT, or ray://HOST:PORT (Ray client)")
