@@ -23,6 +23,10 @@ projected out and normalised to unit length, form ``C = J_n^T J_n`` (a correlati
 matrix); each eigenvalue below ``1e-3`` of the largest names the parameters of its eigenvector
 (components above 0.3) that the data cannot tell apart, and a column with no information is
 named alone.
+
+What ``trajopt calibrate`` checks before it writes a robot from a fit (units, time span, RMS
+against the tracker's noise, evaluation limit, standard errors, bounds):
+:mod:`trajopt.calibration_checks`.
 """
 from __future__ import annotations
 
@@ -38,11 +42,12 @@ from soft_envs.envs import PHYSICAL_PARAMETERS, MarkerSet, SimulationError, make
     with_parameters
 
 __all__ = ["MarkerData", "CalibrationFit", "fit_parameters", "simulate_markers", "synthetic_tracks", "kabsch",
-           "rotation_jacobian", "separability_warnings", "SEPARABILITY_RATIO"]
+           "rotation_jacobian", "separability_warnings", "SEPARABILITY_RATIO", "PARAMETER_BOUNDS"]
 
 #: eigenvalues of the normalised J^T J below this fraction of the largest are flagged
 SEPARABILITY_RATIO = 1e-3
-_NU_BOUNDS = (-0.99, 0.49)
+#: the fitted parameters with a bounded range (the rest are positive, fitted as their logarithm)
+PARAMETER_BOUNDS = {"poisson_ratio": (-0.99, 0.49)}
 _MM = 1e3          # residuals are fitted in millimetres (well-scaled tolerances)
 
 
@@ -134,6 +139,7 @@ class CalibrationFit:
     pose: dict | None = None
     predicted_before: np.ndarray | None = None      # (K+1, m, 3) in the measurements' frame
     predicted_after: np.ndarray | None = None
+    stopped_at_limit: bool = False     # the last stage ended at max_evaluations, not converged
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready description (no arrays of tracks)."""
@@ -143,7 +149,7 @@ class CalibrationFit:
                 "correlation": self.correlation.tolist(), "rms_before_mm": self.rms_before_mm,
                 "rms_after_mm": self.rms_after_mm, "rms_per_marker_mm": self.rms_per_marker_mm,
                 "n_observations": self.n_observations, "iterations": self.iterations, "message": self.message,
-                "warnings": list(self.warnings), "pose": self.pose}
+                "stopped_at_limit": bool(self.stopped_at_limit), "warnings": list(self.warnings), "pose": self.pose}
 
 
 # ---------------------------------------------------------------------- geometry
@@ -235,7 +241,7 @@ class _Problem:
         lo, hi = np.full(n, -np.inf), np.full(n, np.inf)
         for j, name in enumerate(self.names):
             if name == "poisson_ratio":
-                lo[j], hi[j] = _NU_BOUNDS
+                lo[j], hi[j] = PARAMETER_BOUNDS[name]
         return lo, hi
 
     def v0(self, theta: np.ndarray) -> np.ndarray:
@@ -332,7 +338,7 @@ def fit_parameters(data: MarkerData, names: Sequence[str], *, horizons: Sequence
     before, _ = full.evaluate(v_start)
     to_frame0 = _to_measurement_frame(full, v_start)
     predicted_before = to_frame0(before)
-    nfev, message = 0, ""
+    nfev, message, at_limit = 0, "", False
     for frac in horizons:
         stage = data if frac >= 1.0 else data.truncated(frac)
         if stage is None:
@@ -344,14 +350,15 @@ def fit_parameters(data: MarkerData, names: Sequence[str], *, horizons: Sequence
         sol = least_squares(prob.residuals, np.clip(v0, lo, hi), jac=prob.jac, bounds=(lo, hi), method="trf",
                             x_scale="jac", ftol=tol, xtol=tol, gtol=1e-10, max_nfev=max_evaluations)
         theta, nfev, message = prob.theta(sol.x), nfev + int(sol.nfev), str(sol.message)
+        at_limit = sol.status == 0                # max_nfev reached (scipy's status 0)
         v = sol.x
     if full is not prob:                      # the last horizon was shorter than the data
         v = full.v0(theta)
-    return _analyse(full, v, start, r0, predicted_before, nfev, message)
+    return _analyse(full, v, start, r0, predicted_before, nfev, message, at_limit)
 
 
 def _analyse(prob: _Problem, v: np.ndarray, start: np.ndarray, r0: np.ndarray, predicted_before: np.ndarray,
-             nfev: int, message: str) -> CalibrationFit:
+             nfev: int, message: str, at_limit: bool = False) -> CalibrationFit:
     """Values, standard errors, correlations, separability warnings and RMS at the solution."""
     data, names = prob.data, prob.names
     r, J = prob.residuals(v), prob.jac(v)
@@ -373,7 +380,7 @@ def _analyse(prob: _Problem, v: np.ndarray, start: np.ndarray, r0: np.ndarray, p
         R = Rotation.from_rotvec(v[prob.np:prob.np + 3]).as_matrix() @ prob.A0
         pose = {"rotation_camera_to_robot": R.tolist(), "translation_m": v[prob.np + 3:].tolist()}
     return CalibrationFit(names, start, theta, std, corr, rms(r0), rms(r), per_marker, N // 3, nfev, message, warns,
-                          pose, predicted_before, _to_measurement_frame(prob, v)(after))
+                          pose, predicted_before, _to_measurement_frame(prob, v)(after), at_limit)
 
 
 def _to_measurement_frame(prob: _Problem, v: np.ndarray):

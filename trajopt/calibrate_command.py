@@ -1,9 +1,11 @@
 """``trajopt calibrate``: inputs (robot, markers, tracks, controls) and outputs (calibration.json,
 a new robot.toml with the fitted values, the before/after plot of the tracks). The fit itself is
-:func:`trajopt.calibrate.fit_parameters`."""
+:func:`trajopt.calibrate.fit_parameters`; the checks of the data and of the fit
+(:mod:`trajopt.calibration_checks`) refuse to write anything when one fails, unless ``--force``."""
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 import time
@@ -15,9 +17,10 @@ import numpy as np
 from soft_envs.envs import PHYSICAL_PARAMETERS, MarkerSet, check_parameters, load_robot, parameter_values
 
 from .calibrate import CalibrationFit, MarkerData, fit_parameters
+from .calibration_checks import check_fit, check_tracks
 from .files import atomic_write_png
 from .results import Result, atomic_write_bytes
-from .tracks import read_tracks
+from .tracks import read_tracks, read_utf8
 
 __all__ = ["run_calibrate", "read_marker_points", "write_calibrated_robot", "plot_tracks", "HEADER"]
 
@@ -29,10 +32,9 @@ def read_marker_points(path: str | Path, mesh) -> MarkerSet:
     """Markers from a CSV with the header ``marker,x,y,z`` (rest positions [m] in the robot's
     simulation frame), bound to ``mesh``; errors name the file and line."""
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: marker points file not found")
+    text = read_utf8(path, "marker points file")
     names, points = [], []
-    with path.open(newline="") as fh:
+    with io.StringIO(text, newline="") as fh:
         reader = csv.reader(fh)
         header = [h.strip().lower() for h in next(reader, [])]
         if header != ["marker", "x", "y", "z"]:
@@ -150,6 +152,13 @@ def _inputs(args) -> tuple[Any, MarkerSet, MarkerData, tuple[str, ...], Any]:
     return robot, markers, data, names, tracks
 
 
+def _refuse_unless_forced(failures: list[str], target: Path, force: bool) -> None:
+    """A ValueError (one line: exit 2, nothing written) naming the failed checks, unless ``force``."""
+    if failures and not force:
+        raise ValueError(f"refusing to write {target}: {len(failures)} check{'s' * (len(failures) > 1)} failed: "
+                         + " | ".join(failures) + " (--force writes it anyway, with these warnings)")
+
+
 def run_calibrate(args) -> int:
     robot, markers, data, names, tracks = _inputs(args)
     if robot.source.startswith("<"):
@@ -160,15 +169,20 @@ def run_calibrate(args) -> int:
     print(f"{robot.summary()}\n{len(data.times)} samples of {len(markers)} markers over {len(data.u) * data.dt:.2f} s "
           f"(about {1.0 / tracks.median_interval():.3g} Hz per marker; "
           f"{tracks.n_missing} missing, {dropped} outside the controls' span); fitting {', '.join(names)}")
+    failures = check_tracks(tracks, data)
+    _refuse_unless_forced(failures, target, args.force)       # before the fit: no time spent on nonsense
     t0 = time.perf_counter()
     fit = fit_parameters(data, names, max_evaluations=args.max_evaluations)
+    failures += check_fit(fit, args.noise)
+    _refuse_unless_forced(failures, target, args.force)
     out.mkdir(parents=True, exist_ok=True)
     write_calibrated_robot(Path(robot.source), target, robot, names, fit.values)
     plot = plot_tracks(data, fit, out / "tracks.png")
     summary = {"robot": args.robot, "robot_toml": str(target), "markers": str(args.markers),
                "controls": str(args.controls), "played": args.play, "frame": args.frame, "dt": data.dt,
-               "n_steps": len(data.u), "missing_samples": tracks.n_missing, "wall_time_s": time.perf_counter() - t0,
-               **fit.summary()}
+               "n_steps": len(data.u), "missing_samples": tracks.n_missing, "samples_used": len(data.times),
+               "samples_read": tracks.n_samples, "noise_m": args.noise, "checks_failed": failures,
+               "wall_time_s": time.perf_counter() - t0, **fit.summary()}
     atomic_write_bytes(out / "calibration.json", json.dumps(summary, indent=1).encode())
     w = max(len(n) for n in names)
     for n, a, b, e in zip(names, fit.initial, fit.values, fit.std_errors):
@@ -178,5 +192,7 @@ def run_calibrate(args) -> int:
           f"({fit.iterations} rollouts; {fit.message})")
     for warning in fit.warnings:
         print(f"warning: {warning}")
+    for failure in failures:
+        print(f"warning: check failed (written anyway, --force): {failure}")
     print(f"wrote {target}, {plot}, {out / 'calibration.json'}")
     return 0

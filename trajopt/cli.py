@@ -176,6 +176,11 @@ def _add_identification_commands(sub) -> None:
     p.add_argument("--play", choices=["u_post", "u"], default="u_post",
                    help="which controls of the result were played (u_post: what trajopt play streams)")
     p.add_argument("--max-evaluations", type=int, default=30, help="rollouts per fitting stage at most")
+    p.add_argument("--noise", type=positive_float, default=1e-3,
+                   help="the tracker's noise [m, standard deviation per coordinate]; a fit whose RMS marker error is "
+                        "above 3x what it explains is refused (docs/calibration.md)")
+    p.add_argument("--force", action="store_true",
+                   help="write the robot even when a check of the tracks or the fit fails (printed as warnings)")
     p.set_defaults(func=_cmd_calibrate)
     p = sub.add_parser("robustness", help="replay a gait under perturbed physics and report its speed spread")
     p.add_argument("result", type=Path)
