@@ -166,3 +166,26 @@ def test_play_refuses_a_result_whose_robot_file_was_edited(edited, capsys):
     from trajopt.hardware import EXAMPLE_TRIPOD
     code, _, err = run(["play", path, "--dry-run", "--hardware", EXAMPLE_TRIPOD], capsys)
     assert code == 2 and "motors[0].u_max: 0.02 -> 0.015" in err
+
+
+def test_moved_mesh_nodes_with_the_same_connectivity_change_the_fingerprint(tmp_path, capsys):
+    """The robot.toml unchanged, the mesh's tets the same, one node moved by 1 mm: another robot
+    body. Its fingerprint changes (the mesh part only), and the result made for the robot as it
+    was refuses to replay and to play on it."""
+    toml = copy_robot("tripod", tmp_path / "robot")
+    path = gait_for(toml).save(tmp_path / "gait")
+    before = robot_fingerprint(toml)
+    vtu = tmp_path / "robot" / "tripod.vtu"
+    mesh = meshio.read(vtu)
+    cells = [c.data.copy() for c in mesh.cells]
+    mesh.points[5] += [0.001, 0.0, 0.0]
+    meshio.write(vtu, mesh)
+    assert all(np.array_equal(a, c.data) for a, c in zip(cells, meshio.read(vtu).cells))   # same connectivity
+    after = robot_fingerprint(toml)
+    assert after["toml_sha256"] == before["toml_sha256"]
+    assert after["mesh_sha256"] != before["mesh_sha256"] and after["sha256"] != before["sha256"]
+    code, _, err = run(["evaluate", path], capsys)
+    assert code == 2 and f"{path} was made for robot 'tripod'" in err and "the mesh changed" in err, err
+    from trajopt.hardware import EXAMPLE_TRIPOD
+    code, _, err = run(["play", path, "--dry-run", "--hardware", EXAMPLE_TRIPOD], capsys)
+    assert code == 2 and "the mesh changed" in err, err

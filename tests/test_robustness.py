@@ -1,6 +1,7 @@
 """``trajopt robustness`` (issue #19) on a tiny gait: seeded perturbations, the actuation model,
 slopes in any direction, the report and its files, resuming, the in-process fallback of
-``--workers`` and picklable samples."""
+``--workers`` and picklable samples; damaged run files give one line naming the file and line,
+and a line cut by a crash is repaired (issue #26 item 4)."""
 from __future__ import annotations
 
 import importlib.util
@@ -11,9 +12,10 @@ import pickle
 import numpy as np
 import pytest
 
-from soft_envs.envs import load_robot
+from soft_envs.envs import load_robot, make_gradient_env
 from trajopt import GaitParameterization, GaitSpec
 from trajopt.cli import main
+from trajopt.evaluation import zero_slack_controls
 from trajopt.results import Result
 from trajopt.robustness import (PERTURBATIONS, applied_controls, draw_perturbation, map_samples, perturbed_slope,
                                 run_sample)
@@ -30,7 +32,9 @@ def tiny_result(tmp_path, contact: str | None = None):
     K = len(u)
     settings = {**GAIT.to_settings(), "keyframes": param.keyframes(z).tolist(), "heading_deg": 0.0,
                 "incline_deg": 0.0, **({"contact": contact} if contact else {})}
-    res = Result(robot="tripod", task="walk", motor_names=robot.motor_names, dt=0.033, z=z, u=u, u_post=u,
+    env = make_gradient_env("tripod", contact=contact or "paper")
+    u_post = zero_slack_controls(u, env.rollout(u).cable_deformation, robot.tendon_motor, robot.u_bounds)
+    res = Result(robot="tripod", task="walk", motor_names=robot.motor_names, dt=0.033, z=z, u=u, u_post=u_post,
                  target=np.zeros((K + 1, 2)), com=np.zeros((K + 1, 3)), settings=settings)
     return res.save(tmp_path / f"tiny{'_' + contact if contact else ''}.npz")
 
@@ -149,3 +153,73 @@ def test_samples_on_ray_equal_the_in_process_ones(tmp_path):
     assert where == "on Ray with 2 workers"
     for a, b in zip(on_ray, (run_sample(j) for j in jobs)):
         assert a["speed_bl_per_min"] == b["speed_bl_per_min"] and a["upright"] == b["upright"]
+
+
+def robustness_run(tmp_path, samples: int = 2):
+    """A finished run of ``samples`` samples in tmp_path/rob, and its command line."""
+    out = tmp_path / "rob"
+    args = ["robustness", str(tiny_result(tmp_path)), "--samples", str(samples), "--cycles", "1", "--out", str(out),
+            "--seed", "5"]
+    assert main(args) == 0
+    return out, args
+
+
+def run_cli(args, capsys):
+    code = main(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+GOOD = {"index": 1, "speed_bl_per_min": 1.0, "upright": True, "heading_drift_deg_per_cycle": 0.0,
+        "max_tilt_deg": 1.0, **{k: 1.0 for k in PERTURBATIONS}}
+BAD_LINES = {
+    "a list": ("[1, 2]", "a sample must be a JSON object, got list"),
+    "no sample fields": ('{"foo": 1}', "field 'index' must be a sample number >= 0, got None"),
+    "no speed": (json.dumps({k: v for k, v in GOOD.items() if k != "speed_bl_per_min"}),
+                 "field 'speed_bl_per_min' must be a number, got nothing (missing)"),
+    "index abc": (json.dumps({**GOOD, "index": "abc"}), "field 'index' must be a sample number >= 0, got 'abc'"),
+    "upright text": (json.dumps({**GOOD, "upright": "yes"}), "field 'upright' must be true or false"),
+    "not json": ('{"index": 1, "speed', "line 2: not valid JSON"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_LINES))
+def test_a_damaged_samples_line_is_one_error_naming_file_and_line(tmp_path, capsys, case):
+    out, args = robustness_run(tmp_path, samples=1)
+    capsys.readouterr()
+    lines = out / "samples.jsonl"
+    line, message = BAD_LINES[case]
+    lines.write_text(lines.read_text() + line + "\n")             # a whole line (with its newline), damaged
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    code, _, err = run_cli(args, capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{lines} line 2: " in err and message in err and "Traceback" not in err
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.name in before} == before     # left as it was
+
+
+@pytest.mark.parametrize("text,message", [("[]", "the run's settings must be a JSON object, got list"),
+                                          (None, "the run's settings is not valid JSON")])
+def test_a_damaged_settings_file_is_one_error_naming_it(tmp_path, capsys, text, message):
+    out, args = robustness_run(tmp_path, samples=1)
+    capsys.readouterr()
+    sfile = out / "settings.json"
+    sfile.write_text(text if text is not None else sfile.read_text()[:40])        # [] or truncated
+    code, _, err = run_cli(args, capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{sfile}: {message}" in err and "--overwrite" in err
+
+
+def test_a_line_cut_by_a_crash_is_repaired_and_its_sample_runs_again(tmp_path, capsys):
+    out, args = robustness_run(tmp_path, samples=3)
+    lines = out / "samples.jsonl"
+    whole = lines.read_text().splitlines()
+    lines.write_text("\n".join(whole[:2]) + "\n" + whole[2][:25])     # killed while appending sample 3
+    capsys.readouterr()
+    code, text, err = run_cli(args, capsys)
+    assert code == 0, err
+    assert f"warning: {lines} line 3 was cut" in err and "(2 done before)" in text
+    again = lines.read_text().splitlines()
+    assert len(again) == 3 and again[:2] == whole[:2]
+    redone, first = json.loads(again[2]), json.loads(whole[2])
+    assert redone["index"] == first["index"] and redone["speed_bl_per_min"] == first["speed_bl_per_min"]
+    assert lines.read_text().endswith("\n")

@@ -164,6 +164,8 @@ def test_result_round_trip_and_bad_files(short_walk, tmp_path):
     import io
     with np.load(path) as data:
         arrays = {k: data[k] for k in data.files if k not in ("u_post", "content_sha256")}  # edited files
+    old_meta = {k: v for k, v in json.loads(str(arrays["meta"])).items() if k != "robot_fingerprint"}
+    arrays["meta"] = np.array(json.dumps({**old_meta, "format_version": 1}))      # as version 1 wrote, before hashes
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     (tmp_path / "missing.npz").write_bytes(buf.getvalue())
@@ -209,7 +211,8 @@ def test_results_reject_malformed_metadata(short_walk, tmp_path):
     path = res.save(tmp_path / "ok")
     with np.load(path) as data:
         arrays = {k: data[k] for k in data.files if k != "content_sha256"}   # as an older version wrote
-    meta = json.loads(str(arrays["meta"]))
+    meta = {k: v for k, v in json.loads(str(arrays["meta"])).items() if k != "robot_fingerprint"}
+    meta["format_version"] = 1                                      # version 1, before hashes and fingerprints
     cases = {"dt": None, "settings": [], "format_version": "1"}
     for key, bad in cases.items():
         m = dict(meta)

@@ -133,13 +133,31 @@ def evaluate_result(res, n_cycles: int | None = None, *, ignore_robot_mismatch: 
     was made on (another robot is refused unless ``ignore_robot_mismatch``, see
     :func:`trajopt.replay.env_for_result`); keyframe results are re-expanded, others (like
     exported RL gaits) play their ``u``. The optimised horizon's heading and distance to
-    ``res.target`` are measured when the played controls cover it."""
+    ``res.target`` are measured when the played controls cover it.
+
+    What is scored is what ``trajopt play`` streams: loading checked ``u`` against the keyframes
+    (:mod:`trajopt.result_checks`), and here the stored ``u_post`` of a keyframe result must be
+    the zero-slack controls of the rollout of ``u`` (a ValueError naming the file otherwise)."""
     from .replay import env_for_result, result_controls
+    from .result_checks import check_zero_slack
     cycles = int(res.settings.get("eval_cycles", DEFAULT_EVAL_CYCLES)) if n_cycles is None else int(n_cycles)
     if cycles < 1:
         raise ValueError(f"the number of cycles must be >= 1, got {cycles}")
     env = env_for_result(res, ignore_robot_mismatch=ignore_robot_mismatch)
     u, n_prep, n_cycle = result_controls(res, env.robot, cycles)
     target = res.target if 2 <= len(res.target) <= len(u) + 1 else None     # the optimised horizon
-    return evaluate_controls(env, u, n_prep=n_prep, n_cycle=n_cycle,
-                             heading_deg=float(res.settings.get("heading_deg", 0.0)), target=target)
+    heading = float(res.settings.get("heading_deg", 0.0))
+    if "keyframes" not in res.settings:
+        return evaluate_controls(env, u, n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading, target=target)
+    n_cycles_played = _count_cycles(len(u), n_prep, n_cycle)
+    K = len(res.u)
+    try:
+        traj = env.rollout(u)
+        prefix = traj if (len(u) >= K and np.array_equal(u[:K], res.u)) else env.rollout(res.u)
+    except SimulationError as err:
+        return {"cycles": n_cycles_played, "speed_bl_per_min": float("nan"), "upright": False,
+                "sim_failure": str(err)}
+    robot = env.robot
+    check_zero_slack(res.u_post, zero_slack_controls(res.u, prefix.cable_deformation[:K + 1], robot.tendon_motor,
+                                                     robot.u_bounds), res.path or "the result")
+    return measure_gait(traj, env, n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading, target=target)

@@ -6,10 +6,16 @@ A :class:`Result` is saved as ``NAME.npz`` (arrays plus the metadata as JSON) an
 * the ``.npz`` is authoritative: it carries ``content_sha256``, a SHA-256 of its metadata and
   arrays, checked when it is read (a damaged or hand-edited file is refused);
 * the ``.json`` repeats that hash. Each file is written atomically (:mod:`trajopt.files`), the
-  ``.npz`` first; a save killed between the two leaves the new ``.npz`` beside the old ``.json``,
-  and :meth:`Result.load` reports that (:class:`ResultFileWarning`) and reads the ``.npz``;
+  ``.npz`` first; a save killed between the two leaves the new ``.npz`` beside the old (or no)
+  ``.json``, and :meth:`Result.load` reports that (:class:`ResultFileWarning`), reads the
+  ``.npz`` and rewrites the ``.json`` from it;
 * a result records the fingerprint of its robot (:mod:`trajopt.robot_match`), so that it is
-  never replayed on another or an edited robot by mistake.
+  never replayed on another or an edited robot by mistake;
+* a result's controls are checked against its keyframes (:mod:`trajopt.result_checks`), so an
+  edited ``u`` or ``u_post`` whose hash was recomputed is refused too;
+* ``format_version`` 2 requires ``content_sha256`` and ``robot_fingerprint``: removing either is
+  refused. Older files (version 1 or none) may lack them only if they lack every field that came
+  with them (:func:`_check_format`).
 
 Only what :meth:`Result.validate` accepts is written, so :meth:`Result.load` never meets values
 that :meth:`Result.save` wrote (NaN controls, wrong shapes).
@@ -28,15 +34,19 @@ import numpy as np
 
 from .files import atomic_write_bytes
 from .gait import GaitSpec
+from .result_checks import check_controls
 
 __all__ = ["Result", "ResultFileWarning", "atomic_write_bytes", "result_path", "partial_path", "FORMAT_VERSION"]
 
-FORMAT_VERSION = 1
+#: 2: content_sha256 (in the .npz) and robot_fingerprint (in the metadata) are required; 1 and
+#: files without a version (0) predate them (see :func:`_check_format`)
+FORMAT_VERSION = 2
 _ARRAYS = ("z", "u", "u_post", "target", "com")
 
 
 class ResultFileWarning(UserWarning):
-    """A result's ``.json`` does not match its ``.npz`` (an interrupted save); the ``.npz`` was read."""
+    """A result's ``.json`` is missing or does not match its ``.npz`` (an interrupted save); the
+    ``.npz`` was read and the ``.json`` rewritten from it."""
 
 
 def result_path(path: str | Path) -> Path:
@@ -123,8 +133,7 @@ class Result:
         buf = io.BytesIO()
         np.savez(buf, meta=np.array(meta), content_sha256=np.array(digest), **arrays)
         atomic_write_bytes(path, buf.getvalue())
-        sidecar = json.dumps({"content_sha256": digest, **json.loads(meta)}, indent=1)
-        atomic_write_bytes(path.with_suffix(".json"), sidecar.encode())
+        atomic_write_bytes(path.with_suffix(".json"), _sidecar_text(meta, digest).encode())
         self.path = str(path)
         return path
 
@@ -146,14 +155,13 @@ class Result:
             if key not in arrays:
                 raise ValueError(f"{src}: field {key!r} is missing")
         digest = _check_digest(arrays, src)
-        if digest is not None:
-            _check_sidecar(path, digest)
         try:
             meta = json.loads(str(arrays["meta"]))
         except json.JSONDecodeError as exc:
             raise ValueError(f"{src}: field 'meta' is not valid JSON ({exc})") from exc
         if not isinstance(meta, dict):
             raise ValueError(f"{src}: field 'meta' must be a JSON object")
+        _check_format(meta, digest, path)
         for key in ("robot", "task", "motor_names", "dt"):
             if key not in meta:
                 raise ValueError(f"{src}: metadata field {key!r} is missing")
@@ -165,15 +173,14 @@ class Result:
                 raise ValueError(f"{src}: metadata field {key!r} has the wrong type ({type(meta[key]).__name__})")
         if not all(isinstance(h, dict) for h in meta.get("history", [])):
             raise ValueError(f"{src}: metadata field 'history' must be a list of objects")
-        if meta.get("format_version", 0) > FORMAT_VERSION:
-            raise ValueError(f"{src}: format_version {meta['format_version']} is newer than this "
-                             f"library reads ({FORMAT_VERSION})")
         res = cls(robot=meta["robot"], task=meta["task"], motor_names=list(meta["motor_names"]),
                   dt=float(meta["dt"]), settings=meta.get("settings", {}), history=meta.get("history", []),
                   evaluation=meta.get("evaluation", {}), status=meta.get("status", ""),
                   robot_fingerprint=meta.get("robot_fingerprint", {}), path=src,
                   **{k: arrays[k].astype(np.float64) for k in _ARRAYS})
         res.validate(src)
+        if digest is not None:
+            _check_sidecar(path, digest, str(arrays["meta"]))
         return res
 
     def validate(self, src: str = "<result>") -> None:
@@ -220,6 +227,13 @@ class Result:
             if kf.shape != (M, s["n_keyframes"]):
                 raise ValueError(f"{src}: settings field 'keyframes' must have shape ({M}, {s['n_keyframes']}), "
                                  f"got {kf.shape}")
+            try:
+                kf = kf.astype(np.float64)
+            except (TypeError, ValueError):
+                raise ValueError(f"{src}: settings field 'keyframes' must be numbers") from None
+            if not np.isfinite(kf).all():
+                raise ValueError(f"{src}: settings field 'keyframes' contains NaN or inf")
+            check_controls(self, src)
 
     def summary(self) -> str:
         ev = self.evaluation
@@ -254,19 +268,67 @@ def _check_digest(arrays: dict[str, np.ndarray], src: str) -> str | None:
     return stored
 
 
-def _check_sidecar(path: Path, digest: str) -> None:
-    """Warn when the .json beside ``path`` does not repeat the .npz's hash."""
-    sidecar = path.with_suffix(".json")
-    if not sidecar.is_file():
+def _check_format(meta: dict, digest: str | None, path: Path) -> None:
+    """Refuse a file whose ``content_sha256`` or ``robot_fingerprint`` was removed. Version 2
+    files must carry both. A file of version 1 or without a version may lack them only when it
+    lacks every field that came with them (the hash in the .npz, ``robot_fingerprint`` in the
+    metadata, the hash in the .json): version-1 files were written both before and after
+    hashing, so its version alone does not say that it predates them."""
+    src = str(path)
+    version = meta.get("format_version", 0)
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise ValueError(f"{src}: metadata field 'format_version' has the wrong type ({type(version).__name__})")
+    if version > FORMAT_VERSION:
+        raise ValueError(f"{src}: format_version {version} is newer than this library reads ({FORMAT_VERSION})")
+    has_fp = "robot_fingerprint" in meta
+    if version >= 2:
+        missing = [name for name, there in (("content_sha256", digest is not None),
+                                            ("robot_fingerprint", has_fp)) if not there]
+        if missing:
+            raise ValueError(f"{src}: field {missing[0]!r} is missing (required from format_version 2; this file "
+                             f"has format_version {version}): the file was edited")
         return
+    newer = [name for name, there in (("content_sha256", digest is not None), ("robot_fingerprint", has_fp),
+                                      ("content_sha256 in the .json", _sidecar_hash(path) is not None)) if there]
+    lacking = [name for name in ("content_sha256", "robot_fingerprint") if name not in newer]
+    if newer and lacking:
+        raise ValueError(f"{src}: field {lacking[0]!r} is missing, but the file has {newer[0]}, so it does not "
+                         "predate it: the file was edited")
+
+
+def _sidecar_hash(path: Path) -> str | None:
     try:
-        theirs = json.loads(sidecar.read_text(encoding="utf-8")).get("content_sha256")
-    except (OSError, ValueError, AttributeError):
-        theirs = "<unreadable>"
-    if theirs != digest:
-        warnings.warn(f"{sidecar} does not match {path} (a save was interrupted, or one of the two was "
-                      f"replaced): {path} is authoritative and was read; Result.load(path).save(path) "
-                      "rewrites the .json", ResultFileWarning, stacklevel=3)
+        doc = json.loads(path.with_suffix(".json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    digest = doc.get("content_sha256") if isinstance(doc, dict) else None
+    return digest if isinstance(digest, str) else None
+
+
+def _sidecar_text(meta_text: str, digest: str) -> str:
+    return json.dumps({"content_sha256": digest, **json.loads(meta_text)}, indent=1)
+
+
+def _check_sidecar(path: Path, digest: str, meta_text: str) -> None:
+    """Rewrite the .json beside ``path`` from the .npz, with a :class:`ResultFileWarning`, when it is
+    missing or differs from what :meth:`Result.save` writes for it (a save interrupted between the
+    two renames, or a .json edited or replaced)."""
+    sidecar = path.with_suffix(".json")
+    expected = _sidecar_text(meta_text, digest)
+    try:
+        current = sidecar.read_text(encoding="utf-8")
+    except (OSError, ValueError):
+        current = None
+    if current == expected:
+        return
+    what = "is missing" if current is None else "does not match"
+    try:
+        atomic_write_bytes(sidecar, expected.encode())
+        done = "it was rewritten from the .npz"
+    except OSError as exc:
+        done = f"it could not be rewritten ({exc})"
+    warnings.warn(f"{sidecar} {what} {path} (a save was interrupted, or one of the two was replaced): {path} "
+                  f"is authoritative and was read; {done}", ResultFileWarning, stacklevel=3)
 
 
 def _finite(o):

@@ -42,35 +42,92 @@ def robustness_jobs(res: Result, cycles: int, samples: int, seed: int) -> tuple[
 
 
 def _settings(result_path: Path, cycles: int, seed: int) -> dict[str, Any]:
-    digest = hashlib.sha256(Path(result_path).read_bytes()).hexdigest()
+    try:
+        digest = hashlib.sha256(Path(result_path).read_bytes()).hexdigest()
+    except OSError as exc:
+        raise ValueError(f"{result_path}: cannot read the result file ({exc.strerror})") from None
     return {"result": str(result_path), "result_sha256": digest, "cycles": int(cycles), "seed": int(seed),
             "ranges": {k: list(v) for k, v in PERTURBATIONS.items()}}
 
 
+#: the fields every line of samples.jsonl has (run_sample's), and what they must be
+_SAMPLE_NUMBERS = ("speed_bl_per_min", "heading_drift_deg_per_cycle", "max_tilt_deg", *PERTURBATIONS)
+
+
+def _read_json(path: Path, what: str) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: {what} is not UTF-8 text (byte {exc.start})") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: {what} is not valid JSON ({exc.msg} at line {exc.lineno}, column {exc.colno}): "
+                         "the run's files are damaged; use --overwrite to start the run again") from None
+
+
+def _sample_of(line: str, where: str) -> dict:
+    """A line of samples.jsonl as a sample; ValueError naming ``where`` (file and line) otherwise."""
+    try:
+        s = json.loads(line)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{where}: not valid JSON ({exc.msg}, column {exc.colno})") from None
+    if not isinstance(s, dict):
+        raise ValueError(f"{where}: a sample must be a JSON object, got {type(s).__name__}")
+    index = s.get("index")
+    if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+        raise ValueError(f"{where}: field 'index' must be a sample number >= 0, got {index!r}")
+    for key in _SAMPLE_NUMBERS:
+        v = s.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError(f"{where}: field {key!r} must be a number, got "
+                             f"{'nothing (missing)' if key not in s else repr(v)}")
+    if not isinstance(s.get("upright"), bool):
+        raise ValueError(f"{where}: field 'upright' must be true or false, got {s.get('upright')!r}")
+    return s
+
+
 def _done_samples(out: Path, settings: dict) -> dict[int, dict]:
-    """The samples already finished in ``out`` by a run with the same settings (ValueError when
-    ``out`` holds a run with other settings)."""
+    """The samples already finished in ``out`` by a run with the same settings. A ValueError
+    naming the file (and the line) when ``out`` holds a run with other settings, or damaged
+    files; nothing is changed then. A last line without its newline (a run killed while appending
+    it) is cut away, with a warning, and its sample runs again."""
     sfile, lines = out / "settings.json", out / "samples.jsonl"
     if not sfile.exists():
         return {}
-    old = json.loads(sfile.read_text())
+    old = _read_json(sfile, "the run's settings")
+    if not isinstance(old, dict):
+        raise ValueError(f"{sfile}: the run's settings must be a JSON object, got {type(old).__name__}; use "
+                         "--overwrite to start the run again")
     if {k: v for k, v in old.items() if k != "result"} != {k: v for k, v in settings.items() if k != "result"}:
         raise ValueError(f"{out} holds a robustness run with other settings (gait file, cycles, seed or ranges): "
                          "use another --out, or --overwrite to replace it")
+    if not lines.exists():
+        return {}
+    data = lines.read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{lines}: not UTF-8 text (byte {exc.start})") from None
+    rows = text.split("\n")
+    cut = rows.pop()                       # "" when the file ends with its newline
     done = {}
-    if lines.exists():
-        for line in lines.read_text().splitlines():
-            try:
-                s = json.loads(line)
-            except json.JSONDecodeError:
-                continue                   # a line cut by an interruption: that sample runs again
-            done[int(s["index"])] = s
+    for n, line in enumerate(rows, start=1):
+        s = _sample_of(line, f"{lines} line {n}")
+        done[s["index"]] = s
+    if cut:
+        print(f"warning: {lines} line {len(rows) + 1} was cut (a run stopped while writing it): removed, its "
+              "sample runs again", file=sys.stderr)
+        with lines.open("r+b") as fh:
+            fh.truncate(len(data) - len(cut.encode("utf-8")))
+            fh.flush()
+            os.fsync(fh.fileno())
     return done
 
 
 def _append(path: Path, sample: dict) -> None:
-    with path.open("a") as fh:
-        fh.write(json.dumps(sample) + "\n")
+    """Append one sample as one whole line (written with one write, then fsynced)."""
+    line = (json.dumps(sample) + "\n").encode()
+    with path.open("ab") as fh:
+        fh.write(line)
         fh.flush()
         os.fsync(fh.fileno())
 

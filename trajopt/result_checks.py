@@ -1,0 +1,111 @@
+"""Checks that a result's arrays are what its own keyframes and robot make them, so that what
+``trajopt evaluate`` scores (the keyframes, re-expanded) is what ``trajopt play`` streams (the
+file's ``u_post``).
+
+:func:`check_controls` runs in :meth:`trajopt.results.Result.validate` (so on every load and
+before every save) for results with keyframes; it needs no simulator:
+
+* ``u`` must be the keyframes re-expanded as the optimiser does
+  (:class:`~trajopt.parameterization.GaitParameterization`: the prep phase easing from the rest
+  contraction into the cycle, then ``n_cycles`` cycles of the Hermite spline), to
+  :data:`CONTROL_ATOL`; its length must be the gait's;
+* ``u_post`` adds slack only: ``u <= u_post``, and ``u_post <= u_max``;
+* with a robot fingerprint (which carries the robot's normalised ``robot.toml``), the motor
+  names must be its motors in its order, the rest contraction is the robot's (otherwise one
+  rest point common to every prep step), the keyframes must lie in the motor ranges and ``z``
+  must be the free motors' keyframes.
+
+:func:`check_zero_slack` (used by :func:`trajopt.evaluation.evaluate_result`, which has the
+simulation) checks ``u_post`` against the zero-slack controls of the rollout of ``u``.
+Every mismatch is a ValueError naming the file and the array.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .gait import GaitSpec
+from .parameterization import GaitParameterization, hermite_cycle_basis, prep_ease
+
+__all__ = ["check_controls", "check_zero_slack", "motors_of_fingerprint", "CONTROL_ATOL", "ZERO_SLACK_ATOL"]
+
+#: [m] re-expanded keyframes against the stored u: the same float64 arithmetic, so rounding only
+CONTROL_ATOL = 1e-12
+#: [m] stored u_post against the zero-slack controls of a new rollout (the solver's tolerance)
+ZERO_SLACK_ATOL = 1e-6
+
+
+def motors_of_fingerprint(fingerprint: dict[str, Any]) -> tuple[list[str], np.ndarray, np.ndarray] | None:
+    """``(names, u_bounds (M, 2), mirror_map (M,))`` of the robot.toml recorded in a fingerprint,
+    None when it records none (robots built in Python)."""
+    motors = (fingerprint or {}).get("toml", {}).get("motors") if isinstance(fingerprint, dict) else None
+    if not isinstance(motors, list) or not motors or not all(isinstance(m, dict) for m in motors):
+        return None
+    try:
+        names = [str(m["name"]) for m in motors]
+        bounds = np.array([[float(m.get("u_min", 0.0)), float(m["u_max"])] for m in motors])
+        mirror = np.array([names.index(m["mirror"]) if m.get("mirror") else i for i, m in enumerate(motors)])
+    except (KeyError, TypeError, ValueError):
+        return None
+    return names, bounds, mirror
+
+
+def _worst(a: np.ndarray, b: np.ndarray) -> str:
+    d = np.abs(a - b)
+    k, m = np.unravel_index(int(np.argmax(d)), d.shape)
+    return f"step {k}, motor {m}: {a[k, m]:.9g} m stored, {b[k, m]:.9g} m expected"
+
+
+def check_controls(res: Any, src: str) -> None:
+    """Raise ValueError naming ``src`` and the array when ``res`` (a Result with keyframes in
+    its settings, already shape-checked) has controls its keyframes do not make."""
+    s = res.settings
+    spec = GaitSpec.from_settings(s)
+    kf = np.asarray(s["keyframes"], dtype=np.float64)          # (M, n_keyframes)
+    M = len(res.motor_names)
+    robot = motors_of_fingerprint(res.robot_fingerprint)
+    rest = None
+    if robot is not None:
+        names, bounds, mirror = robot
+        if list(res.motor_names) != names:
+            raise ValueError(f"{src}: field 'motor_names' {list(res.motor_names)} is not the motors of the robot it "
+                             f"records (robot_fingerprint: {names})")
+        param = GaitParameterization(bounds, mirror, np.clip(0.0, bounds[:, 0], bounds[:, 1]), spec)
+        rest = param.u_rest
+        lo, hi = bounds[:, 0:1] - CONTROL_ATOL, bounds[:, 1:2] + CONTROL_ATOL
+        if ((kf < lo) | (kf > hi)).any():
+            raise ValueError(f"{src}: settings field 'keyframes' leaves the motor ranges of its robot")
+        if res.z.shape != (param.nz,) or not np.allclose(res.z, param.z_from_keyframes(kf), rtol=0,
+                                                          atol=CONTROL_ATOL):
+            raise ValueError(f"{src}: field 'z' is not the keyframes of its free motors")
+    K = spec.n_steps()
+    if len(res.u) != K:
+        raise ValueError(f"{src}: field 'u' has {len(res.u)} steps, its gait has {K} (prep {spec.n_prep} + "
+                         f"{spec.n_cycles} cycles of {spec.n_cycle})")
+    ease = prep_ease(spec.n_prep)
+    if rest is None and spec.n_prep and ease[0] < 1.0:         # the rest point the prep starts from
+        rest = (res.u[0] - ease[0] * kf[:, 0]) / (1.0 - ease[0])
+    rest = np.zeros(M) if rest is None else rest
+    cycle = hermite_cycle_basis(spec.n_cycle, spec.n_keyframes) @ kf.T           # (n_cycle, M)
+    prep = ease[:, None] * kf[:, 0][None, :] + (1.0 - ease)[:, None] * rest[None, :]
+    expected = np.concatenate([prep, *[cycle] * spec.n_cycles])
+    if not np.allclose(res.u, expected, rtol=0, atol=CONTROL_ATOL):
+        raise ValueError(f"{src}: field 'u' is not what its keyframes make ({_worst(res.u, expected)}): the "
+                         "file was edited; evaluate would score the keyframes, play would stream something else")
+    if (res.u_post < res.u - CONTROL_ATOL).any():
+        k, m = np.argwhere(res.u_post < res.u - CONTROL_ATOL)[0]
+        raise ValueError(f"{src}: field 'u_post' is below u at step {k}, motor {m} (zero-slack controls only "
+                         "reel cable in)")
+    if robot is not None and (res.u_post > robot[1][:, 1] + CONTROL_ATOL).any():
+        k, m = np.argwhere(res.u_post > robot[1][:, 1] + CONTROL_ATOL)[0]
+        raise ValueError(f"{src}: field 'u_post' leaves the range of motor {res.motor_names[m]!r} at step {k}")
+
+
+def check_zero_slack(u_post: np.ndarray, expected: np.ndarray, src: str) -> None:
+    """Raise ValueError naming ``src`` when the stored ``u_post`` is not ``expected``, the
+    zero-slack controls of a new rollout of ``u``."""
+    if u_post.shape != expected.shape or not np.allclose(u_post, expected, rtol=0, atol=ZERO_SLACK_ATOL):
+        where = _worst(u_post, expected) if u_post.shape == expected.shape else f"shape {u_post.shape}"
+        raise ValueError(f"{src}: field 'u_post' is not the zero-slack controls of its u ({where}): the file was "
+                         "edited; play would stream controls that evaluate does not score")
