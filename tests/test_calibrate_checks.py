@@ -63,6 +63,13 @@ def test_tracks_in_millimetres_refused_with_a_unit_hint_and_forced(setup, tmp_pa
     assert "standard-errors" in text and "youngs_modulus" in text and "rms-vs-noise" in text
 
 
+def test_tracks_far_from_the_robot_refused_with_a_frame_hint(setup, tmp_path, capsys):
+    code, out = calibrate(setup, tmp_path, setup["times"], setup["pos"] + [10.0, 0.0, 0.0])
+    err = capsys.readouterr().err
+    assert code == 2 and refused(out), err
+    assert "plausible-tracks: a marker stays" in err and "need --frame camera" in err and "millimetres" not in err
+
+
 def test_times_ten_times_too_large_refused(setup, tmp_path, capsys):
     code, out = calibrate(setup, tmp_path, 10.0 * setup["times"], setup["pos"])
     err = capsys.readouterr().err

@@ -43,7 +43,7 @@ RMS_NOISE_FACTOR = 3.0
 #: at least this fraction of the tracks' samples must fall within the controls' span
 MIN_USED_FRACTION = 0.5
 #: marker positions may spread over this many body lengths at most
-MAX_SPREAD_BODY_LENGTHS = 10.0
+MAX_SPREAD_BODY_LENGTHS = 50.0
 #: markers may move this many body lengths per second at most
 MAX_SPEED_BODY_LENGTHS_PER_S = 5.0
 #: speeds are displacements over at least this long [s]
@@ -111,7 +111,7 @@ def check_tracks(tracks, data: MarkerData) -> list[str]:
     if speed > MAX_SPEED_BODY_LENGTHS_PER_S * L:
         problems.append(f"markers move at {speed:.3g} m/s ({speed / L:.3g} body lengths/s, 95th percentile)")
     if problems:
-        if spread / 1000.0 <= MAX_SPREAD_BODY_LENGTHS * L and max(spread, far) > MAX_SPREAD_BODY_LENGTHS * L:
+        if MAX_SPREAD_BODY_LENGTHS * L < spread <= 1000.0 * MAX_SPREAD_BODY_LENGTHS * L:
             hint = "tracks look like millimetres: divide x, y, z by 1000 (the tracks are in metres)"
         elif far > MAX_SPREAD_BODY_LENGTHS * L:
             hint = "tracks in a camera's coordinates need --frame camera (a rigid transform is fitted too)"
