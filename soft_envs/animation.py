@@ -16,7 +16,7 @@ def write_animation(frames: Iterable[np.ndarray], path: str | Path, fps: float) 
 
     MP4 needs ``imageio`` and ``imageio-ffmpeg``; without them a
     ``RuntimeError`` says what to install.  Frames must all have the same
-    ``(H, W, 3)`` uint8 shape.  Note: Pillow merges *consecutive identical*
+    ``(H, W, 3)`` uint8 shape.  A GIF plays in real time (:func:`gif_durations_ms`).  Note: Pillow merges *consecutive identical*
     GIF frames into one (summing their durations), so a GIF's ``n_frames``
     can be smaller than the number of frames given when some repeat.
 
@@ -66,10 +66,20 @@ def write_animation(frames: Iterable[np.ndarray], path: str | Path, fps: float) 
     if first is None:
         raise ValueError("no frames given")
     path.parent.mkdir(parents=True, exist_ok=True)
-    rest = (_palette_frame(f) for f in stream)
-    _palette_frame(first).save(path, save_all=True, append_images=rest, duration=int(round(1000.0 / fps)),
+    rest = [_palette_frame(f) for f in stream]
+    _palette_frame(first).save(path, save_all=True, append_images=rest, duration=gif_durations_ms(1 + len(rest), fps),
                                loop=0, optimize=False)
     return path
+
+
+def gif_durations_ms(n_frames: int, fps: float) -> list[int]:
+    """Per-frame durations [ms] that play ``n_frames`` at ``fps`` in real time. A GIF stores
+    durations in hundredths of a second, so one constant duration is off (15.2 frames/s would
+    be 60 ms frames, 16.7 frames/s: 8 % fast); frame i lasts from ``round(i / fps)`` to
+    ``round((i + 1) / fps)`` in those units, so the time elapsed after any frame is within
+    10 ms of the real one. At least 20 ms each (players slow down faster frames)."""
+    ends = [max(2 * (i + 1), int(round((i + 1) * 100.0 / fps))) for i in range(n_frames)]
+    return [10 * (e - s) for s, e in zip([0] + ends[:-1], ends)]
 
 
 def _palette_frame(frame: np.ndarray):

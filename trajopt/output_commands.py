@@ -107,13 +107,16 @@ def run_plot(args) -> int:
     env = env_for_result(res, ignore_robot_mismatch=args.ignore_robot_mismatch)
     x0, _ = env.reset_state()
     s = res.settings
+    subject = f"{res.robot}, task {res.task}: {Path(args.result).name}"     # every title names what it shows
     draw = {
-        "com": lambda p: plots.plot_com_topdown(res.com, res.target, p, body_outline=x0, prep_steps=s.get("n_prep")),
+        "com": lambda p: plots.plot_com_topdown(res.com, res.target, p, body_outline=x0, prep_steps=s.get("n_prep"),
+                                                subject=subject),
         "controls": lambda p: plots.plot_controls(res.u, res.dt, res.motor_names, p, n_prep=s.get("n_prep"),
                                                   n_cycle=s.get("n_cycle"), u_post=res.u_post,
-                                                  mirror_map=env.robot.mirror_map),
-        "convergence": lambda p: plots.plot_convergence(res.history, p),
-        "speed": lambda p: plots.plot_speed_per_cycle(np.asarray(speeds), p,
+                                                  mirror_map=env.robot.mirror_map, subject=subject),
+        "convergence": lambda p: plots.plot_convergence(res.history, p, subject=subject),
+        "speed": lambda p: plots.plot_speed_per_cycle(np.asarray(speeds), p, subject=subject,
+                                                      target=s.get("speed_bl_per_min") if res.task != "turn" else None,
                                                       reference={"tripod": 6.1, "puppy": 8.6}.get(res.robot)),
     }
     for key in wanted:

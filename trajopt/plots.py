@@ -17,6 +17,11 @@ __all__ = ["plot_com_topdown", "plot_controls", "plot_convergence", "plot_speed_
            "plot_speed_vs_steps", "controls_figure", "motor_groups"]
 
 
+def _title(what: str, subject: str | None) -> str:
+    """A plot's title: what it shows, and on a second line ``subject`` (robot, task, result file)."""
+    return what if not subject else f"{what}\n{subject}"
+
+
 def _save(fig: Figure, path: str | Path) -> Path:
     path = Path(path)
     if path.suffix.lower() not in (".png", ".svg", ".pdf"):
@@ -27,10 +32,13 @@ def _save(fig: Figure, path: str | Path) -> Path:
 
 
 def plot_com_topdown(com: np.ndarray, target: np.ndarray | None, path: str | Path, *,
-                     body_outline: np.ndarray | None = None, prep_steps: int | None = None) -> Path:
+                     body_outline: np.ndarray | None = None, prep_steps: int | None = None,
+                     subject: str | None = None) -> Path:
     """Top-down view of the centre-of-mass path against its target (paper Fig. 3): x to the
-    right, z downwards (a robot facing +x with +y up has its right side at +z). The prep phase
-    is grey; ``body_outline`` (rest node positions) is drawn in yellow at the start."""
+    right, z downwards (a robot facing +x with +y up has its right side at +z), an arrow at the
+    start pointing forward. The prep phase is grey; ``body_outline`` (rest node positions) is
+    drawn in yellow at the start; the target is drawn over the path, so it stays visible where
+    the two coincide. ``subject`` (robot, task, result file) goes in the title."""
     com = np.asarray(com, dtype=np.float64)
     fig = Figure(figsize=(6, 4))
     ax = fig.add_subplot()
@@ -39,17 +47,21 @@ def plot_com_topdown(com: np.ndarray, target: np.ndarray | None, path: str | Pat
         ax.scatter(100 * pts[:, 0], 100 * pts[:, 2], s=4, color="gold", label="robot at start")
     if target is not None and len(target):
         t = np.asarray(target)
-        ax.plot(100 * t[:, 0], 100 * t[:, 1], "--", color="0.3", label="target")
+        ax.plot(100 * t[:, 0], 100 * t[:, 1], "--", color="0.3", lw=1.2, zorder=4, label="target")
     k = int(prep_steps or 0)
     if k > 0:
         ax.plot(100 * com[:k + 1, 0], 100 * com[:k + 1, 2], color="0.6", lw=2, label="prep phase")
-    ax.plot(100 * com[k:, 0], 100 * com[k:, 2], color="tab:blue", lw=2, label="simulated COM")
+    ax.plot(100 * com[k:, 0], 100 * com[k:, 2], color="tab:blue", lw=3, alpha=0.6, label="simulated COM")
+    span = max(float(np.ptp(100 * com[:, 0])), float(np.ptp(100 * com[:, 2])), 1.0)
+    ax.annotate("forward (+x)", xy=(100 * com[0, 0] + 0.25 * span, 100 * com[0, 2]),
+                xytext=(100 * com[0, 0], 100 * com[0, 2]), fontsize=7, color="0.5", va="bottom",
+                arrowprops=dict(arrowstyle="->", color="0.5"))
     ax.set_xlabel("x [cm]")
     ax.set_ylabel("z [cm]")
     ax.invert_yaxis()
     ax.set_aspect("equal", adjustable="datalim")
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, borderaxespad=0.0)   # off the path
-    ax.set_title("centre of mass, top view")
+    ax.set_title(_title("centre of mass, top view", subject), fontsize=10)
     return _save(fig, path)
 
 
@@ -74,15 +86,16 @@ def motor_groups(n_motors: int, mirror_map: Sequence[int] | None) -> list[list[i
 
 def plot_controls(u: np.ndarray, dt: float, motor_names: Sequence[str], path: str | Path, *,
                   n_prep: int | None = None, n_cycle: int | None = None,
-                  u_post: np.ndarray | None = None, mirror_map: Sequence[int] | None = None) -> Path:
+                  u_post: np.ndarray | None = None, mirror_map: Sequence[int] | None = None,
+                  subject: str | None = None) -> Path:
     """:func:`controls_figure` written to ``path``."""
     return _save(controls_figure(u, dt, motor_names, n_prep=n_prep, n_cycle=n_cycle, u_post=u_post,
-                                 mirror_map=mirror_map), path)
+                                 mirror_map=mirror_map, subject=subject), path)
 
 
 def controls_figure(u: np.ndarray, dt: float, motor_names: Sequence[str], *, n_prep: int | None = None,
                     n_cycle: int | None = None, u_post: np.ndarray | None = None,
-                    mirror_map: Sequence[int] | None = None) -> Figure:
+                    mirror_map: Sequence[int] | None = None, subject: str | None = None) -> Figure:
     """Contraction of every motor over time (paper Fig. 5), one colour per motor; phases
     (prep, cycle 1, cycle 2, ...) between dashed lines and named on top; the zero-slack controls
     ``u_post`` (paper III-B-2) as thin dotted lines, visible where a cable would be slack.
@@ -131,11 +144,11 @@ def controls_figure(u: np.ndarray, dt: float, motor_names: Sequence[str], *, n_p
         styles.append(Line2D([], [], color="0.3", ls=":", lw=1, label=U_POST_LABEL))
     fig.legend(handles=styles, loc="outside lower center", fontsize=7, ncol=1 if u_post is not None else 2,
                frameon=False)
-    fig.suptitle("controls", fontsize=11)
+    fig.suptitle(_title("controls", subject), fontsize=11)
     return fig
 
 
-def plot_convergence(history: Sequence[Mapping], path: str | Path) -> Path:
+def plot_convergence(history: Sequence[Mapping], path: str | Path, *, subject: str | None = None) -> Path:
     """Objective per Gauss-Newton iteration (log scale) and the accepted step size."""
     if not history:
         raise ValueError("history is empty: nothing to plot")
@@ -150,22 +163,27 @@ def plot_convergence(history: Sequence[Mapping], path: str | Path) -> Path:
         ax2 = ax.twinx()
         ax2.bar(it, [h.get("step", 0.0) * 1000 for h in history], alpha=0.3, color="tab:orange")
         ax2.set_ylabel("step |dz| [mm]", color="tab:orange")
-    ax.set_title("convergence")
+    ax.set_title(_title("convergence", subject), fontsize=10)
     return _save(fig, path)
 
 
-def plot_speed_per_cycle(speeds: np.ndarray, path: str | Path, *, reference: float | None = None) -> Path:
-    """Speed of every repeated cycle [BL/min]; ``reference`` (e.g. the paper's) as a line."""
+def plot_speed_per_cycle(speeds: np.ndarray, path: str | Path, *, reference: float | None = None,
+                         target: float | None = None, subject: str | None = None) -> Path:
+    """Speed of every repeated cycle [BL/min]; the ``target`` speed the gait was optimised for and
+    a ``reference`` (e.g. the paper's) as lines."""
     s = np.asarray(speeds, dtype=np.float64)
     fig = Figure(figsize=(5, 3.5))
     ax = fig.add_subplot()
     ax.bar(np.arange(1, len(s) + 1), s, color="tab:green")
+    if target is not None:
+        ax.axhline(target, color="tab:red", ls="-", lw=1.2, label=f"target: {target:g} BL/min")
     if reference is not None:
         ax.axhline(reference, color="k", ls="--", label=f"paper: {reference:g} BL/min")
+    if target is not None or reference is not None:
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), fontsize=8, frameon=False)   # off the bars
     ax.set_xlabel("cycle")
     ax.set_ylabel("speed [body lengths / min]")
-    ax.set_title("speed over repeated cycles")
+    ax.set_title(_title("speed over repeated cycles", subject), fontsize=10)
     return _save(fig, path)
 
 
