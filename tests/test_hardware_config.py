@@ -112,3 +112,36 @@ def test_port_override_collision_is_reported(tmp_path: Path) -> None:
     cfg = load_hardware_config(path)
     with pytest.raises(ValueError, match="motors.right"):
         cfg.with_port_override("/dev/ttyUSB0")
+
+
+def test_non_utf8_file_names_file_byte_and_line(tmp_path: Path) -> None:
+    text = EXAMPLE_TRIPOD.read_bytes()
+    at = text.index(b"[settings]")  # a Latin-1 comment: "# réglages"
+    bad = text[:at] + "# r\xe9glages\n".encode("latin-1") + text[at:]
+    path = tmp_path / "hw.toml"
+    path.write_bytes(bad)
+    offset, line = at + 3, text.count(b"\n", 0, at) + 1
+    with pytest.raises(ValueError) as info:
+        load_hardware_config(path)
+    assert str(info.value) == (f"{path}: not UTF-8 text: byte {offset} (line {line}) is 0xe9; "
+                               "save the file as UTF-8")
+
+
+def test_non_utf8_file_through_the_cli_is_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                                           ) -> None:
+    import argparse
+
+    from trajopt.hardware.cli import add_play_parser, run_play
+    from trajopt.results import Result
+
+    u = np.zeros((5, 2))
+    result = Result(robot="tripod", task="walk", motor_names=["front", "back"], dt=0.033, z=np.zeros(1), u=u,
+                    u_post=u, target=np.zeros((0, 2)), com=np.zeros((0, 3))).save(tmp_path / "gait.npz")
+    path = tmp_path / "hw.toml"
+    path.write_bytes(b"\xff\xfe" + EXAMPLE_TRIPOD.read_bytes())  # saved as UTF-16 by an editor, say
+    parser = argparse.ArgumentParser(prog="trajopt")
+    add_play_parser(parser.add_subparsers(dest="command", required=True))
+    code = run_play(parser.parse_args(["play", str(result), "--hardware", str(path)]))
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"{path}: not UTF-8 text: byte 0 (line 1) is 0xff" in err

@@ -28,7 +28,7 @@ serial = pytest.importorskip("serial")
 from trajopt.hardware import protocol as P  # noqa: E402
 from trajopt.hardware.cli import add_play_parser, run_play  # noqa: E402
 from trajopt.hardware.config import EXAMPLE_TRIPOD, HardwareConfig, load_hardware_config  # noqa: E402
-from trajopt.hardware.driver import RoboClaw  # noqa: E402
+from trajopt.hardware.driver import WRITE_TIMEOUT, RoboClaw  # noqa: E402
 from trajopt.hardware.emulator import RoboClawEmulator  # noqa: E402
 from trajopt.hardware.errors import (  # noqa: E402
     PlaybackError,
@@ -57,15 +57,21 @@ def smooth_u(k: int = 60, amplitude: float = 0.01) -> np.ndarray:
     return amplitude * np.stack([np.sin(np.pi * s) ** 2, 0.5 * (1 - np.cos(2 * np.pi * s))], axis=1)
 
 
+#: Reply timeout [s] of the tests that are not about it: generous, so that a loaded machine cannot fail them.
+REPLY_TIMEOUT = 1.0
+#: Reply timeout [s] of the tests that wait out a controller that never answers (each wait costs one).
+HUNG_TIMEOUT = 0.1
+
+
 def tripod_config(**settings: Any) -> HardwareConfig:
-    settings = {"timeout": 0.05, "retries": 2, **settings}
+    settings = {"timeout": REPLY_TIMEOUT, "retries": 2, **settings}
     return dataclasses.replace(load_hardware_config(EXAMPLE_TRIPOD), **settings)
 
 
 def tripod_toml(tmp_path: Path, port: str, **settings: Any) -> str:
     """The shipped Tripod hardware file on ``port`` with some settings changed."""
     text = EXAMPLE_TRIPOD.read_text().replace("/dev/ttyACM0", port)
-    for key, value in {"timeout": 0.05, "retries": 2, **settings}.items():
+    for key, value in {"timeout": REPLY_TIMEOUT, "retries": 2, **settings}.items():
         line = f"{key} = {str(value).lower() if isinstance(value, bool) else value}"
         text, found = re.subn(rf"(?m)^{key} = .*$", line, text)
         if not found:
@@ -128,7 +134,7 @@ class HookedSerial:
 
 def hooked_opener(**hooks: Callable[[bytes], None]) -> Callable[[str, HardwareConfig], HookedSerial]:
     def open_port(port: str, config: HardwareConfig) -> HookedSerial:
-        return HookedSerial(serial.Serial(port, timeout=config.timeout, write_timeout=0.5), **hooks)
+        return HookedSerial(serial.Serial(port, timeout=config.timeout, write_timeout=WRITE_TIMEOUT), **hooks)
     return open_port
 
 
@@ -136,7 +142,7 @@ def hooked_opener(**hooks: Callable[[bytes], None]) -> Callable[[str, HardwareCo
 TRANSIENT = {
     "lost request": lambda emu: emu.inject_no_reply(1),
     "lost reply": lambda emu: emu.inject_lost_reply(1),
-    "late reply": lambda emu: emu.inject_late_reply(0.075),  # 1.5 timeouts
+    "late reply": lambda emu: emu.inject_late_reply(None),  # leaves with the next request: after the timeout
     "CRC error": lambda emu: emu.inject_bad_crc(1, command=P.Cmd.READ_ENCODER_M1),
     "partial reply": lambda emu: emu.inject_partial_reply(3, command=P.Cmd.READ_ENCODER_M2),
     "bad ACK": lambda emu: emu.inject_bad_ack(1),
@@ -161,7 +167,8 @@ def test_ctrl_c_with_hung_controller_says_motors_not_stopped(emu: RoboClawEmulat
                                                               result_file: str,
                                                               capsys: pytest.CaptureFixture[str]) -> None:
     emu.after_packets(at_step(10), lambda: (emu.hang(), os.kill(os.getpid(), signal.SIGINT)))
-    code = cli(result_file, "--hardware", tripod_toml(tmp_path, emu.port), "--log", str(tmp_path / "p.csv"))
+    code = cli(result_file, "--hardware", tripod_toml(tmp_path, emu.port, timeout=HUNG_TIMEOUT),
+               "--log", str(tmp_path / "p.csv"))
     err = capsys.readouterr().err
     assert code == 3, err
     assert "interrupted" in err and "motors stopped" not in err and "confirmed stopped: " not in err
@@ -172,7 +179,7 @@ def test_ctrl_c_with_hung_controller_says_motors_not_stopped(emu: RoboClawEmulat
 def test_hung_controller_mid_play_is_reported_per_motor(emu: RoboClawEmulator) -> None:
     emu.after_packets(at_step(10), emu.hang)
     with pytest.raises(RoboClawTimeout) as info:
-        play_trajectory(smooth_u(), DT, NAMES, tripod_config(), port_override=emu.port)
+        play_trajectory(smooth_u(), DT, NAMES, tripod_config(timeout=HUNG_TIMEOUT), port_override=emu.port)
     report = info.value.stop_report  # type: ignore[attr-defined]
     assert not report.all_confirmed and [c.label for c in report.unconfirmed] == NAMES
     assert emu.snapshot().modes == ("position", "position")  # indeed not stopped: the report is true
@@ -252,7 +259,8 @@ def test_stop_acknowledged_but_encoder_read_back_unanswered_is_not_confirmed(
     result = str(Result(robot="tripod", task="walk", motor_names=NAMES, dt=DT, z=np.zeros(1), u=u, u_post=u,
                         target=np.zeros((0, 2)), com=np.zeros((0, 3))).save(tmp_path / "gait.npz"))
     emu.after_packets(at_step(END), lambda: emu.inject_no_reply(None, command=P.Cmd.READ_ENCODER_M1))
-    code = cli(result, "--hardware", tripod_toml(tmp_path, emu.port), "--log", str(tmp_path / "p.csv"))
+    code = cli(result, "--hardware", tripod_toml(tmp_path, emu.port, timeout=2 * HUNG_TIMEOUT),
+               "--log", str(tmp_path / "p.csv"))
     err = capsys.readouterr().err
     assert code == 3, err
     assert "motors confirmed stopped: back;" in err
@@ -295,20 +303,25 @@ def test_motor_still_moving_exits_3_naming_it(emu: RoboClawEmulator, tmp_path: P
 def test_late_ack_is_not_taken_for_the_stop(emu: RoboClawEmulator, tmp_path: Path, result_file: str,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     """A move's ACK arrives late; then every duty 0 to M1 is lost. The late 0xFF is no stop."""
-    emu.after_packets(at_step(10), lambda: (emu.inject_late_reply(0.075),
+    emu.after_packets(at_step(10), lambda: (emu.inject_late_reply(None),
                                             emu.inject_no_reply(None, command=P.Cmd.DUTY_M1)))
-    code = cli(result_file, "--hardware", tripod_toml(tmp_path, emu.port, retries=0), "--log", str(tmp_path / "p.csv"))
+    code = cli(result_file, "--hardware", tripod_toml(tmp_path, emu.port, retries=0, timeout=2 * HUNG_TIMEOUT),
+               "--log", str(tmp_path / "p.csv"))
     err = capsys.readouterr().err
     assert emu.snapshot().modes[0] == "position"  # M1 was really never stopped
     assert code == 3, err
     assert "motors confirmed stopped: back;" in err and "NOT confirmed stopped (cut their power): front (" in err
 
 
+LATE = "late"
+
+
 class ScriptedDevice:
-    """A pty whose far end answers the n-th request with ``script[n]``: a delay [s] before 0xFF, or None (no
+    """A pty whose far end answers the n-th request with ``script[n]``: a delay [s] before 0xFF, ``LATE``
+    (0xFF when the next request arrives: after any client timeout, whatever the load) or None (no
     answer); requests beyond the script are not answered."""
 
-    def __init__(self, script: list[float | None]) -> None:
+    def __init__(self, script: list[float | str | None]) -> None:
         self.script, self.requests = list(script), []
         self.master, self._slave = os.openpty()
         tty.setraw(self.master)
@@ -321,7 +334,7 @@ class ScriptedDevice:
     def _serve(self) -> None:
         import select
 
-        buf = bytearray()
+        buf, held = bytearray(), 0
         while not self._stop.is_set():
             if not select.select([self.master], [], [], 0.005)[0]:
                 continue
@@ -330,8 +343,13 @@ class ScriptedDevice:
                 n = 4 + P.REQUEST_DATA_LEN[buf[1]]
                 self.requests.append(bytes(buf[:n]))
                 del buf[:n]
+                for _ in range(held):
+                    os.write(self.master, b"\xff")
+                held = 0
                 delay = self.script.pop(0) if self.script else None
-                if delay is not None:
+                if delay == LATE:
+                    held += 1
+                elif delay is not None:
                     threading.Timer(delay, os.write, (self.master, b"\xff")).start()
 
     def close(self) -> None:
@@ -342,7 +360,7 @@ class ScriptedDevice:
 
 
 def test_late_ack_on_a_pty_does_not_acknowledge_the_next_write() -> None:
-    device = ScriptedDevice([0.075])  # the first write is acknowledged 1.5 timeouts late, nothing after
+    device = ScriptedDevice([LATE])  # the first write is acknowledged after its timeout, nothing after
     try:
         with RoboClaw(device.port, 0x80, timeout=0.05, retries=0) as rc:
             with pytest.raises(RoboClawTimeout):

@@ -28,6 +28,7 @@ from trajopt.hardware.playback import play_trajectory  # noqa: E402
 from trajopt.hardware.signals import StopSignals, Terminated  # noqa: E402
 from tests.test_hardware_faults import (  # noqa: E402
     DT,
+    HUNG_TIMEOUT,
     MOVES,
     NAMES,
     at_step,
@@ -193,7 +194,8 @@ def test_exception_in_the_streaming_loop_with_a_hung_controller_exits_3(emu: Rob
     res = Result(robot="tripod", task="walk", motor_names=NAMES, dt=DT, z=np.zeros(1), u=u, u_post=u,
                  target=np.zeros((0, 2)), com=np.zeros((0, 3)))
     result = str(res.save(tmp_path / "gait.npz"))
-    code = cli(result, "--hardware", tripod_toml(tmp_path, emu.port), "--log", str(tmp_path / "p.csv"))
+    code = cli(result, "--hardware", tripod_toml(tmp_path, emu.port, timeout=HUNG_TIMEOUT),
+               "--log", str(tmp_path / "p.csv"))
     err = capsys.readouterr().err
     assert code == 3, err  # not 2 ("nothing was sent"): the motors are not confirmed stopped
     assert "NOT confirmed stopped (cut their power): front (" in err

@@ -249,8 +249,15 @@ def load_hardware_config(path: str | os.PathLike[str]) -> HardwareConfig:
     """Read and validate a hardware TOML file (every content error is a ValueError naming file and field)."""
     path_str = str(path)
     with open(path, "rb") as fh:
-        try:
-            data = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{path_str}: invalid TOML: {exc}") from exc
+        raw = fh.read()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise ValueError(f"{path_str}: not UTF-8 text: byte {exc.start} (line {line}) is "
+                         f"0x{raw[exc.start]:02x}; save the file as UTF-8") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path_str}: invalid TOML: {exc}") from exc
     return parse_hardware_config(data, path_str)

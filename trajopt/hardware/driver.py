@@ -54,6 +54,10 @@ log = logging.getLogger("trajopt.hardware")
 
 _RETRYABLE = (RoboClawTimeout, RoboClawCRCError, RoboClawNoAck, RoboClawUnmatchedReply)
 
+#: Shortest write timeout [s] of a port opened here: only a device that stops taking bytes (a stuck
+#: USB link) hits it, so it is generous -- a busy host that stalls a moment must not abort a playback.
+WRITE_TIMEOUT = 2.0
+
 PYSERIAL_HINT = "pyserial is required to talk to RoboClaw controllers: pip install soft-envs[hardware]"
 
 
@@ -79,7 +83,7 @@ def open_serial(port: str, baudrate: int = 115200, timeout: float = 0.1) -> Any:
     """Open ``port`` (device path or pyserial URL such as ``loop://``) with ``serial.serial_for_url``."""
     serial = import_serial()
     try:
-        return serial.serial_for_url(port, baudrate=baudrate, timeout=timeout, write_timeout=max(timeout, 0.5))
+        return serial.serial_for_url(port, baudrate=baudrate, timeout=timeout, write_timeout=max(timeout, WRITE_TIMEOUT))
     except (serial.SerialException, OSError) as exc:
         raise RoboClawConnectionError(f"cannot open serial port {port!r}: {exc}") from exc
 

@@ -18,7 +18,8 @@ valid packets (``None`` = forever), optionally only for one ``command``:
   (forever: a hung controller, :meth:`hang`);
 * :meth:`inject_lost_reply` -- executed, but the reply is lost;
 * :meth:`inject_late_reply` -- executed, the reply leaves ``delay`` s later
-  (later replies queue behind it, as on a busy controller);
+  (later replies queue behind it, as on a busy controller); ``delay=None``: it
+  leaves when the next request arrives -- later than any client timeout, whatever the load;
 * :meth:`inject_partial_reply` -- executed, only the first bytes of the reply leave;
 * :meth:`inject_bad_crc` / :meth:`inject_bad_ack` -- corrupted read CRC / ACK byte 0x00;
 * :meth:`jam` -- a channel cannot move (snagged cable): its encoder stays put;
@@ -29,6 +30,7 @@ valid packets (``None`` = forever), optionally only for one ``command``:
 
 from __future__ import annotations
 
+import math
 import os
 import select
 import struct
@@ -171,11 +173,16 @@ class RoboClawEmulator:
         """Execute the next ``times`` valid requests but lose their replies."""
         self._inject("lost_reply", times, command)
 
-    def inject_late_reply(self, delay: float, times: int | None = 1, command: int | None = None) -> None:
-        """Execute the next ``times`` valid requests now but send their replies ``delay`` s later."""
-        if not delay > 0:
-            raise ValueError(f"delay {delay!r} must be a positive number of seconds")
-        self._inject("late_reply", times, command, delay)
+    def inject_late_reply(self, delay: float | None, times: int | None = 1, command: int | None = None) -> None:
+        """Execute the next ``times`` valid requests now but send their replies ``delay`` s later.
+
+        ``delay=None``: hold each reply until the next valid request arrives (it then leaves just
+        before that request's reply) -- after the client gave up on it, since a client sends
+        nothing new before; deterministic whatever the load, unlike a delay in seconds.
+        """
+        if delay is not None and not delay > 0:
+            raise ValueError(f"delay {delay!r} must be a positive number of seconds or None")
+        self._inject("late_reply", times, command, math.inf if delay is None else delay)
 
     def inject_partial_reply(self, n_bytes: int, times: int | None = 1, command: int | None = None) -> None:
         """Execute the next ``times`` valid requests but send only the first ``n_bytes`` of each reply."""
@@ -354,6 +361,9 @@ class RoboClawEmulator:
             address, command, payload = frame[0], frame[1], frame[2:-2]
             if address not in self._ctrl:
                 continue
+            if self._outbox and self._outbox[-1][0] == math.inf:  # replies held until a request arrives
+                self._outbox = deque((min(t, now), reply) for t, reply in self._outbox)
+                self._flush_outbox(now)
             for hook in list(self._hooks):
                 hook[0] -= 1
                 if hook[0] <= 0:
