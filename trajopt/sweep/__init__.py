@@ -1,7 +1,7 @@
 """Sweeps of gait optimisations, RL trainings and evaluations on Ray (``trajopt sweep``).
 
-    trajopt sweep examples/sweep_speeds.toml --out sweeps/speeds            # local, all cores
-    trajopt sweep examples/rl_seeds.toml --out sweeps/rl --address auto     # a running cluster
+    trajopt sweep examples/sweep_speeds.toml --out results/sweeps/speeds            # local, all cores
+    trajopt sweep examples/rl_seeds.toml --out results/sweeps/rl --address auto     # a running cluster
 
 A sweep file (:mod:`trajopt.sweep.spec`) lists runs with parameter grids; each run is one Ray
 task (:mod:`trajopt.sweep.task`) that runs the same code as the single ``trajopt`` command and
