@@ -15,7 +15,8 @@ Gauss-Newton refines the best.
 From the shell: `trajopt optimize puppy --task walk` then
 `trajopt optimize puppy --task turn --warm-start results/puppy_walk.npz` (`--turn left`).
 
-SOFT_ENVS_QUICK=1 (the project's convention for CI) shrinks the work to a smoke test.
+SOFT_ENVS_QUICK=1 (the project's convention for CI) shrinks the work to a smoke test and saves
+results/puppy_turn_example_quick.npz instead of results/puppy_turn_example.npz.
 """
 import os
 

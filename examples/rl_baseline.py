@@ -10,7 +10,8 @@ The same from the shell: `trajopt rl train tripod --algo ppo --timesteps 8000`, 
 `trajopt rl evaluate results/runs/tripod_ppo_seed0`. This example's run is named
 `tripod_ppo_example` (results/runs/tripod_ppo_example), so it never collides with that command's.
 
-SOFT_ENVS_QUICK=1 (the project's convention for CI) shrinks the work to a smoke test.
+SOFT_ENVS_QUICK=1 (the project's convention for CI) shrinks the work to a smoke test, named
+`tripod_ppo_example_quick` so that it never replaces a full run's files.
 """
 import os
 import sys
