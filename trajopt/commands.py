@@ -5,7 +5,9 @@ functions they call in :mod:`trajopt.optimize`, :mod:`trajopt.evaluation` and :m
 ``trajopt optimize ... --name NAME`` writes ``OUT/NAME.npz`` (+ ``.json``) only when the run
 finishes; until then its checkpoints (one per Gauss-Newton iteration, and the last iterate on
 Ctrl-C) go to ``OUT/NAME.partial.npz``, which ``--resume`` continues and a finished run removes.
-A finished result, or an interrupted run's checkpoint, is never replaced without ``--overwrite``.
+A finished result, or an interrupted run's checkpoint, is never replaced without ``--overwrite``,
+and while a run lives its name is reserved (``OUT/NAME.lock``, :mod:`trajopt.reservation`): a
+second run of the same name and folder is refused at once.
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ from .gait import GaitSpec
 from .gauss_newton import GaussNewtonOptions
 from .optimize import TASK_CONTACT, optimize_gait
 from .progress import IterationProgress
+from .reservation import lock_path, reserve
 from .results import Result, partial_path, result_path
 
 __all__ = ["run_optimize", "run_evaluate", "STATUS_MEANING", "evaluation_rows"]
@@ -148,6 +151,11 @@ def run_optimize(args) -> int:
     partial = partial_path(out)
     incline = args.angle if task == "incline" else 0.0
     gait = _gait(args)
+    with reserve(lock_path(out), f"result {out.name}"):   # a second run of this name is refused
+        return _optimize_reserved(args, task, out, partial, incline, gait)
+
+
+def _optimize_reserved(args, task: str, out: Path, partial: Path, incline: float, gait: GaitSpec) -> int:
     resume, done = _plan(out, partial, args)
     if done:
         return 0

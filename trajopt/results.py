@@ -50,9 +50,15 @@ class ResultFileWarning(UserWarning):
 
 
 def result_path(path: str | Path) -> Path:
-    """``path`` with the ``.npz`` extension (added when missing or different)."""
+    """``path`` as a result file: ``NAME.npz``. A literal ``.npz`` is kept, a ``.json`` (the
+    sidecar) becomes ``.npz``; any other dot belongs to the name (``tripod_walk_v5.5`` is saved
+    as ``tripod_walk_v5.5.npz``, not ``tripod_walk_v5.npz``)."""
     path = Path(path)
-    return path if path.suffix == ".npz" else path.with_suffix(".npz")
+    if path.suffix == ".npz":
+        return path
+    if path.suffix == ".json":
+        return path.with_suffix(".npz")
+    return path.with_name(path.name + ".npz")
 
 
 def partial_path(path: str | Path) -> Path:

@@ -180,6 +180,12 @@ def _write_csv(path: Path, samples: list[dict]) -> None:
 
 
 def run_robustness(args) -> int:
+    from .reservation import reserve       # a second study into the same --out is refused (issue #26 item 2)
+    with reserve(Path(args.out) / "robustness.lock", f"robustness folder {args.out}"):
+        return _run_robustness(args)
+
+
+def _run_robustness(args) -> int:
     res = Result.load(args.result)
     nominal_job, jobs = robustness_jobs(res, args.cycles, args.samples, args.seed)
     out = Path(args.out)

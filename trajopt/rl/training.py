@@ -82,7 +82,8 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     threads of the learner (1: the networks are tiny and the environment workers need the
     cores; ``None`` leaves PyTorch's default). Ctrl-C stops training and saves the model with
     ``status="interrupted"``. An existing run of the same name is an error unless
-    ``overwrite`` (then its checkpoints are deleted first).
+    ``overwrite`` (then its checkpoints are deleted first); a run of the same name in progress
+    is refused (``out/NAME.lock``, :mod:`trajopt.reservation`).
     """
     require_sb3()
     import torch
@@ -109,27 +110,29 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     checkpoint_every = int(checkpoint_every or max(timesteps // 10, 1))
 
     run_dir = Path(out) / (name or f"{robot}_{algo}_seed{seed}")
-    ckpt_dir = _prepare_run_dir(run_dir, overwrite)
-    if torch_threads is not None:
-        torch.set_num_threads(int(torch_threads))
+    from ..reservation import lock_path, reserve
+    with reserve(lock_path(run_dir), f"RL run {run_dir.name}"):   # a second run of this name is refused
+        ckpt_dir = _prepare_run_dir(run_dir, overwrite)
+        if torch_threads is not None:
+            torch.set_num_threads(int(torch_threads))
 
-    env_cfg = {"robot": robot, "frame_skip": int(frame_skip), "max_episode_steps": int(max_episode_steps),
-               "drop_com_xz": True, "env_kwargs": env_kwargs}
-    factory = functools.partial(make_env, robot, frame_skip=int(frame_skip),
-                                max_episode_steps=int(max_episode_steps), drop_com_xz=True,
-                                env_kwargs=env_kwargs, ignore_sigint_in_worker=use_subproc)
-    venv = make_vec_env(factory, n_envs=n_envs, seed=seed, monitor_dir=str(run_dir / "monitor"),
-                        vec_env_cls=SubprocVecEnv if use_subproc else DummyVecEnv)
-    vn_kwargs = vecnormalize_kwargs(algo, hp.get("gamma", 0.99))
-    venv = VecNormalize(venv, **vn_kwargs)
-    try:
-        return _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_subproc, env_cfg,
-                      hp, vn_kwargs, checkpoint_every, frame_skip, progress_bar, verbose, log_stdout, callback)
-    finally:
+        env_cfg = {"robot": robot, "frame_skip": int(frame_skip), "max_episode_steps": int(max_episode_steps),
+                   "drop_com_xz": True, "env_kwargs": env_kwargs}
+        factory = functools.partial(make_env, robot, frame_skip=int(frame_skip),
+                                    max_episode_steps=int(max_episode_steps), drop_com_xz=True,
+                                    env_kwargs=env_kwargs, ignore_sigint_in_worker=use_subproc)
+        venv = make_vec_env(factory, n_envs=n_envs, seed=seed, monitor_dir=str(run_dir / "monitor"),
+                            vec_env_cls=SubprocVecEnv if use_subproc else DummyVecEnv)
+        vn_kwargs = vecnormalize_kwargs(algo, hp.get("gamma", 0.99))
+        venv = VecNormalize(venv, **vn_kwargs)
         try:
-            venv.close()
-        except (EOFError, BrokenPipeError, ConnectionResetError, OSError):   # workers already gone
-            pass
+            return _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_subproc, env_cfg,
+                          hp, vn_kwargs, checkpoint_every, frame_skip, progress_bar, verbose, log_stdout, callback)
+        finally:
+            try:
+                venv.close()
+            except (EOFError, BrokenPipeError, ConnectionResetError, OSError):   # workers already gone
+                pass
 
 
 def _prepare_run_dir(run_dir: Path, overwrite: bool) -> Path:

@@ -38,12 +38,7 @@ def run_sweep_command(args) -> int:
         raise ValueError("--workers sizes a local Ray; with --address the cluster decides")
     spec = load_spec(args.spec, args.out, quick=quick_requested(args.quick))
     if args.dry_run:
-        todo, done = plan(spec, args.out.resolve())
-        for run in spec.runs:
-            state = "done" if run.name in done else "to run"
-            print(f"{state:<7} {run.name:<32} trajopt {' '.join(run.argv())}")
-        print(f"{len(done)} done, {len(todo)} to run")
-        return 0
+        return _dry_run(spec, args.out.resolve())
     n = len(spec.runs)
     print(f"sweep {args.spec}: {n} runs -> {args.out}" + (" (quick)" if quick_requested(args.quick) else ""))
     outcome = run_sweep(spec, args.out, workers=args.workers, address=args.address, serial=args.serial)
@@ -58,3 +53,31 @@ def run_sweep_command(args) -> int:
         print("interrupted: run the same command again to continue")
         return 130
     return 1 if outcome.count("failed") else 0
+
+
+def _dry_run(spec, out: Path) -> int:
+    """List the runs: done, to run, or refused (what their start would refuse: an unknown
+    robot, a negative physical value); exit 2 when any is refused. Writes nothing."""
+    from .runner import plan
+    from ..reservation import read_owner
+    from .task import SWEEP_LOCK, check_run
+    todo, done = plan(spec, out)
+    refused = 0
+    for run in spec.runs:
+        why = ""
+        if run.name in done:
+            state = "done"
+        else:
+            try:
+                check_run(run)
+                state = "to run"
+            except ValueError as exc:
+                state, why, refused = "refused", str(exc), refused + 1
+        print(f"{state:<7} {run.name:<32} trajopt {' '.join(run.argv())}")
+        if why:
+            print(f"        {why}")
+    print(f"{len(done)} done, {len(todo) - refused} to run" + (f", {refused} refused" if refused else ""))
+    owner = read_owner(out / SWEEP_LOCK)
+    if owner is not None:
+        print(f"{out / SWEEP_LOCK}: a sweep holds this folder (pid {owner.get('pid')} on host {owner.get('host')})")
+    return 2 if refused else 0

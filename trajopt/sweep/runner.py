@@ -1,6 +1,8 @@
 """Running a sweep: one Ray task per run, resuming, faults, Ctrl-C, progress.
 
-Runs whose ``status.json`` says ``done`` (with the same kind and parameters) are skipped;
+A sweep holds its folder while it runs (``DIR/sweep.lock``, :mod:`trajopt.reservation`): a
+second sweep into the same folder is refused at once. Runs whose ``status.json`` says ``done``
+(with the same kind and parameters, and their result files present) are skipped;
 the others (never started, failed, interrupted, killed) are started, optimisations from their
 last checkpoint. A run that fails (exception, simulation error, killed worker) is recorded
 with its reason and the others go on. Ctrl-C cancels the runs in flight (an optimisation
@@ -16,8 +18,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from ..reservation import reserve
 from .spec import Run, SweepSpec
-from .task import execute, read_status, write_status
+from .task import SWEEP_LOCK, execute, read_status, recover_status, result_present, write_status
 
 __all__ = ["run_sweep", "SweepOutcome", "plan", "start_ray"]
 
@@ -39,12 +42,21 @@ class SweepOutcome:
         return sum(1 for s in self.statuses.values() if s.get("status") == status)
 
 
-def plan(spec: SweepSpec, out: Path) -> tuple[list[Run], dict[str, dict]]:
+def plan(spec: SweepSpec, out: Path, *, repair: bool = False) -> tuple[list[Run], dict[str, dict]]:
     """(runs to start, statuses of the runs already done). A run directory made with other
-    parameters is an error: the sweep never overwrites a result that is not its own."""
+    parameters is an error: the sweep never overwrites a result that is not its own. A run
+    "done" whose result files were deleted is started again; an unreadable status.json is
+    rebuilt from the run's result files (:func:`~trajopt.sweep.task.recover_status`; written
+    back with ``repair``, only reported otherwise)."""
     todo, done = [], {}
     for run in spec.runs:
         st = read_status(out / run.name)
+        if st is None:
+            st = recover_status(run, out / run.name)
+            if st is not None and repair:
+                write_status(out / run.name, st)
+        if st is not None and st.get("status") == "done" and not result_present(run, out / run.name):
+            st = {**st, "status": "deleted", "reason": "its status said done but its result files are gone"}
         if st is not None and (st.get("kind") != run.kind or st.get("params") != _jsonish(run.params)):
             raise ValueError(f"{out / run.name}: holds run {run.name!r} made with other arguments "
                              f"(kind {st.get('kind')!r}, {st.get('params')}); this sweep file asks for "
@@ -137,8 +149,14 @@ def run_sweep(spec: SweepSpec, out: str | os.PathLike, *, workers: int | None = 
     on Ray (``workers`` local CPUs, or the cluster at ``address``) or, with ``serial``, one
     after another in this process."""
     out = Path(out).resolve()
-    todo, done = plan(spec, out)          # checks before anything is written
+    plan(spec, out)                       # checks before anything is written
     out.mkdir(parents=True, exist_ok=True)
+    with reserve(out / SWEEP_LOCK, f"sweep folder {out}"):      # a second sweep here is refused
+        return _run_reserved(spec, out, workers, address, serial, on_status, stream)
+
+
+def _run_reserved(spec: SweepSpec, out: Path, workers, address, serial, on_status, stream) -> SweepOutcome:
+    todo, done = plan(spec, out, repair=True)
     t0 = time.perf_counter()
     progress = _Progress(len(todo), stream)
     if done:

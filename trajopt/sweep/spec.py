@@ -29,9 +29,11 @@ list for a repeatable option (``hp = ["gamma=0.95"]``); the positional argument 
 not passed to the command). ``rl-train`` blocks may set ``export = true`` (default: score the policy
 with trajopt's metric, ``trajopt rl export``) and ``evaluate_checkpoints = true`` (the
 speed-vs-steps curve). String arguments may hold ``{out}`` (the sweep directory) and the
-run's parameters, e.g. ``result = "{out}/opt_v{_speed}/opt_v{_speed}.npz"``; evaluation runs start
+run's parameters, e.g. ``result = "{out}/opt_v{_speed}/opt_v{_speed}.npz"`` (in templates
+``{robot}`` is the robot's name, also for a robot.toml path: :func:`robot_name`); evaluation runs start
 after all optimisations and trainings of the sweep. Relative paths are relative to the
-sweep file. Every problem is a ``ValueError`` naming the file and the field.
+sweep file. Every problem is a ``ValueError`` naming the file and the field (a file that is
+not UTF-8: the byte offset).
 """
 from __future__ import annotations
 
@@ -210,6 +212,27 @@ def _uses_fields(text: str) -> bool:
     return any(f for _, f, _, _ in string.Formatter().parse(text) if f is not None)
 
 
+def robot_name(robot: Any, base: Path) -> Any:
+    """What ``{robot}`` expands to: a shipped robot's name as it is, a robot.toml path by the
+    ``[robot] name`` it holds (its folder's name when the file cannot be read, or its stem
+    when that is not ``robot``): never a path with slashes."""
+    if not isinstance(robot, str) or not robot.endswith(".toml"):
+        return robot
+    path = Path(robot) if os.path.isabs(robot) else base / robot
+    try:
+        name = tomllib.loads(path.read_text(encoding="utf-8"))["robot"]["name"]
+        if isinstance(name, str) and _NAME_OK.match(name):
+            return name
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    return path.stem if path.stem != "robot" else path.resolve().parent.name
+
+
+def _template_values(params: dict[str, Any], base: Path) -> dict[str, Any]:
+    """The run's parameters as name templates see them (``{robot}``: :func:`robot_name`)."""
+    return {**params, "robot": robot_name(params["robot"], base)} if "robot" in params else dict(params)
+
+
 def _resolve_paths(params: dict[str, Any], base: Path) -> None:
     for key in ("robot", "warm_start", "result", "model"):
         v = params.get(key)
@@ -256,13 +279,14 @@ def _expand_block(block: Any, index: int, src: str, base: Path, quick: bool, out
     runs = []
     for combo in itertools.product(*grid.values()):
         params = {**args, **dict(zip(grid, combo))}
-        name = _format(template, params, where, "name")      # quick keeps the names
+        names = _template_values(params, base)
+        name = _format(template, names, where, "name")       # quick keeps the names
         if quick:
             params.update(overrides)
         if not _NAME_OK.match(name) or name in (".", ".."):
             raise ValueError(f"{where}.name: run name {name!r} is not a plain directory name "
                              "(letters, digits, . _ + = -; no '/')")
-        values = {**params, "out": out_token, "name": name}
+        values = {**params, **_template_values(params, base), "out": out_token, "name": name}
         for k, v in params.items():
             if isinstance(v, str) and _uses_fields(v):
                 params[k] = _format(v, values, where, f"args.{k}")
@@ -280,7 +304,13 @@ def load_spec(path: str | os.PathLike, out: str | os.PathLike = "OUT", *, quick:
     src = str(path)
     if not path.is_file():
         raise ValueError(f"{src}: sweep file not found")
-    text = path.read_text()
+    data = path.read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ValueError(f"{src}: not UTF-8 text: byte {data[exc.start]:#04x} at byte offset {exc.start} "
+                         f"(line {line}); save the sweep file as UTF-8") from None
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -22,9 +22,11 @@ from typing import Any
 from ..results import Result, atomic_write_bytes, partial_path
 from .spec import Run
 
-__all__ = ["execute", "read_status", "write_status", "STATUS_NAME", "LOG_NAME", "result_path"]
+__all__ = ["execute", "read_status", "write_status", "recover_status", "result_present", "check_run",
+           "STATUS_NAME", "LOG_NAME", "result_path"]
 
 STATUS_NAME = "status.json"
+SWEEP_LOCK = "sweep.lock"            # in the sweep folder while a sweep runs there
 LOG_NAME = "log.txt"
 POLICY_RESULT = "policy.npz"          # rl-train: the policy exported as a trajopt Result
 CURVE_NAME = "curve.json"             # rl-train with evaluate_checkpoints: [[steps, BL/min], ...]
@@ -32,12 +34,14 @@ EVALUATION_NAME = "evaluation.json"   # evaluate / rl-evaluate
 
 
 def read_status(run_dir: Path) -> dict[str, Any] | None:
-    """The run's status.json, or None when there is none (or it cannot be read)."""
+    """The run's status.json, or None when there is none (or it cannot be read: see
+    :func:`recover_status`)."""
     path = Path(run_dir) / STATUS_NAME
     try:
-        return json.loads(path.read_text())
+        st = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
+    return st if isinstance(st, dict) else None
 
 
 def write_status(run_dir: Path, status: dict[str, Any]) -> None:
@@ -51,6 +55,66 @@ def result_path(run: Run, run_dir: Path) -> Path:
     if run.kind == "rl-train":
         return run_dir / POLICY_RESULT
     return run_dir / EVALUATION_NAME
+
+
+def result_present(run: Run, run_dir: Path) -> bool:
+    """Whether the files a finished run wrote are still there (a "done" run whose result was
+    deleted is run again)."""
+    if run.kind == "rl-train":
+        from ..rl.training import MODEL_NAME
+        return (run_dir / MODEL_NAME).is_file() and (not run.options.get("export", True)
+                                                    or (run_dir / POLICY_RESULT).is_file())
+    return result_path(run, run_dir).is_file()
+
+
+def recover_status(run: Run, run_dir: Path) -> dict[str, Any] | None:
+    """The status of a run whose status.json exists but cannot be read (cut, overwritten),
+    rebuilt from its result files: "done" with its metrics when they hold a finished run,
+    otherwise None (the run is started again)."""
+    if not (run_dir / STATUS_NAME).exists() or read_status(run_dir) is not None or not result_present(run, run_dir):
+        return None
+    try:
+        if run.kind == "optimize":
+            res = Result.load(result_path(run, run_dir))
+            if res.status in ("running", "interrupted"):
+                return None
+            metrics = _metrics(run, run_dir, "")
+        elif run.kind == "rl-train":
+            from ..rl.training import CONFIG_NAME
+            cfg = json.loads((run_dir / CONFIG_NAME).read_text())
+            if cfg.get("status") in ("running", "interrupted"):
+                return None
+            metrics = {"timesteps": cfg.get("timesteps_done"), "sim_steps": cfg.get("sim_steps"),
+                       "result_status": cfg.get("status")}
+            if (run_dir / POLICY_RESULT).is_file():
+                ev = Result.load(run_dir / POLICY_RESULT).evaluation
+                metrics.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"),
+                               result=str(run_dir / POLICY_RESULT))
+        else:
+            ev = json.loads((run_dir / EVALUATION_NAME).read_text())
+            metrics = {"speed_bl_per_min": ev.get("speed_bl_per_min"), "upright": ev.get("upright")}
+    except (OSError, ValueError, KeyError, AttributeError):
+        return None
+    return {"run": run.name, "kind": run.kind, "params": run.params, "cpus": run.cpus, "options": run.options,
+            "status": "done", "metrics": metrics, "wall_time_s": 0.0,
+            "recovered": f"{STATUS_NAME} was unreadable; rebuilt from {result_path(run, run_dir).name}"}
+
+
+def check_run(run: Run) -> None:
+    """What a run's start would refuse, checked without running it (``--dry-run``): an unknown
+    or unreadable robot, contact parameters out of range (``contact_stiffness = -1``). A
+    ValueError naming the run."""
+    if "robot" not in run.params or run.kind not in ("optimize", "rl-train"):
+        return
+    import dataclasses
+    from soft_envs.envs import load_robot
+    try:
+        robot = load_robot(str(run.params["robot"]))
+        contact = run.contact()
+        if contact:
+            dataclasses.replace(robot.contact, **{k: (v if k == "model" else float(v)) for k, v in contact.items()})
+    except (ValueError, TypeError, OSError) as exc:
+        raise ValueError(f"{run.source} (run {run.name!r}): {str(exc).strip().splitlines()[0]}") from None
 
 
 class _Tee(io.TextIOBase):
