@@ -5,6 +5,7 @@
 * :func:`play_trajectory` -- pre-flight checks, timed streaming, CSV log, tracking-error abort;
 * :func:`stop_motors` -- stop every channel whatever happens meanwhile; :class:`StopReport` says
   which stops were confirmed (read back) and which were not;
+* :class:`Terminated` -- what SIGTERM / SIGHUP raise during a playback (after its stop sequence);
 * :class:`RoboClawEmulator` -- pty-based emulated controllers for tests and demos (POSIX);
 * :func:`add_play_parser` / :func:`run_play` -- the ``trajopt play`` sub-command.
 
@@ -39,6 +40,7 @@ from .errors import (
 )
 from .playback import PlaybackSummary, play_trajectory
 from .protocol import Cmd, EncoderReading, PositionPID, crc16, parse_firmware_version
+from .signals import Terminated
 from .stop import ChannelStop, StopReport, stop_all_reachable, stop_motors
 from .trajectory import (
     PlannedCommand,
@@ -53,7 +55,7 @@ __all__ = [
     "ChannelStop", "Cmd", "DEFAULT_COUNTS_PER_REV", "EXAMPLE_PUPPY", "EXAMPLE_TRIPOD", "EncoderReading",
     "HardwareConfig", "MotorConfig", "PlannedCommand", "PlaybackError", "PlaybackSummary", "PositionPID", "RoboClaw",
     "RoboClawCRCError", "RoboClawConnectionError", "RoboClawEmulator", "RoboClawError", "RoboClawNoAck",
-    "RoboClawTimeout", "RoboClawUnmatchedReply", "StopReport", "TrackingError", "TrajectoryLimitError",
+    "RoboClawTimeout", "RoboClawUnmatchedReply", "StopReport", "Terminated", "TrackingError", "TrajectoryLimitError",
     "TrajectoryPlan", "add_play_parser", "crc16", "describe_plan", "iter_command_stream", "load_hardware_config",
     "open_serial", "parse_firmware_version", "parse_hardware_config", "plan_trajectory", "play_trajectory",
     "run_play", "stop_all_reachable", "stop_motors",
