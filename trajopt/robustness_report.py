@@ -3,7 +3,10 @@
 
 ``DIR/settings.json`` (the gait file's hash, cycles, seed, ranges), ``DIR/samples.jsonl`` (one
 line per finished sample, appended as they finish), ``DIR/report.json`` and ``DIR/samples.csv``
-(written atomically at the end), ``DIR/robustness.png``.
+(written atomically at the end), ``DIR/robustness.png``. A resumed run refuses damaged files
+(``settings.json`` not an object or not JSON, a ``samples.jsonl`` line that is not a sample) with
+one error naming the file and the line, and cuts away a last line left without its newline by a
+run killed while appending it (with a warning; that sample runs again).
 """
 from __future__ import annotations
 
