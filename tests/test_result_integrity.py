@@ -88,8 +88,11 @@ def test_u_times_three_is_refused_naming_u(gait, capsys):
     forge(gait, meta, arrays)
     with pytest.raises(ValueError, match=r"gait\.npz: field 'u' is not what its keyframes make \(step \d+, motor"):
         Result.load(gait)
-    code, err = cli(["evaluate", gait], capsys)
-    assert code == 2 and len(err.strip().splitlines()) == 1 and "field 'u' is not what its keyframes make" in err
+    from trajopt.hardware import EXAMPLE_TRIPOD
+    for argv in (["evaluate", gait], ["play", gait, "--dry-run", "--hardware", EXAMPLE_TRIPOD]):
+        code, err = cli(argv, capsys)
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert "gait.npz: field 'u' is not what its keyframes make" in err
 
 
 def test_arrays_cut_are_refused(gait):
