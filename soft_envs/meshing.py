@@ -14,7 +14,10 @@ GPL-2.0-or-later): by default the surface is re-meshed to the target edge length
 classify/reparametrise route, so a finely tessellated CAD export still gives the coarse mesh the
 simulator wants, paper II-A), the volume is meshed by Delaunay and optimised (gmsh + Netgen).
 Quality (:func:`tet_quality`): dihedral angles and the radius ratio ``3 r_in / R_circ`` (1 for
-the regular tet, 0 for a flat one).
+the regular tet, 0 for a flat one). Before gmsh starts, the element count is estimated
+(:func:`estimate_elements`) and an edge length that would make more than ``max_elements``
+(default :data:`MAX_ELEMENTS`) tets is refused: gmsh cannot be interrupted and a millimetre
+edge on a hand-sized body would mesh for hours.
 """
 from __future__ import annotations
 
@@ -27,7 +30,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 __all__ = ["SurfaceError", "Surface", "MeshQuality", "MeshResult", "read_surface", "check_surface",
-           "frame_rotation", "to_robot_frame", "tetrahedralize", "tet_quality", "mesh_surface", "AXES"]
+           "frame_rotation", "to_robot_frame", "tetrahedralize", "tet_quality", "estimate_elements",
+           "check_element_count", "mesh_surface", "AXES", "MAX_ELEMENTS"]
 
 #: axis names accepted by ``forward``/``up`` (as in robot.toml's ``forward_axis``/``up_axis``)
 AXES = {"+x": (0, 1.0), "-x": (0, -1.0), "+y": (1, 1.0), "-y": (1, -1.0), "+z": (2, 1.0), "-z": (2, -1.0)}
@@ -36,6 +40,9 @@ MIN_DIHEDRAL_WARN_DEG = 5.0
 MIN_RADIUS_RATIO_WARN = 0.1
 #: sharp-feature angle [deg] kept as an edge when gmsh re-meshes the surface
 FEATURE_ANGLE_DEG = 40.0
+#: most tets :func:`mesh_surface` makes unless told otherwise (``trajopt mesh --max-elements``): about
+#: a minute of gmsh on one core, and far finer than the simulator wants (paper II-A: a few thousand)
+MAX_ELEMENTS = 200_000
 
 
 class SurfaceError(ValueError):
@@ -298,12 +305,48 @@ def tetrahedralize(surface: Surface, edge_length: float, remesh: bool = True) ->
     return points, tets
 
 
+def estimate_elements(surface: Surface, edge_length: float, remesh: bool = True) -> int:
+    """Tets gmsh is expected to make of ``surface`` at ``edge_length`` ``a`` (before meshing).
+
+    ``N = V / (a^3 / (6 sqrt 2)) = 6 sqrt(2) V / a^3``: the enclosed volume ``V`` over the volume
+    of the regular tet of edge ``a``; plus ``2 n_triangles`` when the surface is kept
+    (``remesh=False``: every kept boundary triangle carries about two tets however coarse ``a``).
+    On examples/data/quadruped.obj gmsh makes 0.6-1.1 x the volume term at edges of body
+    length / 13 .. / 30 (its edges are shorter than ``a``, and at coarser edges the surface sets
+    the count); the estimate is for refusing runaway meshes, not a prediction to a few percent."""
+    if not (np.isfinite(edge_length) and edge_length > 0):
+        raise ValueError(f"edge_length must be positive, got {edge_length!r}")
+    n = 6.0 * np.sqrt(2.0) * abs(surface.volume) / edge_length**3
+    if not remesh:
+        n += 2.0 * len(surface.triangles)
+    return int(round(min(n, 1e18)))
+
+
+def check_element_count(surface: Surface, edge_length: float, remesh: bool = True,
+                        max_elements: int = MAX_ELEMENTS) -> int:
+    """The :func:`estimate_elements` of ``surface``; :class:`SurfaceError` naming the file, the
+    edge length, the estimate and the edge length the cap allows when it is above ``max_elements``."""
+    if int(max_elements) < 1:
+        raise ValueError(f"max_elements must be >= 1, got {max_elements!r}")
+    n = estimate_elements(surface, edge_length, remesh)
+    if n > max_elements:
+        smallest = (6.0 * np.sqrt(2.0) * abs(surface.volume) / max_elements) ** (1.0 / 3.0)
+        raise SurfaceError(f"{surface.source}: edge length {edge_length:g} m would make about {n:.3g} tets "
+                           f"(6 sqrt(2) x volume {abs(surface.volume):.4g} m^3 / edge^3), more than the cap of "
+                           f"{max_elements}; use --edge-length {smallest:.3g} or more (the simulator wants a few "
+                           "thousand), or raise the cap with --max-elements N")
+    return n
+
+
 def mesh_surface(path: str | Path, *, scale: float = 1.0, forward: str = "+x", up: str = "+y",
-                 edge_length: float | None = None, remesh: bool = True) -> MeshResult:
+                 edge_length: float | None = None, remesh: bool = True, max_elements: int = MAX_ELEMENTS,
+                 on_estimate=None) -> MeshResult:
     """Read, check, move into the robot frame and tetrahedralise a closed surface.
 
     ``edge_length`` [m, after ``scale``] defaults to a sixth of the body length (coarse on
-    purpose, paper II-A). Refuses inverted or degenerate tets in the result."""
+    purpose, paper II-A). Before gmsh starts, :func:`check_element_count` refuses an edge length
+    whose estimated tet count is above ``max_elements``; ``on_estimate(n, edge_length)`` is called
+    with the estimate when given. Refuses inverted or degenerate tets in the result."""
     surface, warnings = check_surface(read_surface(path))
     surface = to_robot_frame(surface, scale, forward, up)
     length = float(np.ptp(surface.points[:, 0]))
@@ -311,6 +354,9 @@ def mesh_surface(path: str | Path, *, scale: float = 1.0, forward: str = "+x", u
         warnings.append(f"{surface.source}: the body is {length:.4g} m long after scale {scale:g}; "
                         "is --scale right (0.001 for millimetres)?")
     h = length / 6.0 if edge_length is None else float(edge_length)
+    n_estimate = check_element_count(surface, h, remesh, max_elements)
+    if on_estimate is not None:
+        on_estimate(n_estimate, h)
     points, tets = tetrahedralize(surface, h, remesh)
     quality = tet_quality(points, tets)
     vols = _signed_volumes(points, tets)

@@ -221,12 +221,14 @@ def write_robot_toml(path: str | Path, text: str, overwrite: bool = False) -> Pa
 
 def make_robot(surface: str | Path, out: str | Path, *, name: str | None = None, scale: float = 1.0,
                forward: str = "+x", up: str = "+y", edge_length: float | None = None, remesh: bool = True,
-               tendons: str = "example", overwrite: bool = False, **material):
+               tendons: str = "example", overwrite: bool = False, max_elements: int | None = None,
+               on_estimate=None, **material):
     """Mesh a closed surface and write ``out/<name>.vtu`` and ``out/robot.toml`` (the skeleton with
     the example tendon pair, or with ``tendons="legs"`` a pair on each face of every leg).
     ``material``: ``density``, ``youngs_modulus``, ``poisson_ratio``, ``payload_mass`` of
     :func:`skeleton_text`. Returns ``(MeshResult, vtu path, toml path)``; nothing is written
-    when the surface is refused or robot.toml exists (unless ``overwrite``)."""
+    when the surface is refused or robot.toml exists (unless ``overwrite``). ``max_elements`` and
+    ``on_estimate``: as in :func:`soft_envs.meshing.mesh_surface` (None: its default cap)."""
     import meshio
 
     from .meshing import mesh_surface
@@ -238,7 +240,9 @@ def make_robot(surface: str | Path, out: str | Path, *, name: str | None = None,
     toml = out / "robot.toml"
     if toml.exists() and not overwrite:
         raise ValueError(f"{toml}: exists already (it may hold your edits); pass --force to replace it")
-    result = mesh_surface(surface, scale=scale, forward=forward, up=up, edge_length=edge_length, remesh=remesh)
+    cap = {} if max_elements is None else {"max_elements": max_elements}
+    result = mesh_surface(surface, scale=scale, forward=forward, up=up, edge_length=edge_length, remesh=remesh,
+                          on_estimate=on_estimate, **cap)
     motors = (leg_motors if tendons == "legs" else example_motors)(result.points, result.tets)
     text = skeleton_text(name, f"{name}.vtu", result.points, result.tets, motors, source=Path(surface).name,
                          **material)

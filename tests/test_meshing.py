@@ -214,3 +214,62 @@ def test_quadruped_to_robot_with_leg_tendons(tmp_path):
         make_robot(QUADRUPED, tmp_path / "out", scale=1e-3, up="+z")
     r2, _, _ = make_robot(QUADRUPED, tmp_path / "out", scale=1e-3, up="+z", overwrite=True)
     assert len(load_robot(toml).tendons) == 2                                 # the one worked example
+
+
+def test_element_estimate_is_volume_over_the_regular_tet():
+    """``6 sqrt(2) V / a^3`` (+ 2 per kept surface triangle), pinned on a unit cube."""
+    from soft_envs.meshing import estimate_elements
+    cube = Surface(*box(size=(1.0, 1.0, 1.0)))
+    assert estimate_elements(cube, 0.5) == round(6 * np.sqrt(2) / 0.125) == 68
+    assert estimate_elements(cube, 0.1) == round(6 * np.sqrt(2) * 1000)
+    assert estimate_elements(cube, 0.5, remesh=False) == round(6 * np.sqrt(2) / 0.125 + 24)
+    with pytest.raises(ValueError, match="edge_length"):
+        estimate_elements(cube, 0.0)
+
+
+def test_element_estimate_is_near_what_gmsh_makes(tmp_path):
+    pytest.importorskip("gmsh")
+    from soft_envs.meshing import estimate_elements
+    r = mesh_surface(QUADRUPED, scale=1e-3, up="+z", edge_length=0.01)
+    assert 0.5 < len(r.tets) / estimate_elements(r.surface, 0.01) < 2.0
+
+
+def _no_gmsh(monkeypatch):
+    import soft_envs.meshing as meshing
+
+    def refuse(*_):
+        raise AssertionError("gmsh was started")
+    monkeypatch.setattr(meshing, "_gmsh", refuse)
+
+
+def test_a_runaway_edge_length_is_refused_before_gmsh_starts(tmp_path, monkeypatch, capsys):
+    """``trajopt mesh --edge-length 0.0005`` (issue #26 item 7: ran for hours with no output) is
+    refused from the estimate, exit 2 and one line naming the cap and what to pass; nothing written."""
+    from trajopt.cli import main
+    _no_gmsh(monkeypatch)
+    out = tmp_path / "robot"
+    code = main(["mesh", str(QUADRUPED), "--scale", "0.001", "--up", "+z", "--edge-length", "0.0005",
+                 "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    n = round(6 * np.sqrt(2) * 390_080e-9 / 0.0005**3)     # the quadruped encloses 390,080 mm^3
+    assert "edge length 0.0005 m" in err[0] and f"about {n:.3g} tets" in err[0], err
+    assert "cap of 200000" in err[0] and "--max-elements" in err[0] and "--edge-length 0.0" in err[0]
+    assert not out.exists()
+    with pytest.raises(SurfaceError, match="cap of 1000;"):
+        mesh_surface(QUADRUPED, scale=1e-3, up="+z", edge_length=0.01, max_elements=1000)
+
+
+def test_max_elements_moves_the_cap_and_the_estimate_is_printed_first(tmp_path, capsys):
+    pytest.importorskip("gmsh")
+    from soft_envs.meshing import MAX_ELEMENTS
+    from trajopt.cli import build_parser, main
+    argv = ["mesh", str(QUADRUPED), "--scale", "0.001", "--up", "+z", "--edge-length", "0.02",
+            "--out", str(tmp_path / "robot")]
+    assert main([*argv, "--max-elements", "100"]) == 2                  # about 414 tets expected
+    assert "more than the cap of 100;" in capsys.readouterr().err
+    assert main([*argv, "--max-elements", "1000"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "meshing at edge length 0.02 m: about 414 tets expected" and out[1].startswith("meshed ")
+    mesh_help = build_parser()._subparsers._group_actions[0].choices["mesh"].format_help()
+    assert f"default {MAX_ELEMENTS}" in mesh_help.replace("\n", " ").replace("  ", " ")

@@ -137,6 +137,9 @@ def _add_robot_commands(sub) -> None:
     p.add_argument("--edge-length", type=positive_float, default=None,
                    help="target tet edge length [m, after --scale] (default: body length / 6)")
     p.add_argument("--keep-surface", action="store_true", help="keep the surface triangles (no re-meshing)")
+    p.add_argument("--max-elements", type=positive_int, default=None,
+                   help="refuse an --edge-length whose estimated tet count (6 sqrt(2) volume / edge^3) is above "
+                        "this, before meshing (default 200000, soft_envs.meshing.MAX_ELEMENTS)")
     p.add_argument("--tendons", choices=["example", "legs"], default="example",
                    help="one example tendon pair, or a pair on the front and back of every leg")
     p.add_argument("--density", type=positive_float, default=None, help="[kg/m^3] (default 220)")

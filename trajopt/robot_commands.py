@@ -27,7 +27,8 @@ def run_mesh(args) -> int:
         result, vtu, toml = make_robot(args.surface, args.out, name=args.name, scale=args.scale,
                                        forward=args.forward, up=args.up, edge_length=args.edge_length,
                                        remesh=not args.keep_surface, tendons=args.tendons,
-                                       overwrite=args.force, **material)
+                                       overwrite=args.force, max_elements=args.max_elements,
+                                       on_estimate=_print_estimate, **material)
     except ImportError as exc:
         print(f"trajopt: error: {exc}", file=sys.stderr)
         return 1
@@ -47,6 +48,10 @@ def run_mesh(args) -> int:
     print(f"\nnext: edit {toml} (material, payload, tendons and motors: its comments say how), then\n"
           f"  trajopt check {toml}\n  trajopt optimize {toml} --task walk --out results/")
     return 0
+
+
+def _print_estimate(n: int, edge_length: float) -> None:
+    print(f"meshing at edge length {edge_length:.4g} m: about {n} tets expected", flush=True)
 
 
 def run_check(args) -> int:
