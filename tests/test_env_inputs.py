@@ -80,3 +80,66 @@ def test_step_after_terminated_warns_like_gymnasium():
         env.step(np.ones(2))
         env.reset(seed=1)
         env.step(np.zeros(2))
+
+
+def _state(env):
+    e = env.unwrapped
+    return (e._x.copy(), e._x_prev.copy(), e._u.copy(), e._n_sub, e.np_random.bit_generator.state)
+
+
+def _assert_same_state(a, b):
+    assert all(np.array_equal(x, y) for x, y in zip(a[:3], b[:3])) and a[3:] == b[3:]
+
+
+@pytest.fixture(scope="module")
+def stepped_env():
+    env = SoftTripodEnv(reset_noise_scale=1e-4)
+    env.reset(seed=3)
+    env.step(np.full(env.action_space.shape, 0.5))
+    return env
+
+
+BAD_OPTIONS = [("a string", "reset options must be a dict or None, got str"),
+               ([("speed", 1)], "reset options must be a dict or None, got list"),
+               ({"speed": 1.0}, r"unknown reset option 'speed' \(this environment's reset options: none\)"),
+               ({1: 2}, "unknown reset option 1 ")]
+
+
+@pytest.mark.parametrize("options,message", BAD_OPTIONS, ids=[repr(o) for o, _ in BAD_OPTIONS])
+def test_unknown_or_non_dict_reset_options_are_refused_with_the_state_untouched(stepped_env, options, message):
+    """Issue #26 item 7: ``reset(options=...)`` was silently ignored; now refused before the seed,
+    the random generator or the state change. ``None`` and ``{}`` are accepted."""
+    before = _state(stepped_env)
+    with pytest.raises(ValueError, match=message):
+        stepped_env.reset(seed=99, options=options)
+    _assert_same_state(_state(stepped_env), before)
+
+
+def test_empty_reset_options_are_accepted():
+    env = SoftTripodEnv(reset_noise_scale=1e-4)
+    obs_none, _ = env.reset(seed=4, options=None)
+    obs_empty, _ = env.reset(seed=4, options={})
+    assert np.array_equal(obs_none, obs_empty)
+
+
+def _bad_actions(m):
+    return [(np.full(m, 0.5 + 0.0j), "action must be real, got complex dtype complex128"),
+            (np.full(m, 0.5, dtype=np.complex64) + 1j, "action must be real, got complex dtype complex64"),
+            ([0.5 + 1j] * m, "action must be real"),
+            ({f"m{i}": 0.5 for i in range(m)}, rf"action must be an array of {m} numbers .* got a dict \(keys \['m0'"),
+            ({}, "got a dict")]
+
+
+def test_complex_and_dict_actions_are_refused_with_the_state_untouched(stepped_env):
+    """A complex action lost its imaginary part silently (numpy's cast) and a dict failed on its
+    shape; both are refused by step() and action_to_control(), and nothing moves."""
+    m = stepped_env.action_space.shape[0]
+    before = _state(stepped_env)
+    for action, message in _bad_actions(m):
+        with pytest.raises(ValueError, match=message):
+            stepped_env.step(action)
+        with pytest.raises(ValueError, match=message):
+            stepped_env.action_to_control(action)
+        _assert_same_state(_state(stepped_env), before)
+    assert np.allclose(stepped_env.action_to_control(np.full(m, 0.5)),          # real arrays still work
+                       stepped_env.action_to_control(np.full(m, 0.5, dtype=np.float32)))

@@ -8,6 +8,7 @@ motor_speed_rpm * 2 pi / 60 * spool_radius`` (``motor_speed_rpm=None``: no limit
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -33,8 +34,13 @@ class Actuation:
 
     def check_action(self, action: Any) -> np.ndarray:
         """``action`` as float64 clipped to [-1, 1]; ValueError for a wrong shape, a non-numeric
-        dtype, NaN or inf."""
+        dtype (complex included: its imaginary part would be dropped), a dict, NaN or inf."""
+        if isinstance(action, Mapping):
+            raise ValueError(f"action must be an array of {self.lo.size} numbers in [-1, 1], one per motor, "
+                             f"got a {type(action).__name__} (keys {list(action)[:5]})")
         a = np.asarray(action)
+        if a.dtype.kind == "c":
+            raise ValueError(f"action must be real, got complex dtype {a.dtype}: {a.tolist()}")
         if a.shape != self.lo.shape:
             raise ValueError(f"action must have shape {self.lo.shape}, got {a.shape}")
         try:

@@ -236,7 +236,10 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         """Start an episode at rest (plus ``reset_noise_scale`` noise). With domain
         randomisation the robot is drawn first (:meth:`_draw_domain`); ``info`` then also holds
         ``domain_parameters`` (the factors), ``domain_draws`` and ``domain_fallback``. A reset
-        never raises for a drawn robot that cannot stand."""
+        never raises for a drawn robot that cannot stand. ``options``: None or a dict of the keys
+        in :attr:`reset_option_keys` (none: these environments take no reset options); anything
+        else is a ValueError naming the key or type, raised before the state is touched."""
+        self._check_reset_options(options)
         super().reset(seed=seed)
         self._steps_beyond_terminated = 0
         domain_info = self._draw_domain() if self._domain_ranges is not None else {}
@@ -255,6 +258,19 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         if self.render_mode == "human":
             self.render()
         return self._get_obs(), {**self._get_info(), **domain_info}
+
+    #: the ``reset(options=...)`` keys this environment understands (subclasses may add some)
+    reset_option_keys: frozenset[str] = frozenset()
+
+    def _check_reset_options(self, options: Any) -> None:
+        if options is None:
+            return
+        if not isinstance(options, Mapping):
+            raise ValueError(f"reset options must be a dict or None, got {type(options).__name__}: {options!r:.80}")
+        unknown = sorted(map(repr, set(options) - self.reset_option_keys))
+        if unknown:
+            known = ", ".join(sorted(self.reset_option_keys)) or "none"
+            raise ValueError(f"unknown reset option {', '.join(unknown)} (this environment's reset options: {known})")
 
     def step(self, action: Any):
         self._warn_if_stepping_after_termination()
