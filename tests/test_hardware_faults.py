@@ -400,15 +400,24 @@ def test_port_raising_mid_play(emu: RoboClawEmulator) -> None:
 
 # --------------------------------------------------------------------------- defect 3: stall abort, firmware
 @pytest.mark.parametrize("jam_at_step", [0, 30])
-def test_stalled_encoder_aborts_and_stops(emu: RoboClawEmulator, tmp_path: Path, jam_at_step: int) -> None:
-    emu.after_packets(at_step(jam_at_step), lambda: emu.jam(1))
-    log = tmp_path / "stall.csv"
-    u = smooth_u(60) if jam_at_step == 0 else np.concatenate([smooth_u(30), smooth_u(30)])
-    with pytest.raises(TrackingError, match=r"'front'.*tracking error \d+ counts.*jammed cable") as info:
-        play_trajectory(u, DT, NAMES, tripod_config(), port_override=emu.port, log_path=log)
+def test_stalled_encoder_aborts_and_stops(tmp_path: Path, jam_at_step: int) -> None:
+    """On virtual time (shared by the playback and the emulated motors): a loaded machine that runs a
+    few steps late cannot make the free motor lag and abort before the jam."""
+    from tests.test_hardware_playback import VirtualTime
+
+    time_ = VirtualTime()
+    with RoboClawEmulator(clock=time_.clock) as emu:
+        emu.after_packets(at_step(jam_at_step), lambda: emu.jam(1))
+        log = tmp_path / "stall.csv"
+        u = smooth_u(60) if jam_at_step == 0 else np.concatenate([smooth_u(30), smooth_u(30)])
+        with pytest.raises(TrackingError, match=r"'front'.*tracking error \d+ counts.*jammed cable") as info:
+            play_trajectory(u, DT, NAMES, tripod_config(), port_override=emu.port, log_path=log,
+                            clock=time_.clock, sleep=time_.sleep)
+        stopped = stopped_after_last_move(emu)
+    assert stopped
     rows = list(csv.reader(log.open()))[1:]
     assert jam_at_step < len(rows) < 60  # aborted during the trajectory, not after it
-    assert info.value.stop_report.all_confirmed and stopped_after_last_move(emu)  # type: ignore[attr-defined]
+    assert info.value.stop_report.all_confirmed  # type: ignore[attr-defined]
 
 
 def test_stall_abort_through_the_cli(emu: RoboClawEmulator, tmp_path: Path, result_file: str,
@@ -438,11 +447,17 @@ def test_tracking_abort_needs_the_error_for_the_whole_hold_time() -> None:
         monitor.check(0.02 * k, k, within)  # at the bound, never
 
 
-def test_fast_trajectory_near_the_limits_does_not_trip_the_abort(emu: RoboClawEmulator) -> None:
-    """98 % of max_speed: the error exceeds max_tracking_error, but not beyond the lag the limits explain."""
-    cfg = tripod_config()
+def test_fast_trajectory_near_the_limits_does_not_trip_the_abort() -> None:
+    """98 % of max_speed: the error exceeds max_tracking_error, but not beyond the lag the limits explain.
+
+    On virtual time: a loaded machine running late sends a burst of steps the motors cannot follow at
+    98 % of their top speed, which is a real lag (and would rightly abort), not the one under test."""
+    from tests.test_hardware_playback import VirtualTime
+
+    cfg, time_ = tripod_config(), VirtualTime()
     u = 0.0155 * np.sin(np.pi * np.linspace(0, 1, 30))[:, None] ** 2 * np.ones((1, 2))
-    summary = play_trajectory(u, DT, NAMES, cfg, port_override=emu.port)
+    with RoboClawEmulator(clock=time_.clock) as emu:
+        summary = play_trajectory(u, DT, NAMES, cfg, port_override=emu.port, clock=time_.clock, sleep=time_.sleep)
     bound = TrackingMonitor(plan_trajectory(u, DT, NAMES, cfg), cfg).bound[0]
     assert summary.steps_sent == 30 and summary.max_tracking_error_counts > bound
 

@@ -174,12 +174,8 @@ class RoboClawEmulator:
         self._inject("lost_reply", times, command)
 
     def inject_late_reply(self, delay: float | None, times: int | None = 1, command: int | None = None) -> None:
-        """Execute the next ``times`` valid requests now but send their replies ``delay`` s later.
-
-        ``delay=None``: hold each reply until the next valid request arrives (it then leaves just
-        before that request's reply) -- after the client gave up on it, since a client sends
-        nothing new before; deterministic whatever the load, unlike a delay in seconds.
-        """
+        """Execute the next ``times`` valid requests now but send their replies ``delay`` s later; ``None``: when
+        the next request arrives (after the client gave up, whatever the load: it sends nothing new before)."""
         if delay is not None and not delay > 0:
             raise ValueError(f"delay {delay!r} must be a positive number of seconds or None")
         self._inject("late_reply", times, command, math.inf if delay is None else delay)
@@ -206,8 +202,8 @@ class RoboClawEmulator:
         """Motor ``channel`` turns at ``speed`` counts/s whatever it is commanded (``None``: obeys again)."""
         with self._lock:
             self._advance(self._clock())
-            self._controller(address).channels[P.check_channel(channel) - 1].runaway = \
-                None if speed is None else float(speed)
+            motor = self._controller(address).channels[P.check_channel(channel) - 1]
+            motor.runaway = None if speed is None else float(speed)
 
     def clear_faults(self) -> None:
         """Cancel all pending injected faults (not a disconnect that already happened, nor a jam)."""
