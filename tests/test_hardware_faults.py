@@ -15,7 +15,6 @@ import os
 import re
 import signal
 import threading
-import time
 import tty
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -187,24 +186,31 @@ def test_hung_controller_mid_play_is_reported_per_motor(emu: RoboClawEmulator) -
 
 @pytest.mark.parametrize("when", ["before", "after"])
 def test_second_ctrl_c_during_the_stop_does_not_abort_it(emu: RoboClawEmulator, when: str) -> None:
-    """KeyboardInterrupt raised just before / just after the stop's first duty 0 goes out."""
-    state = {"sleeps": 0, "stopping": False, "raised": 0}
+    """KeyboardInterrupt raised just before / just after the stop's first duty 0 goes out.
 
-    def sleep(seconds: float) -> None:
-        state["sleeps"] += 1
-        if state["sleeps"] == 10:
+    The first Ctrl-C comes at a chosen write of the stream (not after some sleeps: a loaded machine
+    running late may not sleep at all)."""
+    state = {"writes": 0, "stopping": False, "raised": 0}
+
+    def first_ctrl_c(frame: bytes) -> None:
+        state["writes"] += 1
+        if state["writes"] == at_step(10):
             state["stopping"] = True
-            raise KeyboardInterrupt  # first Ctrl-C
-        time.sleep(seconds)
+            raise KeyboardInterrupt
 
     def second_ctrl_c(frame: bytes) -> None:
         if state["stopping"] and frame[1] == P.Cmd.DUTY_M1 and not state["raised"]:
             state["raised"] += 1
             raise KeyboardInterrupt
 
-    opener = hooked_opener(**{when: second_ctrl_c})
+    hooks: dict[str, Callable[[bytes], None]] = {"before": first_ctrl_c}
+    if when == "before":
+        hooks["before"] = lambda frame: (first_ctrl_c(frame), second_ctrl_c(frame))
+    else:
+        hooks["after"] = second_ctrl_c
     with pytest.raises(KeyboardInterrupt) as info:
-        play_trajectory(smooth_u(), DT, NAMES, tripod_config(), port_override=emu.port, sleep=sleep, open_port=opener)
+        play_trajectory(smooth_u(), DT, NAMES, tripod_config(), port_override=emu.port,
+                        open_port=hooked_opener(**hooks))
     assert state["raised"] == 1
     assert stopped_after_last_move(emu)
     report = info.value.stop_report  # type: ignore[attr-defined]
@@ -212,14 +218,13 @@ def test_second_ctrl_c_during_the_stop_does_not_abort_it(emu: RoboClawEmulator, 
 
 
 def test_sigint_during_the_stop_is_held_until_it_ends(emu: RoboClawEmulator) -> None:
-    state = {"sleeps": 0, "stopping": False, "signalled": 0}
+    state = {"writes": 0, "stopping": False, "signalled": 0}
 
-    def sleep(seconds: float) -> None:
-        state["sleeps"] += 1
-        if state["sleeps"] == 10:
+    def first_ctrl_c(frame: bytes) -> None:  # at a chosen write of the stream, not after some sleeps
+        state["writes"] += 1
+        if state["writes"] == at_step(10):
             state["stopping"] = True
             os.kill(os.getpid(), signal.SIGINT)  # first Ctrl-C: raises KeyboardInterrupt here
-        time.sleep(seconds)
 
     def ctrl_c(frame: bytes) -> None:
         if state["stopping"] and frame[1] in (P.Cmd.DUTY_M1, P.Cmd.DUTY_M2):
@@ -228,8 +233,8 @@ def test_sigint_during_the_stop_is_held_until_it_ends(emu: RoboClawEmulator) -> 
 
     before = signal.getsignal(signal.SIGINT)
     with pytest.raises(KeyboardInterrupt) as info:
-        play_trajectory(smooth_u(), DT, NAMES, tripod_config(), port_override=emu.port, sleep=sleep,
-                        open_port=hooked_opener(after=ctrl_c))
+        play_trajectory(smooth_u(), DT, NAMES, tripod_config(), port_override=emu.port,
+                        open_port=hooked_opener(before=first_ctrl_c, after=ctrl_c))
     assert state["signalled"] == 2 and stopped_after_last_move(emu)
     report = info.value.stop_report  # type: ignore[attr-defined]
     assert report.all_confirmed and report.interruptions == ("Ctrl-C", "Ctrl-C")

@@ -21,6 +21,7 @@ from trajopt.hardware.cli import add_play_parser, run_play  # noqa: E402
 from trajopt.hardware.config import EXAMPLE_TRIPOD, HardwareConfig, load_hardware_config  # noqa: E402
 from trajopt.hardware.emulator import RoboClawEmulator  # noqa: E402
 from trajopt.hardware.errors import PlaybackError, RoboClawConnectionError, RoboClawTimeout  # noqa: E402
+from trajopt.hardware.monitor import TrackingMonitor  # noqa: E402
 from trajopt.hardware.playback import play_trajectory  # noqa: E402
 from trajopt.hardware.trajectory import TrajectoryLimitError, iter_command_stream, plan_trajectory  # noqa: E402
 
@@ -268,18 +269,17 @@ def test_disconnect_mid_playback_stops_reachable_motors(tmp_path: Path) -> None:
         assert len(header) == 6 and rows.shape == (10, 6)
 
 
-def test_keyboard_interrupt_stops_motors(emu: RoboClawEmulator) -> None:
-    calls = 0
+def test_keyboard_interrupt_stops_motors(emu: RoboClawEmulator, monkeypatch: pytest.MonkeyPatch) -> None:
+    check = TrackingMonitor.check
 
-    def sleep(seconds: float) -> None:
-        nonlocal calls
-        calls += 1
-        if calls == 5:
+    def ctrl_c_at_step_5(self: TrackingMonitor, t: float, step: int, measured: object) -> None:
+        check(self, t, step, measured)  # type: ignore[arg-type]
+        if step == 5:  # at a step, not after some sleeps: a loaded machine running late may not sleep
             raise KeyboardInterrupt
-        __import__("time").sleep(seconds)
 
+    monkeypatch.setattr(TrackingMonitor, "check", ctrl_c_at_step_5)
     with pytest.raises(KeyboardInterrupt) as info:
-        play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port, sleep=sleep)
+        play_trajectory(smooth_u(), DT, ["front", "back"], tripod_config(), port_override=emu.port)
     assert stopped_after_last_move(emu)
     assert info.value.stop_report.all_confirmed  # type: ignore[attr-defined]
 
