@@ -345,7 +345,9 @@ def test_cli_plays_and_dry_runs(fake_results: dict, emu: RoboClawEmulator, tmp_p
     fake_results["short.npz"] = types.SimpleNamespace(u_post=smooth_u(10, 0.0005), dt=0.03,
                                                       motor_names=["front", "back"])
     log = tmp_path / "ok.csv"
-    args = parse(["play", "short.npz", "--hardware", str(EXAMPLE_TRIPOD), "--port-override", emu.port,
+    hardware = tmp_path / "hw.toml"  # the shipped file with a generous reply timeout (a loaded machine)
+    hardware.write_text(EXAMPLE_TRIPOD.read_text().replace("\ntimeout = 0.1\n", "\ntimeout = 1.0\n"))
+    args = parse(["play", "short.npz", "--hardware", str(hardware), "--port-override", emu.port,
                   "--log", str(log)])
     assert args.func(args) == 0
     captured = capsys.readouterr()
