@@ -48,6 +48,27 @@ PHYSICS = ("tests/test_physics_magnitudes.py", "tests/test_reference_rollouts.py
            "tests/test_static.py")
 HARDWARE = ("tests/test_cli_paths.py", "tests/test_hardware_config.py", "tests/test_hardware_playback.py")
 TURN = ("tests/test_turn.py",)
+ROBUSTNESS = tuple(f"tests/test_robustness.py::{t}" for t in (
+    "test_perturbations_are_seeded_per_sample_and_within_their_ranges",
+    "test_applied_controls_model_lag_speed_limit_and_jitter", "test_perturbed_slope_composes_tilts",
+    "test_samples_are_independent_picklable_calls"))
+# issue #30's tests, by class: the files that test the module first, the class's own file last (with -x the
+# first failing test then says whether the older tests see the fault too)
+PINNED = ("tests/test_dynamics.py", "tests/test_trajopt.py", *ROBUSTNESS,
+          "tests/test_pinned_magnitudes.py")
+CALIB = ("tests/test_calibrate.py", "tests/test_pinned_magnitudes.py")
+TABLES = (*ROBUSTNESS, "tests/test_env_rewards.py", "tests/test_hardware_config.py",
+          "tests/test_pinned_tables.py")
+REACH = (*ROBUSTNESS, "tests/test_env_rewards.py", "tests/test_envs_coulomb.py",
+         "tests/test_perturbations_reach_physics.py")
+RULES = ("tests/test_env_rewards.py", "tests/test_envs.py", "tests/test_metrics.py::test_a_sinking_com_is_not_upright",
+         "tests/test_turn.py", "tests/test_envs_coulomb.py", "tests/test_hardware_config.py", "tests/test_each_rule.py")
+INTEGRITY = ("tests/test_result_files.py::test_the_json_repeats_the_npz_hash_and_a_mismatch_is_reported",
+             "tests/test_result_files.py::test_a_damaged_npz_is_refused",
+             "tests/test_robot_match.py::test_the_fingerprint_ignores_layout_and_file_format_but_not_content",
+             "tests/test_robot_match.py::test_moved_mesh_nodes_with_the_same_connectivity_change_the_fingerprint",
+             "tests/test_integrity_fields.py")
+STOP = ("tests/test_hardware_playback.py", "tests/test_stop_confirmation.py")
 COULOMB = ("tests/test_physics_magnitudes.py", "tests/test_coulomb_anchors.py", "tests/test_coulomb.py",
            "tests/test_energy_derivatives.py", "tests/test_sensitivity.py")
 
@@ -175,6 +196,111 @@ FAULTS = [
     Fault("robustness_contact_law", "trajopt/robustness.py",
           "robot = with_contact_law(load_robot(job.robot), job.contact)", "robot = load_robot(job.robot)",
           ("tests/test_robustness.py",), "robustness replays a Coulomb gait under the robot file's (paper) law"),
+    # ================================================================== issue #30: the six classes
+    # (1) magnitudes asserted as thresholds
+    Fault("cable_tension_is_stiffness", "soft_envs/sim/cables.py",
+          "return one_sided_quadratic(self.deformation(x, u), self.stiffness, self.blend)[1]",
+          "return one_sided_quadratic(self.deformation(x, u), self.stiffness, self.blend)[2]", PINNED,
+          "cable tension read-out returns the stiffness Q'' instead of the force Q'"),
+    Fault("gravity_per_node_g_halved", "soft_envs/sim/gravity.py",
+          "self.force = (np.asarray(node_masses)[:, None] * self.g[None, :]).ravel()",
+          "self.force = (np.asarray(node_masses)[:, None] * 0.5 * self.g[None, :]).ravel()", PINNED,
+          "gravity's force is m g / 2 per node"),
+    Fault("objective_com_not_over_K", "trajopt/objectives.py",
+          "s_com = np.sqrt(weights.com / K) / body_length", "s_com = np.sqrt(weights.com) / body_length", PINNED,
+          "COM tracking term not averaged over the K states"),
+    Fault("magnitude_from_upper_bound", "trajopt/objectives.py",
+          "r_mag = s_mag * (z - lo) / rng_z", "r_mag = s_mag * (z - hi) / rng_z", PINNED,
+          "magnitude regulariser measured from u_max (its Jacobian unchanged)"),
+    Fault("robustness_rpm_over_30", "trajopt/robustness.py",
+          'du_max = p["motor_speed_rpm"] * 2.0 * math.pi / 60.0', 'du_max = p["motor_speed_rpm"] * 2.0 * math.pi / 30.0',
+          PINNED, "robustness motor speed limit rpm -> m/s off by 2"),
+    Fault("cycle_path_speed_per_cycle", "trajopt/evaluation.py",
+          '"cycle_path_speed_bl_per_min": mps_to_bl_per_min(chords / (n_cycles * n_cycle * dt), bl)',
+          '"cycle_path_speed_bl_per_min": mps_to_bl_per_min(chords / (n_cycle * dt), bl)', PINNED,
+          "cycle path speed over one cycle's time instead of all cycles'"),
+    Fault("calibrate_std_in_log_units", "trajopt/calibrate.py",
+          "* np.where(prob.log, theta, 1.0)", "* np.where(prob.log, 1.0, 1.0)", CALIB,
+          "calibration standard errors of log-fitted parameters left in log units"),
+    Fault("calibrate_rms_without_3", "trajopt/calibrate.py",
+          "float(np.sqrt(3.0 * np.mean(rr ** 2)))", "float(np.sqrt(np.mean(rr ** 2)))", CALIB,
+          "calibration RMS marker distance off by sqrt(3) (per coordinate instead of per marker)"),
+    # (2) tables tested against themselves
+    Fault("robustness_lag_in_ms", "trajopt/robustness.py",
+          '"motor_lag_s": ("value", 0.0, 0.1)', '"motor_lag_s": ("value", 0.0, 100.0)', TABLES,
+          "robustness motor lag range in ms where the table says s"),
+    Fault("robustness_youngs_range_narrow", "trajopt/robustness.py",
+          '"youngs_modulus": ("factor", 0.7, 1.3)', '"youngs_modulus": ("factor", 0.9, 1.1)', TABLES,
+          "robustness Young's modulus range not the documented x 0.7 - 1.3"),
+    Fault("dr_default_friction_range", "soft_envs/envs/domain.py",
+          'MappingProxyType({\n    "friction": (0.7, 1.3),', 'MappingProxyType({\n    "friction": (0.97, 1.03),',
+          TABLES, "domain_randomization=True friction range not the documented (0.7, 1.3)"),
+    Fault("crc_init_ffff", "trajopt/hardware/protocol.py",
+          "return binascii.crc_hqx(bytes(data), 0)", "return binascii.crc_hqx(bytes(data), 0xFFFF)",
+          ("tests/test_hardware_protocol.py", *TABLES), "RoboClaw CRC-16 with init 0xFFFF (CCITT-FALSE, not XMODEM)"),
+    Fault("counts_per_rev_motor_side", "trajopt/hardware/config.py",
+          "DEFAULT_COUNTS_PER_REV = 12 * 297.92", "DEFAULT_COUNTS_PER_REV = 12 * 29.792", TABLES,
+          "default encoder counts per output revolution with a 10x wrong gear ratio"),
+    # (3) a perturbation never shown to reach the physics
+    Fault("robustness_cable_stiffness_not_applied", "trajopt/robustness.py",
+          '+ ["cable_stiffness"] * bool(robot.tendons)', '+ [] * bool(robot.tendons)', REACH,
+          "robustness draws and reports cable stiffness but never applies it"),
+    Fault("robustness_payload_not_applied", "trajopt/robustness.py",
+          'names += ["payload_mass"] * (robot.payload_mass > 0)', 'names += ["payload_mass"] * 0', REACH,
+          "robustness draws and reports payload mass but never applies it"),
+    Fault("robustness_coulomb_friction_not_applied", "trajopt/robustness.py",
+          'friction = "friction" if robot.contact.model == "paper" else "friction_coefficient"',
+          'friction = "friction"', REACH, "robustness perturbs the paper weight of a Coulomb gait (not its mu)"),
+    Fault("robustness_slope_not_applied", "trajopt/robustness.py",
+          'incline, uphill = perturbed_slope(job.incline_deg, job.heading_deg, p["slope_deg"], p["slope_direction_deg"])',
+          "incline, uphill = job.incline_deg, job.heading_deg", REACH,
+          "robustness reports an extra slope but replays on the nominal one"),
+    Fault("robustness_lag_not_applied", "trajopt/robustness.py",
+          'alpha = 1.0 - math.exp(-dt / p["motor_lag_s"]) if p["motor_lag_s"] > 0 else 1.0', "alpha = 1.0", REACH,
+          "robustness reports a motor lag but the motors follow at once"),
+    Fault("dr_contact_stiffness_ignored", "soft_envs/envs/domain.py",
+          'stiffness=contact.stiffness * f.get("contact_stiffness", 1.0))', "stiffness=contact.stiffness)", REACH,
+          "domain randomisation reports a contact stiffness factor but never applies it"),
+    # (4) one of several rules exercised
+    Fault("healthy_ignores_height", "soft_envs/envs/task.py",
+          "and com[1] >= self.healthy_height_fraction * rest_com_height",
+          "and com[1] >= 0.0 * rest_com_height", RULES, "termination only by tilt (the COM-height rule lost)"),
+    Fault("upright_ignores_height", "trajopt/evaluation.py",
+          "com_h.min() >= 0.5 * com_h[0]", "com_h.min() >= 0.0 * com_h[0]", RULES,
+          "measure_gait's upright only by tilt (the COM-height rule lost)"),
+    Fault("dr_coulomb_friction_paper_weight", "soft_envs/envs/domain.py",
+          'name = "friction" if contact.model == "paper" else "friction_coefficient"', 'name = "friction"', RULES,
+          "domain randomisation of friction under the Coulomb law scales the (unused) paper weight"),
+    Fault("turn_left_rewarded_as_right", "soft_envs/envs/task.py",
+          'sign = 1.0 if self.turn_direction == "right" else -1.0', "sign = 1.0", RULES,
+          "turn reward: a left turn rewarded for turning right"),
+    Fault("turn_radius_ignored", "soft_envs/envs/task.py",
+          "radius = body_length if self.turn_radius is None else self.turn_radius", "radius = body_length", RULES,
+          "turn reward ignores turn_radius"),
+    Fault("readback_ignores_direction", "trajopt/hardware/config.py",
+          "return self.direction * turns * (2 * math.pi) * self.spool_radius",
+          "return turns * (2 * math.pi) * self.spool_radius", RULES,
+          "encoder counts -> cable length ignores the motor's direction -1"),
+    # (5) integrity checks with one edited field
+    Fault("mesh_hash_ignores_nodes", "soft_envs/sim/robot_file.py",
+          "    h.update(np.round(mesh.points / size * 1e9).astype(np.int64).tobytes())\n", "", INTEGRITY,
+          "robot fingerprint's mesh hash ignores node positions (moved nodes, same tets, pass)"),
+    Fault("content_hash_ignores_meta", "trajopt/results.py",
+          "h = hashlib.sha256(meta_text.encode())", "h = hashlib.sha256()", INTEGRITY,
+          "a result's content hash ignores its metadata (an edited setting passes)"),
+    # (6) hardware confirmation tried one way
+    Fault("stop_unreadable_encoder_confirmed", "trajopt/hardware/stop.py",
+          "            outcome[ch] = (False, unreadable + why)\n        else:",
+          "            outcome[ch] = (True, unreadable + why)\n        else:", STOP,
+          "a stop whose first encoder read-back goes unanswered is confirmed"),
+    Fault("stop_moving_motor_confirmed", "trajopt/hardware/stop.py",
+          'outcome[ch] = (False, f"duty 0 acknowledged but the motor still moves',
+          'outcome[ch] = (True, f"duty 0 acknowledged but the motor still moves', STOP,
+          "a stop whose motor keeps moving is confirmed"),
+    # sweep
+    Fault("sweep_quick_ignored", "trajopt/sweep/spec.py",
+          "if quick:\n            params.update(overrides)", "if False:\n            params.update(overrides)",
+          ("tests/test_sweep.py::test_quick_arguments_keep_the_run_names", "tests/test_each_rule.py"), "a sweep's [runs.quick] overrides ignored under --quick"),
 ]
 
 
