@@ -59,7 +59,7 @@ def smooth_u(k: int = 60, amplitude: float = 0.01) -> np.ndarray:
 #: Reply timeout [s] of the tests that are not about it: generous, so that a loaded machine cannot fail them.
 REPLY_TIMEOUT = 1.0
 #: Reply timeout [s] of the tests that wait out a controller that never answers (each wait costs one).
-HUNG_TIMEOUT = 0.1
+HUNG_TIMEOUT = 0.25
 
 
 def tripod_config(**settings: Any) -> HardwareConfig:
