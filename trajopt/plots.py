@@ -52,10 +52,11 @@ def plot_com_topdown(com: np.ndarray, target: np.ndarray | None, path: str | Pat
     if k > 0:
         ax.plot(100 * com[:k + 1, 0], 100 * com[:k + 1, 2], color="0.6", lw=2, label="prep phase")
     ax.plot(100 * com[k:, 0], 100 * com[k:, 2], color="tab:blue", lw=3, alpha=0.6, label="simulated COM")
-    span = max(float(np.ptp(100 * com[:, 0])), float(np.ptp(100 * com[:, 2])), 1.0)
-    ax.annotate("forward (+x)", xy=(100 * com[0, 0] + 0.25 * span, 100 * com[0, 2]),
-                xytext=(100 * com[0, 0], 100 * com[0, 2]), fontsize=7, color="0.5", va="bottom",
-                arrowprops=dict(arrowstyle="->", color="0.5"))
+    if len(com):   # a result saved without its COM path (e.g. an unfinished run) still plots
+        span = max(float(np.ptp(100 * com[:, 0])), float(np.ptp(100 * com[:, 2])), 1.0)
+        ax.annotate("forward (+x)", xy=(100 * com[0, 0] + 0.25 * span, 100 * com[0, 2]),
+                    xytext=(100 * com[0, 0], 100 * com[0, 2]), fontsize=7, color="0.5", va="bottom",
+                    arrowprops=dict(arrowstyle="->", color="0.5"))
     ax.set_xlabel("x [cm]")
     ax.set_ylabel("z [cm]")
     ax.invert_yaxis()
