@@ -242,11 +242,15 @@ def load_scaled(seconds: float) -> float:
     return seconds * max(1.0, load)
 
 
-def _wait_for(predicate, timeout: float, what: str) -> None:
+def _wait_for(predicate, timeout: float, what: str, proc: subprocess.Popen | None = None,
+              log: Path | None = None) -> None:
     """Wait for an event (``predicate()`` true); ``timeout`` is only a safety net, scaled by
-    the machine's load while waiting."""
+    the machine's load while waiting. If ``proc`` ends first, fail at once with its ``log``."""
     t0 = time.time()
     while not predicate():
+        if proc is not None and proc.poll() is not None:
+            output = log.read_text() if log is not None and log.is_file() else ""
+            raise AssertionError(f"the sweep ended (exit {proc.returncode}) before {what}:\n{output}")
         if time.time() - t0 > load_scaled(timeout):
             raise AssertionError(f"timed out after {time.time() - t0:.0f} s waiting for {what}")
         time.sleep(0.25)
@@ -264,20 +268,24 @@ def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path
     spec_path = write(tmp_path, text)
     address = local_ray.get_runtime_context().gcs_address
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
-    proc = subprocess.Popen([sys.executable, "-m", "trajopt.cli", "sweep", str(spec_path), "--out", str(out),
-                             "--address", address, "--no-plot"], cwd=ROOT, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    log = tmp_path / "sweep.log"                     # a file, not a pipe: readable while it runs
+    with open(log, "w") as log_fh:
+        proc = subprocess.Popen([sys.executable, "-m", "trajopt.cli", "sweep", str(spec_path), "--out", str(out),
+                                 "--address", address, "--no-plot"], cwd=ROOT, env=env,
+                                stdout=log_fh, stderr=subprocess.STDOUT, text=True)
     try:
         done = lambda n: (read_status(out / n) or {}).get("status") == "done"   # noqa: E731
-        _wait_for(lambda: done("quick3") and done("quick4"), 300, "the two tiny runs")
+        _wait_for(lambda: done("quick3") and done("quick4"), 300, "the two tiny runs", proc, log)
         before = {n: digest(out / n) for n in ("quick3", "quick4")}
         _wait_for(lambda: all((out / n / f"{n}.partial.npz").is_file() for n in ("long5", "long6")), 300,
-                  "the first checkpoints of the long runs")
+                  "the first checkpoints of the long runs", proc, log)
         os.kill(read_status(out / "long5")["pid"], signal.SIGKILL)
-        _wait_for(lambda: (read_status(out / "long5") or {}).get("status") == "failed", 120, "the killed run's status")
+        _wait_for(lambda: (read_status(out / "long5") or {}).get("status") == "failed", 120,
+                  "the killed run's status", proc, log)
         proc.send_signal(signal.SIGINT)
         # the sweep gives its runs in flight CANCEL_GRACE_S to save, then writes the summary and stops Ray
-        output, _ = proc.communicate(timeout=load_scaled(300))
+        proc.wait(timeout=load_scaled(300))
+        output = log.read_text()
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -126,7 +126,7 @@ def reserve(lock_file: str | os.PathLike, what: str = "this output",
     lock_file.parent.mkdir(parents=True, exist_ok=True)
     key = str(lock_file)
     record = {"pid": os.getpid(), "host": platform.node(), "started": time.time(),
-              "command": command or " ".join(["trajopt", *sys.argv[1:]]), "token": secrets.token_hex(8)}
+              "command": (command or " ".join(["trajopt", *sys.argv[1:]]))[:300], "token": secrets.token_hex(8)}
     for _ in range(5):
         if _create(lock_file, record):
             break

@@ -14,6 +14,7 @@ import io
 import json
 import os
 import platform
+import sys
 import time
 import traceback
 from pathlib import Path
@@ -262,10 +263,13 @@ def execute(run: Run, out: str | os.PathLike, threads: int | None = None) -> dic
                 log.write("$ trajopt " + " ".join(argv) + "\n")
                 log.flush()
                 with contextlib.redirect_stdout(_Tee(log, out_buf)), contextlib.redirect_stderr(_Tee(log, err_buf)):
+                    saved_argv, sys.argv = sys.argv, ["trajopt", *argv]   # the command a reservation records
                     try:
                         code = int(trajopt_main(argv) or 0)
                     except SystemExit as exc:       # argparse (the spec was checked, so rare)
                         code = exc.code if isinstance(exc.code, int) else 2
+                    finally:
+                        sys.argv = saved_argv
                 if code == 130:
                     status.update(status="interrupted", reason="interrupted (Ctrl-C or cancelled)")
                 elif code not in (0, 1) or (code == 1 and run.kind not in ("evaluate", "rl-evaluate")):
