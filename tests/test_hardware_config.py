@@ -123,7 +123,7 @@ def test_non_utf8_file_names_file_byte_and_line(tmp_path: Path) -> None:
     offset, line = at + 3, text.count(b"\n", 0, at) + 1
     with pytest.raises(ValueError) as info:
         load_hardware_config(path)
-    assert str(info.value) == (f"{path}: not UTF-8 text: byte {offset} (line {line}) is 0xe9; "
+    assert str(info.value) == (f"{path}: not UTF-8 text: byte 0xe9 at offset {offset} (line {line}); "
                                "save the file as UTF-8")
 
 
@@ -144,4 +144,4 @@ def test_non_utf8_file_through_the_cli_is_one_line_exit_2(tmp_path: Path, capsys
     code = run_play(parser.parse_args(["play", str(result), "--hardware", str(path)]))
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1, err
-    assert f"{path}: not UTF-8 text: byte 0 (line 1) is 0xff" in err
+    assert f"{path}: not UTF-8 text: byte 0xff at offset 0 (line 1)" in err

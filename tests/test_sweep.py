@@ -119,7 +119,7 @@ def test_robot_given_as_a_path_expands_to_its_name_in_run_names(tmp_path, robot_
 def test_non_utf8_sweep_file_names_the_file_and_byte_offset(tmp_path):
     path = tmp_path / "latin1.toml"
     path.write_bytes(b'[[runs]]\nkind = "optimize"\nname = "caf\xe9"\n')
-    with pytest.raises(ValueError, match=r"latin1.toml: not UTF-8 text: byte 0xe9 at byte offset 38 \(line 3\)"):
+    with pytest.raises(ValueError, match=r"latin1.toml: not UTF-8 text: byte 0xe9 at offset 38 \(line 3\)"):
         load_spec(path)
 
 

@@ -181,3 +181,16 @@ def refuse_existing(paths: list[Path], overwrite: bool, what: str = "output") ->
     if existing:
         more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
         raise ValueError(f"{existing[0]}: {what} exists already{more}; pass --overwrite to replace it")
+
+
+def decode_utf8(data: bytes, src: str | os.PathLike, *, hint: str = "save it as UTF-8") -> str:
+    """``data`` (the bytes of file ``src``) as text, a leading UTF-8 byte-order mark dropped; text
+    that is not UTF-8 is a ValueError naming the file, the offending byte, its offset and line:
+    ``"t.csv: not UTF-8 text: byte 0xe9 at offset 33 (line 3); save it as UTF-8"``."""
+    bom = 3 if data.startswith(b"\xef\xbb\xbf") else 0
+    try:
+        return data[bom:].decode("utf-8")
+    except UnicodeDecodeError as exc:
+        at = bom + exc.start
+        line = data.count(b"\n", 0, at) + 1
+        raise ValueError(f"{src}: not UTF-8 text: byte {data[at]:#04x} at offset {at} (line {line}); {hint}") from None

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from .files import atomic_write_png
+from .files import atomic_write_png, decode_utf8
 from .replay import env_for_result, result_controls
 from .results import Result, atomic_write_bytes
 from .robustness import (DERIVED_NAMES, PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample,
@@ -59,9 +59,7 @@ _SAMPLE_NUMBERS = ("speed_bl_per_min", "heading_drift_deg_per_cycle", "max_tilt_
 
 def _read_json(path: Path, what: str) -> Any:
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{path}: {what} is not UTF-8 text (byte {exc.start})") from None
+        return json.loads(decode_utf8(path.read_bytes(), f"{path} ({what})"))
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: {what} is not valid JSON ({exc.msg} at line {exc.lineno}, column {exc.colno}): "
                          "the run's files are damaged; use --overwrite to start the run again") from None
@@ -106,10 +104,7 @@ def _done_samples(out: Path, settings: dict) -> dict[int, dict]:
     if not lines.exists():
         return {}
     data = lines.read_bytes()
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{lines}: not UTF-8 text (byte {exc.start})") from None
+    text = decode_utf8(data, lines)
     rows = text.split("\n")
     cut = rows.pop()                       # "" when the file ends with its newline
     done = {}

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import decode_utf8
 from .results import atomic_write_bytes
 
 __all__ = ["TRACK_COLUMNS", "Tracks", "read_tracks", "write_tracks", "read_utf8"]
@@ -80,14 +81,7 @@ def read_utf8(path: Path, what: str) -> str:
         data = path.read_bytes()
     except OSError as exc:
         raise ValueError(f"{path}: cannot be read ({exc.strerror or exc})") from None
-    bom = 3 if data.startswith(b"\xef\xbb\xbf") else 0
-    try:
-        return data[bom:].decode("utf-8")
-    except UnicodeDecodeError as exc:
-        at = bom + exc.start
-        line = data[:at].count(b"\n") + 1
-        raise ValueError(f"{path}: not UTF-8 text: byte {data[at]:#04x} at offset {at} (line {line}); "
-                         f"save it as UTF-8") from None
+    return decode_utf8(data, path)
 
 
 def read_tracks(path: str | Path, known_markers: Sequence[str]) -> Tracks:

@@ -47,6 +47,7 @@ try:
 except ImportError:  # pragma: no cover - Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
+from ..files import decode_utf8
 from .protocol import ADDRESS_MAX, ADDRESS_MIN, INT32_MAX
 
 #: Pololu 298:1 micro metal gearmotor: 12 counts per motor revolution times 297.92:1.
@@ -249,13 +250,7 @@ def load_hardware_config(path: str | os.PathLike[str]) -> HardwareConfig:
     """Read and validate a hardware TOML file (every content error is a ValueError naming file and field)."""
     path_str = str(path)
     with open(path, "rb") as fh:
-        raw = fh.read()
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        raise ValueError(f"{path_str}: not UTF-8 text: byte {exc.start} (line {line}) is "
-                         f"0x{raw[exc.start]:02x}; save the file as UTF-8") from None
+        text = decode_utf8(fh.read(), path_str, hint="save the file as UTF-8")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

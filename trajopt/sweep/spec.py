@@ -47,6 +47,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..files import decode_utf8
+
 __all__ = ["KINDS", "Run", "SweepSpec", "load_spec", "quick_requested"]
 
 #: kind -> (trajopt sub-command words, positional argument, options the sweep sets itself)
@@ -304,13 +306,7 @@ def load_spec(path: str | os.PathLike, out: str | os.PathLike = "OUT", *, quick:
     src = str(path)
     if not path.is_file():
         raise ValueError(f"{src}: sweep file not found")
-    data = path.read_bytes()
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise ValueError(f"{src}: not UTF-8 text: byte {data[exc.start]:#04x} at byte offset {exc.start} "
-                         f"(line {line}); save the sweep file as UTF-8") from None
+    text = decode_utf8(path.read_bytes(), src, hint="save the sweep file as UTF-8")
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
