@@ -22,7 +22,7 @@ from .files import atomic_write_png
 from .results import Result, atomic_write_bytes
 from .tracks import read_tracks, read_utf8
 
-__all__ = ["run_calibrate", "read_marker_points", "write_calibrated_robot", "plot_tracks", "HEADER"]
+__all__ = ["run_calibrate", "read_marker_points", "write_calibrated_robot", "plot_tracks", "tracks_figure", "HEADER"]
 
 #: first line of every robot.toml that calibrate writes (it replaces only such files)
 HEADER = "# Calibrated by trajopt calibrate"
@@ -107,9 +107,11 @@ def write_calibrated_robot(source: Path, target: Path, robot, names, values) -> 
     return target
 
 
-def plot_tracks(data: MarkerData, fit: CalibrationFit, path: Path) -> Path:
-    """Measured samples (dots) and simulated tracks (lines) per coordinate, before (left) and
-    after (right) the fit, in the measurements' frame; written atomically as PNG."""
+def tracks_figure(data: MarkerData, fit: CalibrationFit, *, tracks_file: str | Path | None = None):
+    """The figure of :func:`plot_tracks`: measured samples (dots) and simulated tracks (lines) per
+    coordinate, before (left) and after (right) the fit, in the measurements' frame. The title
+    names the robot and the tracks file; the legend (one line per marker) sits right of the
+    axes, so it never covers a track."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -128,10 +130,18 @@ def plot_tracks(data: MarkerData, fit: CalibrationFit, path: Path) -> Path:
             ax.grid(alpha=0.3)
         axes[0, col].set_title(f"{label} the fit: RMS {rms:.2f} mm")
         axes[2, col].set_xlabel("t [s]")
-    axes[0, 1].legend(fontsize=7, ncol=2, loc="best")
-    fig.suptitle("measured markers (dots) and simulated tracks (lines)")
-    fig.tight_layout()
-    return atomic_write_png(fig, path, dpi=100)
+    n_markers = len(data.markers.names)
+    axes[0, 1].legend(fontsize=7, ncol=1 + (n_markers > 12), loc="upper left", bbox_to_anchor=(1.02, 1.0),
+                      borderaxespad=0.0, title="marker", title_fontsize=7)
+    source = f" from {Path(tracks_file).name}" if tracks_file is not None else ""
+    fig.suptitle(f"{data.robot.name}: measured markers{source} (dots) and simulated tracks (lines)")
+    fig.tight_layout()       # makes room for the legend right of the axes
+    return fig
+
+
+def plot_tracks(data: MarkerData, fit: CalibrationFit, path: Path, *, tracks_file: str | Path | None = None) -> Path:
+    """:func:`tracks_figure` written atomically as PNG to ``path``."""
+    return atomic_write_png(tracks_figure(data, fit, tracks_file=tracks_file), path, dpi=100)
 
 
 def _inputs(args) -> tuple[Any, MarkerSet, MarkerData, tuple[str, ...], Any]:
@@ -177,7 +187,7 @@ def run_calibrate(args) -> int:
     _refuse_unless_forced(failures, target, args.force)
     out.mkdir(parents=True, exist_ok=True)
     write_calibrated_robot(Path(robot.source), target, robot, names, fit.values)
-    plot = plot_tracks(data, fit, out / "tracks.png")
+    plot = plot_tracks(data, fit, out / "tracks.png", tracks_file=args.markers)
     summary = {"robot": args.robot, "robot_toml": str(target), "markers": str(args.markers),
                "controls": str(args.controls), "played": args.play, "frame": args.frame, "dt": data.dt,
                "n_steps": len(data.u), "missing_samples": tracks.n_missing, "samples_used": len(data.times),

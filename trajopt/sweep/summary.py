@@ -68,14 +68,16 @@ def write_summary(spec: SweepSpec, statuses: dict[str, dict], out: str | Path, *
     for r in rows:
         md.append("| " + " | ".join(_cell(r.get(k)).replace("|", "\\|") for k in shown) + " |")
     if plot and rows:
-        written.append(_plot(rows, out / "summary.png"))
+        written.append(_plot(rows, out / "summary.png", spec.path.name))
         md += ["", f"![speed per run]({written[-1].name})"]
     written.insert(1, out / "summary.md")
     atomic_write_bytes(out / "summary.md", ("\n".join(md) + "\n").encode())
     return written
 
 
-def _plot(rows: list[dict], path: Path) -> Path:
+def _plot(rows: list[dict], path: Path, sweep_name: str) -> Path:
+    """The main figure of every run (its speed along the target in body lengths per minute,
+    against its target) as one bar per run, titled with what that figure is and the sweep file."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -95,7 +97,7 @@ def _plot(rows: list[dict], path: Path) -> Path:
     ax.set_yticklabels([r["run"] for r in reversed(rows)], fontsize=8)
     ax.axvline(0, color="k", lw=0.5)
     ax.set_xlabel("speed along the target [body lengths / min] (black tick: target; pale: fell)")
-    ax.set_title("main figure per run")
+    ax.set_title(f"sweep {sweep_name}: each run's main figure, its speed along the target [BL/min]", fontsize=9)
     ax.grid(True, axis="x", alpha=0.3)
     fig.tight_layout()
     return atomic_write_png(fig, path, dpi=110)
