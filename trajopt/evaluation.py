@@ -113,13 +113,17 @@ def measure_gait(traj: Any, env: GradientEnv, *, n_prep: int, n_cycle: int, head
 
 
 def evaluate_controls(env: GradientEnv, u: np.ndarray, *, n_prep: int, n_cycle: int, heading_deg: float = 0.0,
-                      max_tilt_deg: float = 60.0, target: np.ndarray | None = None) -> dict[str, Any]:
+                      max_tilt_deg: float = 60.0, target: np.ndarray | None = None,
+                      check_rollout=None) -> dict[str, Any]:
     """Play ``u`` (prep + N cycles) from ``env``'s reset state and :func:`measure_gait` it
     (``target``: see there); a failed simulation gives ``speed_bl_per_min`` NaN, ``upright``
-    False and ``sim_failure``."""
+    False and ``sim_failure``. ``check_rollout(traj)``, if given, sees the rollout before it
+    is measured (it may raise; a SimulationError in it counts as a failed simulation)."""
     n_cycles = _count_cycles(len(u), n_prep, n_cycle)
     try:
         traj = env.rollout(u)
+        if check_rollout is not None:
+            check_rollout(traj)
     except SimulationError as err:
         return {"cycles": n_cycles, "speed_bl_per_min": float("nan"), "upright": False,
                 "sim_failure": str(err)}
@@ -147,17 +151,12 @@ def evaluate_result(res, n_cycles: int | None = None, *, ignore_robot_mismatch: 
     u, n_prep, n_cycle = result_controls(res, env.robot, cycles)
     target = res.target if 2 <= len(res.target) <= len(u) + 1 else None     # the optimised horizon
     heading = float(res.settings.get("heading_deg", 0.0))
-    if "keyframes" not in res.settings:
-        return evaluate_controls(env, u, n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading, target=target)
-    n_cycles_played = _count_cycles(len(u), n_prep, n_cycle)
-    K = len(res.u)
-    try:
-        traj = env.rollout(u)
+    K, robot = len(res.u), env.robot
+
+    def check_u_post(traj) -> None:
         prefix = traj if (len(u) >= K and np.array_equal(u[:K], res.u)) else env.rollout(res.u)
-    except SimulationError as err:
-        return {"cycles": n_cycles_played, "speed_bl_per_min": float("nan"), "upright": False,
-                "sim_failure": str(err)}
-    robot = env.robot
-    check_zero_slack(res.u_post, zero_slack_controls(res.u, prefix.cable_deformation[:K + 1], robot.tendon_motor,
-                                                     robot.u_bounds), res.path or "the result")
-    return measure_gait(traj, env, n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading, target=target)
+        check_zero_slack(res.u_post, zero_slack_controls(res.u, prefix.cable_deformation[:K + 1],
+                                                         robot.tendon_motor, robot.u_bounds), res.path or "the result")
+
+    return evaluate_controls(env, u, n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading, target=target,
+                             check_rollout=check_u_post if "keyframes" in res.settings else None)
