@@ -179,11 +179,6 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         return self._sim.dt
 
     @property
-    def control_mode(self) -> str:
-        """``"length"``: controls are contracted cable lengths [m] (the environments' mode)."""
-        return self._sim.control
-
-    @property
     def incline_deg(self) -> float:
         """Ground slope [deg], rising along the target heading."""
         return self._incline_deg
