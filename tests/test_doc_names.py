@@ -41,6 +41,10 @@ def resolves(name: str) -> bool:
     for i in range(len(parts), 0, -1):
         try:
             obj = importlib.import_module(".".join(parts[:i]))
+        except ModuleNotFoundError as e:
+            if e.name and not e.name.startswith(PACKAGES):
+                return True                       # an optional dependency is missing: cannot tell
+            continue
         except ImportError:
             continue
         for attr in parts[i:]:
