@@ -24,10 +24,11 @@ class GradientEnv(Protocol):
 
     ``rollout`` plays a whole control trajectory ``u`` (K, n_motors) [m of cable contraction:
     length control, paper eq. 2; the simulator's tension control (appendix A,
-    ``Simulator(control="tension")``) is not an environment's] from the environment's reset state (the state the last
-    ``reset`` produced; at rest unless reset noise is on), one simulation step of ``timestep``
-    seconds per row, and returns a :class:`~soft_envs.sim.Trajectory`, with exact sensitivities
-    when ``dudz`` (K, n_motors, nz) is given. It does not change the environment's own state.
+    ``Simulator(control="tension")``) is not an environment's] from the environment's reset
+    state (the state the last ``reset`` produced; at rest unless reset noise is on), one
+    simulation step of ``timestep`` seconds per row, and returns a
+    :class:`~soft_envs.sim.Trajectory`, with exact sensitivities when ``dudz`` (K, n_motors, nz)
+    is given. It does not change the environment's own state.
     ``u`` is applied as given (the environments' action clipping and motor speed limit are not
     applied; keep ``u`` within ``robot.u_bounds`` yourself). A failed step raises
     :class:`~soft_envs.sim.SimulationError` (re-exported by :mod:`soft_envs.envs`).
