@@ -19,20 +19,23 @@ Importing the package registers the environments with Gymnasium when Gymnasium i
 ``gymnasium.make("soft_envs:SoftPuppy-v0")`` without the import). The environment classes are
 only imported when an environment is made.
 """
-__all__ = ["ENV_IDS", "ENV_KWARGS", "MAX_EPISODE_STEPS"]
+__all__ = ["ENV_IDS_BY_ROBOT", "ENV_IDS", "ENV_KWARGS", "MAX_EPISODE_STEPS"]
 
-#: Environment ids registered by this package and their entry points. ``-v0`` uses the
-#: robots' contact law as shipped, the paper's (viscous-like friction, reproduces Table I);
-#: ``-v1`` the Coulomb law (:mod:`soft_envs.sim.coulomb`: feet that stick; Gymnasium's
-#: versioning convention: a new version when the dynamics change).
-ENV_IDS = {
-    "SoftTripod-v0": "soft_envs.envs.tripod:SoftTripodEnv",
-    "SoftPuppy-v0": "soft_envs.envs.puppy:SoftPuppyEnv",
-    "SoftTripod-v1": "soft_envs.envs.tripod:SoftTripodEnv",
-    "SoftPuppy-v1": "soft_envs.envs.puppy:SoftPuppyEnv",
+#: The environment ids registered by this package (the one place they are written): the id of
+#: each shipped robot under each contact law. ``-v0`` (``"paper"``) uses the robots' contact law
+#: as shipped, the paper's (viscous-like friction, reproduces Table I); ``-v1`` the Coulomb law
+#: (:mod:`soft_envs.sim.coulomb`: feet that stick; Gymnasium's versioning convention: a new
+#: version when the dynamics change).
+ENV_IDS_BY_ROBOT = {
+    "tripod": {"paper": "SoftTripod-v0", "coulomb": "SoftTripod-v1"},
+    "puppy": {"paper": "SoftPuppy-v0", "coulomb": "SoftPuppy-v1"},
 }
-#: Keyword arguments each id passes to its environment.
-ENV_KWARGS = {"SoftTripod-v1": {"contact": "coulomb"}, "SoftPuppy-v1": {"contact": "coulomb"}}
+_ENTRY_POINTS = {"tripod": "soft_envs.envs.tripod:SoftTripodEnv", "puppy": "soft_envs.envs.puppy:SoftPuppyEnv"}
+#: Each id's entry point.
+ENV_IDS = {env_id: _ENTRY_POINTS[robot] for robot, ids in ENV_IDS_BY_ROBOT.items() for env_id in ids.values()}
+#: Keyword arguments each id passes to its environment (``-v0``: none, the robot file's law).
+ENV_KWARGS = {env_id: {"contact": law} for ids in ENV_IDS_BY_ROBOT.values() for law, env_id in ids.items()
+              if law != "paper"}
 
 #: Episode length of ``gymnasium.make`` (its ``TimeLimit`` wrapper), in environment steps: 300
 #: steps of 0.033 s are 10 s, about four of the paper's 72-step gait cycles. Pass

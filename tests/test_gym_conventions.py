@@ -107,3 +107,27 @@ def test_check_env_with_default_domain_randomization():
         check_env(env.unwrapped)
     unexpected = [str(w.message) for w in caught if not _expected(str(w.message))]
     assert not unexpected, unexpected
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_spec_tables_match_the_environment(env_id):
+    """The class docstring (built by soft_envs.envs.env_docs for both robots) gives the
+    environment's own sizes: the observation rows start where ``observation_structure``'s parts
+    do, the action rows are the robot's motors, and the listed gradient hooks are the protocol's."""
+    from soft_envs.envs.protocol import GRADIENT_ENV_MEMBERS
+    u = gym.make(env_id).unwrapped
+    doc = inspect.getdoc(type(u))
+    rows = lambda a, b: [r.split("|")[1:-1] for r in doc[doc.index(a):doc.index(b)].splitlines()  # noqa: E731
+                         if re.match(r"\| \d", r)]
+    starts, i = [], 0
+    for size in u.observation_structure.values():
+        starts.append(i)
+        i += size
+    obs_rows = rows("## Observation Space", "## Rewards")
+    assert [int(re.match(r"\s*(\d+)", r[0]).group(1)) for r in obs_rows] == sorted({*starts, 1, 2})
+    assert f"Box(-Inf, Inf, ({u.observation_space.shape[0]},), float64)" in doc
+    action_rows = rows("## Action Space", "## Observation Space")
+    assert [r[4].strip() for r in action_rows] == list(u.robot.motor_names)
+    assert f"Box(-1, 1, ({u.action_space.shape[0]},), float32)" in doc
+    hooks = doc[doc.index("Gradient hooks"):doc.index("## Version History")]
+    assert all(f"`{m}" in hooks for m in GRADIENT_ENV_MEMBERS)

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from soft_envs.sim import NewtonOptions, Simulator, load_robot
-from soft_envs.sim.gradcheck import relative_error
+from .gradcheck import relative_error
 from soft_envs.sim.parameters import (PARAMETERS, check_parameters, node_mass_jacobian, parameter_values,
                                       with_parameters)
 from soft_envs.sim.system import EnergySystem

@@ -180,3 +180,30 @@ def test_missing_sb3_says_how_to_install(monkeypatch, tmp_path, capsys):
         require_sb3()
     assert main(["rl", "train", "tripod", "--timesteps", "10", "--out", str(tmp_path)]) == 2
     assert "pip install soft-envs[rl]" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("observe_nodes", [False, True])
+def test_dropped_entries_are_the_com_x_and_z_the_env_reports(observe_nodes):
+    """The wrapper finds the COM's horizontal position through the environment's
+    ``observation_structure``, not a copy of its layout."""
+    from trajopt.rl.envs import make_env
+    env = make_env("tripod", env_kwargs={"observe_nodes": observe_nodes, "reset_noise_scale": 0.0})
+    env.reset(seed=0)
+    full, _, _, _, info = env.env.step(np.ones(2, np.float32))       # the observation before the wrapper
+    assert env.dropped == (0, 2)
+    assert np.array_equal(full[[0, 2]], info["displacement"][[0, 2]]) and full[1] == info["com"][1]
+    assert np.array_equal(env.observation(full), np.delete(full, env.dropped))
+    assert env.observation_space.shape == (len(full) - 2,)
+
+
+def test_env_ids_have_one_home():
+    from trajopt.rl.envs import COULOMB_IDS, ROBOT_IDS, ROBOTS, env_id, robot_name
+    assert set(ROBOTS) == set(soft_envs.ENV_IDS_BY_ROBOT)
+    assert ROBOT_IDS == {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
+    assert COULOMB_IDS == {"tripod": "SoftTripod-v1", "puppy": "SoftPuppy-v1"}
+    assert set(soft_envs.ENV_IDS) == {*ROBOT_IDS.values(), *COULOMB_IDS.values()}
+    assert soft_envs.ENV_KWARGS == {"SoftTripod-v1": {"contact": "coulomb"}, "SoftPuppy-v1": {"contact": "coulomb"}}
+    assert env_id("puppy", "coulomb") == "SoftPuppy-v1" and env_id("SoftPuppy-v1") == "SoftPuppy-v0"
+    assert robot_name("SoftTripod-v1") == "tripod"
+    with pytest.raises(ValueError, match="SoftTripod-v0"):
+        robot_name("cube")

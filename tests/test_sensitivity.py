@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from soft_envs.sim import NewtonOptions, Simulator, incline_gravity, load_robot
-from soft_envs.sim.gradcheck import relative_error, rollout_jacobian_errors
+from .gradcheck import relative_error, rollout_jacobian_errors
 
 from .conftest import small_robot
 

@@ -5,7 +5,9 @@ contractions (with a motor speed limit), ``frame_skip`` implicit-Euler steps are
 observation, reward and termination are computed from the node positions. The full
 specification (spaces, rewards, arguments) is in the docstrings of
 :class:`~soft_envs.envs.tripod.SoftTripodEnv` and :class:`~soft_envs.envs.puppy.SoftPuppyEnv`.
-The gradient hooks of :class:`~soft_envs.envs.protocol.GradientEnv` are implemented here.
+The gradient hooks of :class:`~soft_envs.envs.protocol.GradientEnv` are implemented in
+:mod:`.hooks` (:class:`~.hooks.GradientHooksMixin`), rendering in :mod:`.viewer`, the motors in
+:mod:`.actuation`, the reward and termination in :mod:`.task`.
 
 Determinism: the simulator's Newton solver may reuse the Cholesky factorisation of an earlier
 step (chord iterations), which makes a step's result depend, at the level of the Newton
@@ -175,11 +177,6 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
     def timestep(self) -> float:
         """Simulation time step h [s] (``simulator.dt``): the step of :meth:`rollout`."""
         return self._sim.dt
-
-    @property
-    def control_mode(self) -> str:
-        """``"length"``: controls are contracted cable lengths [m] (the environments' mode)."""
-        return self._sim.control
 
     @property
     def incline_deg(self) -> float:

@@ -22,11 +22,13 @@ __all__ = ["GradientEnv", "GRADIENT_ENV_MEMBERS", "PARAMETER_MEMBERS", "as_gradi
 class GradientEnv(Protocol):
     """Analytic-gradient hooks of a soft-robot environment.
 
-    ``rollout`` plays a whole control trajectory ``u`` (K, n_motors) [m of cable contraction,
-    or N of tension in tension control] from the environment's reset state (the state the last
-    ``reset`` produced; at rest unless reset noise is on), one simulation step of ``timestep``
-    seconds per row, and returns a :class:`~soft_envs.sim.Trajectory`, with exact sensitivities
-    when ``dudz`` (K, n_motors, nz) is given. It does not change the environment's own state.
+    ``rollout`` plays a whole control trajectory ``u`` (K, n_motors) [m of cable contraction:
+    length control, paper eq. 2; the simulator's tension control (appendix A,
+    ``Simulator(control="tension")``) is not an environment's] from the environment's reset
+    state (the state the last ``reset`` produced; at rest unless reset noise is on), one
+    simulation step of ``timestep`` seconds per row, and returns a
+    :class:`~soft_envs.sim.Trajectory`, with exact sensitivities when ``dudz`` (K, n_motors, nz)
+    is given. It does not change the environment's own state.
     ``u`` is applied as given (the environments' action clipping and motor speed limit are not
     applied; keep ``u`` within ``robot.u_bounds`` yourself). A failed step raises
     :class:`~soft_envs.sim.SimulationError` (re-exported by :mod:`soft_envs.envs`).
@@ -49,9 +51,6 @@ class GradientEnv(Protocol):
 
     @property
     def timestep(self) -> float: ...        # simulation time step h [s] of rollouts
-
-    @property
-    def control_mode(self) -> str: ...      # "length" (u in m of contraction) or "tension" (u in N)
 
     @property
     def incline_deg(self) -> float: ...     # ground slope [deg]
@@ -81,7 +80,7 @@ class GradientEnv(Protocol):
 
 
 #: The members of :class:`GradientEnv`, checked by :func:`as_gradient_env`.
-GRADIENT_ENV_MEMBERS = ("robot", "timestep", "control_mode", "incline_deg", "contact_model", "gravity", "rollout",
+GRADIENT_ENV_MEMBERS = ("robot", "timestep", "incline_deg", "contact_model", "gravity", "rollout",
                         "reset_state", "get_state", "set_state", "com", "cable_deformation", "cable_tension")
 #: Optional members of :class:`GradientEnv` (parameter sensitivities for calibration).
 PARAMETER_MEMBERS = ("rollout_parameters",)

@@ -207,21 +207,16 @@ class NewtonSolver:
             self._refactor(it, cache, ctx)
         sys = self.system
         g = it.grad[sys.free] if len(sys.free) < sys.n_dof else it.grad
-        dx = -self._solve_model(g, it.x, ctx)
+        dx = -self.solver.solve(g)
         norm = np.abs(dx).max()
         if not it.fresh and self._chord_too_slow(norm, it.prev_norm):
             self._refactor(it, cache, ctx)
-            dx = -self._solve_model(g, it.x, ctx)
+            dx = -self.solver.solve(g)
             norm = np.abs(dx).max()
         if not np.isfinite(dx).all():
             raise SimulationError("non-finite Newton step", k)
         kind = ("newton" if cache.exact else None) if it.fresh else "chord"
         return g, dx, norm, kind
-
-    def _solve_model(self, g, x, ctx: "_Inputs") -> np.ndarray:
-        """The model Hessian's inverse applied to the free gradient ``g`` at ``x``: the held
-        factorisation's solve (a hook for studies of other models)."""
-        return self.solver.solve(g)
 
     def _line_search(self, it: _Iterate, dx, slope: float, ctx: "_Inputs"):
         """From the full step (:mod:`.line_search`): ``(x, Phi, grad, alpha)`` of the accepted

@@ -288,7 +288,8 @@ class Robot:
     @property
     def u_rest(self) -> np.ndarray:
         """(n_motors,) contractions at rest [m]: 0 clipped into each motor's [u_min, u_max]
-        (where the environments, trajopt's hooks and its prep phase start)."""
+        (where an environment's reset, the rollouts of its gradient hooks and trajopt's prep
+        phase start)."""
         b = self.u_bounds
         return np.clip(0.0, b[:, 0], b[:, 1])
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from ..argtypes import (cycles, file_name, integer, nonnegative_float, number, output_dir, output_file, positive_int,
                         slope_deg)
 from ..files import RESULTS_DIR, refuse_existing
-from .envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOT_IDS, TRAIN_HORIZON
+from .envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOTS, TRAIN_HORIZON
 from .hyperparams import ALGOS
 
 RUNS_DIR = RESULTS_DIR / "runs"
@@ -37,7 +37,7 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     rsub = rl.add_subparsers(dest="rl_command", required=True)
 
     p = rsub.add_parser("train", help="train a policy (checkpoints, TensorBoard + CSV logs)")
-    p.add_argument("robot", choices=sorted(ROBOT_IDS), help="robot (environment SoftTripod-v0 / SoftPuppy-v0)")
+    p.add_argument("robot", choices=sorted(ROBOTS), help="robot (environment SoftTripod-v0 / SoftPuppy-v0)")
     p.add_argument("--algo", choices=ALGOS, default="ppo")
     p.add_argument("--timesteps", type=positive_int, default=30_000, help="environment steps to train for")
     p.add_argument("--seed", type=SEED, default=0)

@@ -11,13 +11,15 @@ run's ``rl_config.json``:
   ``soft_envs.MAX_EPISODE_STEPS``); the evaluation (:mod:`trajopt.rl.evaluate`) then plays
   24 + 6 x 72 steps, like ``trajopt``'s.
 * **Translation-invariant observation** (:class:`DropHorizontalPosition`): the COM x and z
-  relative to the start (observation entries 0 and 2) are removed. They grow without bound as
-  the robot walks and carry no information a walking policy needs (the COM velocity, the
-  orientation, the height and the gait phase are kept), and a policy trained on 168-step
+  relative to the start (two entries of the environment's ``com_position`` observation) are
+  removed. They grow without bound as the robot walks and carry no information a walking
+  policy needs (the COM velocity, the orientation, the height and the gait phase are kept),
+  and a policy trained on 168-step
   episodes would otherwise see positions at evaluation (456 steps) it never saw in training.
 """
 from __future__ import annotations
 
+import itertools
 import multiprocessing
 import signal
 from collections.abc import Mapping
@@ -29,47 +31,64 @@ from gymnasium import spaces
 
 from ..gait import DEFAULT_EVAL_CYCLES, GaitSpec
 
-__all__ = ["ROBOT_IDS", "GAIT", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES", "DropHorizontalPosition", "make_env",
-           "robot_name", "env_id"]
+__all__ = ["ROBOTS", "ROBOT_IDS", "COULOMB_IDS", "GAIT", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES",
+           "DropHorizontalPosition", "make_env", "robot_name", "env_id"]
 
-#: robots of the RL baseline and their Gymnasium ids
-ROBOT_IDS = {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
-#: the ids of the Coulomb contact law (``contact="coulomb"``)
-COULOMB_IDS = {"tripod": "SoftTripod-v1", "puppy": "SoftPuppy-v1"}
+#: robots of the RL baseline: the shipped robots (their Gymnasium ids: ``soft_envs.ENV_IDS_BY_ROBOT``)
+ROBOTS = ("tripod", "puppy")
 #: trajopt's gait (prep phase, cycle length, cycles optimised): the phases the policy is measured in
 GAIT = GaitSpec()
 #: 168 simulation steps: trajopt's optimisation horizon, the RL baseline's episode length
 TRAIN_HORIZON = GAIT.n_steps()
 
 
+def __getattr__(name: str):
+    """``ROBOT_IDS`` (robot -> ``-v0`` id) and ``COULOMB_IDS`` (robot -> ``-v1`` id), read from
+    ``soft_envs.ENV_IDS_BY_ROBOT`` on first use (``trajopt --help`` imports no soft_envs)."""
+    law = {"ROBOT_IDS": "paper", "COULOMB_IDS": "coulomb"}.get(name)
+    if law is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from soft_envs import ENV_IDS_BY_ROBOT
+    return {robot: ENV_IDS_BY_ROBOT[robot][law] for robot in ROBOTS}
+
+
 def robot_name(robot: str) -> str:
     """``"tripod"`` for ``"tripod"``, ``"SoftTripod-v0"`` or ``"SoftTripod-v1"`` (likewise the Puppy)."""
-    if robot in ROBOT_IDS:
+    from soft_envs import ENV_IDS_BY_ROBOT
+    if robot in ROBOTS:
         return robot
-    for name in ROBOT_IDS:
-        if robot in (ROBOT_IDS[name], COULOMB_IDS[name]):
+    for name in ROBOTS:
+        if robot in ENV_IDS_BY_ROBOT[name].values():
             return name
-    raise ValueError(f"robot must be one of {sorted(ROBOT_IDS)} (or their ids "
-                     f"{sorted([*ROBOT_IDS.values(), *COULOMB_IDS.values()])}), got {robot!r}")
+    all_ids = sorted(i for name in ROBOTS for i in ENV_IDS_BY_ROBOT[name].values())
+    raise ValueError(f"robot must be one of {sorted(ROBOTS)} (or their ids {all_ids}), got {robot!r}")
 
 
 def env_id(robot: str, contact: str | None = None) -> str:
     """The registered id of ``robot`` under the contact law ``contact`` (``"coulomb"``: ``-v1``;
     ``"paper"`` or None: ``-v0``, the robot file's law)."""
-    return (COULOMB_IDS if contact == "coulomb" else ROBOT_IDS)[robot_name(robot)]
+    from soft_envs import ENV_IDS_BY_ROBOT
+    ids = ENV_IDS_BY_ROBOT[robot_name(robot)]
+    return ids["coulomb"] if contact == "coulomb" else ids["paper"]
 
 
 class DropHorizontalPosition(gym.ObservationWrapper):
-    """Removes observation entries 0 and 2 (COM x and z relative to the COM at reset): the
-    policy becomes invariant to where on the ground the robot is. Everything else is passed
-    through (``observation_structure`` of the environment minus ``com_position`` x, z)."""
-
-    DROPPED = (0, 2)
+    """Removes the COM's x and z relative to the COM at reset (the first and third entries of
+    the environment's ``com_position`` part; its second is the height): the policy becomes
+    invariant to where on the ground the robot is. Everything else is passed through. Where the
+    part lies comes from the environment's ``observation_structure`` (its parts and their sizes,
+    in order); :attr:`dropped` holds the indices removed."""
 
     def __init__(self, env: gym.Env):
         super().__init__(env)
+        parts = getattr(env.unwrapped, "observation_structure", None)
+        if not parts or parts.get("com_position") != 3:
+            raise ValueError(f"{type(env.unwrapped).__name__} has no 3-entry 'com_position' in its "
+                             f"observation_structure ({parts!r})")
+        start = sum(size for name, size in itertools.takewhile(lambda p: p[0] != "com_position", parts.items()))
+        self.dropped = (start, start + 2)
         n = env.observation_space.shape[0]
-        self._keep = np.array([i for i in range(n) if i not in self.DROPPED])
+        self._keep = np.array([i for i in range(n) if i not in self.dropped])
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(len(self._keep),), dtype=np.float64)
 
     def observation(self, observation: np.ndarray) -> np.ndarray:

@@ -243,7 +243,7 @@ def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLik
         "heading_deg": float(env_kwargs.get("target_heading_deg", 0.0)),
         "incline_deg": float(env_kwargs.get("incline_deg", 0.0)), "contact": base.contact_model,
         "motor_speed_rpm": env_kwargs.get("motor_speed_rpm", MOTOR_NO_LOAD_RPM),
-        "control": base.control_mode, "source": str(policy.path),
+        "control": "length", "source": str(policy.path),
     }
     evaluation = dict(ev)
     evaluation["replay_max_com_error_m"] = float(np.abs(traj.com - np.asarray(ev["com"])).max())

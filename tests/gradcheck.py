@@ -1,4 +1,5 @@
-"""Finite-difference checks of rollout derivatives (for tests and for users adding terms).
+"""Finite-difference checks of rollout derivatives: a test helper (was ``soft_envs.sim.gradcheck``;
+copy it, or run tests/test_sensitivity.py, when adding an energy term).
 
 Central differences of whole rollouts in random directions of the parameters z:
 
