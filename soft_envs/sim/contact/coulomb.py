@@ -220,7 +220,6 @@ class CoulombContact(ContactLaw):
     has_history = True
     contact_parameters = (STIFFNESS, HALF_QUADRATIC_BLEND, FRICTION_COEFFICIENT, SLIP_DISTANCE)
     friction_parameter = "friction_coefficient"
-    parameters = ("contact_stiffness", "friction_coefficient")
 
     def __init__(self, robot):
         super().__init__(robot)

@@ -15,8 +15,9 @@ A law declares, as class attributes:
   :data:`soft_envs.sim.parameters.PARAMETERS`, read from the ``[contact]`` key of the same name)
   that calibration, domain randomisation and robustness studies scale as "friction", or None
   for a law without friction;
-* ``parameters``: the physical parameters its gradient depends on (``contact_stiffness`` and
-  its friction parameter; :meth:`~soft_envs.sim.terms.EnergyTerm.add_parameter_jacobian`).
+* ``parameters``: the physical parameters its gradient depends on
+  (:meth:`~soft_envs.sim.terms.EnergyTerm.add_parameter_jacobian`); unless a law sets it,
+  ``contact_stiffness`` and its friction parameter.
 """
 from __future__ import annotations
 
@@ -80,6 +81,11 @@ class ContactLaw(EnergyTerm):
     contact_parameters: tuple[ContactParameter, ...] = (STIFFNESS, BLEND)
     friction_parameter: str | None = None
     parameters: tuple[str, ...] = ("contact_stiffness",)
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if "parameters" not in cls.__dict__:
+            cls.parameters = ("contact_stiffness",) + ((cls.friction_parameter,) if cls.friction_parameter else ())
 
     def __init__(self, robot):
         c = robot.contact

@@ -104,7 +104,6 @@ class GroundContact(ContactLaw):
     model = "paper"
     contact_parameters = (STIFFNESS, BLEND, FRICTION_WEIGHT)
     friction_parameter = "friction"
-    parameters = ("contact_stiffness", "friction")
 
     def __init__(self, robot):
         super().__init__(robot)
