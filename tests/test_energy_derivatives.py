@@ -102,8 +102,9 @@ CASES = ["taut_cable_contact_friction", "cable_in_blend", "slack_cable", "contac
          "half_quadratic_cable"]
 
 
-def perturbed_state(case: str):
-    """``(sim, x, x_prev, u, rng)`` for one regime of the energy terms (see CASES)."""
+def perturbed_state(case: str, **robot_kw):
+    """``(sim, x, x_prev, u, rng)`` for one regime of the energy terms (see CASES); ``robot_kw``
+    overrides the small robot's fields (another contact law: ``contact=ContactParams(...)``)."""
     rng = np.random.default_rng(CASES.index(case))
     kw, control, gravity = {}, "length", (0.0, -9.81, 0.0)
     if case == "fixed_nodes":
@@ -114,7 +115,7 @@ def perturbed_state(case: str):
                                       blend=0.0 if case == "coulomb_half_quadratic" else 5e-4)
     if case == "half_quadratic_cable":
         kw["cable_blend"] = 0.0
-    robot = small_robot(**kw)
+    robot = small_robot(**{**kw, **robot_kw})
     if case == "tension_control":
         control = "tension"
     if case == "incline":
@@ -150,16 +151,22 @@ def test_every_term_derivatives_match_finite_differences(case):
     their transposes. Relative error <= RTOL = 1e-6 with h = 1e-7 (m or the control's unit)."""
     sim, x, x_prev, u, rng = perturbed_state(case)
     system = sim.system
-    n3 = system.n_dof
-    pat = system.pattern
-    free = system.free
     history = system.initial_history(x_prev)
     if case == "coulomb_stick_and_slip":        # anchors 0-0.6 mm from the nodes: both regimes
         c = system.contact
         history = list(history)
         history[system.terms.index(c)] = x[c.nodes][:, [0, 2]] + rng.normal(scale=2.5e-4, size=(len(c.nodes), 2))
         history = tuple(history)
+    check_every_term(sim, x, x_prev, u, rng, history)
 
+
+def check_every_term(sim, x, x_prev, u, rng, history) -> None:
+    """The checks of :func:`test_every_term_derivatives_match_finite_differences` for every term
+    of ``sim.system`` at one state (``history`` aligned with the terms)."""
+    system = sim.system
+    n3 = system.n_dof
+    pat = system.pattern
+    free = system.free
     for term, hist in zip(system.terms, history):
         def term_grad(y, yp=x_prev, uu=u, hh=hist):
             g = np.zeros(n3)
@@ -227,8 +234,13 @@ def test_every_term_derivatives_match_finite_differences(case):
 @pytest.mark.parametrize("case", CASES)
 def test_total_energy_gradient_and_hessian(case):
     """Gradient and Hessian of the whole potential E(x; u, x_prev) for each term and regime."""
-    sim, x, x_prev, u, rng = perturbed_state(case)
+    check_total_energy(*perturbed_state(case))
+
+
+def check_total_energy(sim, x, x_prev, u, rng) -> None:
+    """The checks of :func:`test_total_energy_gradient_and_hessian` at one state."""
     robot = sim.robot
+    case = "fixed_nodes" if robot.fixed_nodes.size else ""
     E = lambda y: sim.energy(y, x_prev, u)            # noqa: E731
     G = lambda y: sim.gradient(y, x_prev, u)          # noqa: E731
     g = G(x)

@@ -44,13 +44,20 @@ def test_every_term_parameter_jacobian_matches_finite_differences(case):
     differences of the term's gradient in a system built from the robot with the parameter
     moved (so a new term, or a new parameter of a term, is checked without a new test)."""
     sim, x, x_prev, u, rng = perturbed_state(case)
-    system, robot = sim.system, sim.robot
+    system = sim.system
     history = system.initial_history(x_prev)
     if case == "coulomb_stick_and_slip":
         c = system.contact
         history = list(history)
         history[system.terms.index(c)] = x[c.nodes][:, [0, 2]] + rng.normal(scale=2.5e-4, size=(len(c.nodes), 2))
         history = tuple(history)
+    check_term_parameter_jacobians(sim, x, x_prev, u, history)
+
+
+def check_term_parameter_jacobians(sim, x, x_prev, u, history) -> None:
+    """The checks of :func:`test_every_term_parameter_jacobian_matches_finite_differences` for
+    every term of ``sim.system`` and every parameter that applies to its robot, at one state."""
+    system, robot = sim.system, sim.robot
     names = applicable(sim)
     assert {"youngs_modulus", "poisson_ratio", "density", "contact_stiffness"} <= set(names)
     values = parameter_values(robot, names)
@@ -118,7 +125,7 @@ def test_rollout_parameter_jacobian_matches_finite_differences(model):
     differences of rollouts of robots with each parameter moved, under both contact laws."""
     robot = load_robot("tripod")
     robot = robot.replace(contact=dataclasses.replace(robot.contact, model=model))
-    friction = "friction" if model == "paper" else "friction_coefficient"
+    friction = robot.contact.law.friction_parameter          # the law says which parameter is its friction
     names = ["youngs_modulus", "poisson_ratio", "density", "payload_mass", "contact_stiffness", friction,
              "cable_stiffness"]
     tight = NewtonOptions(tol=1e-12)

@@ -12,7 +12,8 @@ which ``trajopt evaluate`` reports).
 perturbation                range (uniform)                 what
 ==========================  ==============================  =========================================
 ``friction``                x 0.5 - 1.5                     the ground friction of the robot's law
-                                                            (paper weight or Coulomb coefficient)
+                                                            (its friction parameter: paper weight or
+                                                            Coulomb coefficient)
 ``youngs_modulus``          x 0.7 - 1.3                     foam stiffness (fitted, paper II-A)
 ``density``                 x 0.9 - 1.1                     body mass (weighed)
 ``payload_mass``            x 0.85 - 1.15                   motor assembly (cables, glue, wiring)
@@ -45,8 +46,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from soft_envs.envs import (SimulationError, load_robot, make_gradient_env, parameter_values, with_contact_law,
-                           with_parameters)
+from soft_envs.envs import SimulationError, load_robot, make_gradient_env, scale_parameters, with_contact_law
 
 from .evaluation import measure_gait
 
@@ -60,6 +60,10 @@ PERTURBATIONS = MappingProxyType({
     "cable_stiffness": ("log", 0.5, 2.0), "motor_lag_s": ("value", 0.0, 0.1),
     "motor_speed_rpm": ("value", 60.0, 140.0), "timing_jitter_s": ("value", 0.0, 0.010),
     "slope_deg": ("value", 0.0, 10.0), "slope_direction_deg": ("value", 0.0, 360.0)})
+
+#: the perturbations that scale the robot's physical parameters (``friction``: its contact law's friction
+#: parameter; :func:`soft_envs.envs.scale_parameters`)
+PHYSICAL_FACTORS = ("youngs_modulus", "density", "contact_stiffness", "friction", "payload_mass", "cable_stiffness")
 
 #: what the report relates the speed to: the perturbations and the slope along the gait's heading
 DERIVED_NAMES = (*PERTURBATIONS, "slope_along_heading_deg")
@@ -135,11 +139,7 @@ def run_sample(job: SampleJob) -> dict[str, Any]:
     u, incline, uphill = np.asarray(job.u, dtype=np.float64), job.incline_deg, job.heading_deg
     p = job.perturbation
     if p is not None:
-        friction = "friction" if robot.contact.model == "paper" else "friction_coefficient"
-        names = ["youngs_modulus", "density", "contact_stiffness", friction]
-        names += ["payload_mass"] * (robot.payload_mass > 0) + ["cable_stiffness"] * bool(robot.tendons)
-        factors = [p["friction" if n == friction else n] for n in names]
-        robot = with_parameters(robot, dict(zip(names, parameter_values(robot, names) * factors)))
+        robot = scale_parameters(robot, {n: p[n] for n in PHYSICAL_FACTORS})   # "friction": the law's
         incline, uphill = perturbed_slope(job.incline_deg, job.heading_deg, p["slope_deg"], p["slope_direction_deg"])
         rng = np.random.default_rng([job.seed, job.index, 1])
         u = applied_controls(u, job.dt, robot.u_rest, robot.u_bounds, [m.spool_radius for m in robot.motors], p, rng)

@@ -17,7 +17,7 @@ from ..sim.warmup import compile_ahead
 from .base import MOTOR_NO_LOAD_RPM, PAPER_GAIT_PERIOD, PAPER_TIMESTEP, SoftRobotEnv, with_contact_law
 from .domain import DEFAULT_DOMAIN_RANDOMIZATION
 from .identification import (PHYSICAL_PARAMETERS, Marker, MarkerSet, check_parameters, parameter_values,
-                             with_parameters)
+                             scale_parameters, with_parameters)
 from .measure import (BodyFrame, cable_points, heading_vector, strain_energy_density, tilt_deg_of, wrap_angle,
                       yaw_of)
 from .protocol import GradientEnv, as_gradient_env, make_gradient_env
@@ -29,5 +29,5 @@ __all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv", "make
            "BodyFrame", "yaw_of",
            "tilt_deg_of", "wrap_angle", "heading_vector", "cable_points", "strain_energy_density",
            "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION",
-           "PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "check_parameters", "Marker", "MarkerSet",
-           "compile_ahead", "with_contact_law"]
+           "PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "scale_parameters", "check_parameters", "Marker",
+           "MarkerSet", "compile_ahead", "with_contact_law"]

@@ -5,8 +5,10 @@ at every reset draw a factor uniformly from each range (keys in sorted order, fr
 environment's ``np_random``) and multiply the nominal robot's parameter by it. Keys:
 
 ========================  =====================================================================
-``friction``              ground friction of the robot's contact law: the paper law's weight
-                          ``robot.contact.friction``, the Coulomb law's ``friction_coefficient``
+``friction``              ground friction: the friction parameter of the robot's contact law
+                          (``ContactLaw.friction_parameter``: the paper law's weight
+                          ``robot.contact.friction``, the Coulomb law's ``friction_coefficient``;
+                          a law without friction draws the factor and ignores it)
 ``contact_stiffness``     ground penalty stiffness ``robot.contact.stiffness``
 ``youngs_modulus``        Young's modulus of the foam
 ``density``               foam density (body mass)
@@ -27,7 +29,6 @@ nominal robot (all factors 1) and Gymnasium's logger warns. The reset's ``info``
 """
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 from typing import Any
@@ -36,6 +37,7 @@ import numpy as np
 from gymnasium import logger
 
 from ..sim import Robot, SimulationError
+from ..sim.parameters import scale_parameters
 
 __all__ = ["DOMAIN_KEYS", "DEFAULT_DOMAIN_RANDOMIZATION", "MAX_DOMAIN_DRAWS", "parse_domain_randomization",
            "sample_factors", "randomized_robot", "draw_standing_robot"]
@@ -82,19 +84,9 @@ def sample_factors(ranges: Mapping[str, tuple[float, float]], rng: np.random.Gen
 
 
 def randomized_robot(base: Robot, factors: Mapping[str, float]) -> Robot:
-    """``base`` with its parameters multiplied by ``factors`` (``base`` itself if all are 1)."""
-    f = {k: float(v) for k, v in factors.items() if float(v) != 1.0}
-    if not f:
-        return base
-    contact = base.contact
-    if "friction" in f or "contact_stiffness" in f:
-        name = "friction" if contact.model == "paper" else "friction_coefficient"
-        contact = dataclasses.replace(contact, **{name: getattr(contact, name) * f.get("friction", 1.0)},
-                                      stiffness=contact.stiffness * f.get("contact_stiffness", 1.0))
-    return base.replace(contact=contact,
-                        youngs_modulus=base.youngs_modulus * f.get("youngs_modulus", 1.0),
-                        density=base.density * f.get("density", 1.0),
-                        payload_mass=base.payload_mass * f.get("payload_mass", 1.0))
+    """``base`` with its parameters multiplied by ``factors`` (``base`` itself if all are 1;
+    :func:`soft_envs.sim.parameters.scale_parameters`, ``"friction"`` the contact law's)."""
+    return scale_parameters(base, factors)
 
 
 def draw_standing_robot(ranges: Mapping[str, tuple[float, float]], rng: np.random.Generator,

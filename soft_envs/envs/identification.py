@@ -3,7 +3,7 @@ and rollouts with their sensitivities to the parameters (``trajopt calibrate``).
 
 Re-exports for ``trajopt`` (which never imports :mod:`soft_envs.sim`): :data:`PHYSICAL_PARAMETERS`
 (name -> unit and description), :func:`parameter_values`, :func:`with_parameters`,
-:class:`MarkerSet` and :class:`Marker`. :func:`parameter_rollout` is what
+:func:`scale_parameters`, :class:`MarkerSet` and :class:`Marker`. :func:`parameter_rollout` is what
 ``SoftRobotEnv.rollout_parameters`` (an optional member of the
 :class:`~soft_envs.envs.protocol.GradientEnv` protocol) does.
 """
@@ -16,10 +16,10 @@ import numpy as np
 from ..sim import Trajectory
 from ..sim.markers import Marker, MarkerSet
 from ..sim.parameters import PARAMETERS as PHYSICAL_PARAMETERS
-from ..sim.parameters import check_parameters, parameter_values, with_parameters
+from ..sim.parameters import check_parameters, parameter_values, scale_parameters, with_parameters
 
-__all__ = ["PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "check_parameters", "Marker",
-           "MarkerSet", "parameter_rollout"]
+__all__ = ["PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "scale_parameters", "check_parameters",
+           "Marker", "MarkerSet", "parameter_rollout"]
 
 
 def parameter_rollout(env, u: np.ndarray, parameters: Sequence[str]) -> Trajectory:

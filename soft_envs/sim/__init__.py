@@ -24,9 +24,11 @@ II-A, lumped mass + payload            :attr:`.robot.Robot.node_masses`
 eq. 2, cable deformation Gamma         :meth:`.cables.Cables.deformation`
 eq. 3, rest length alpha(u)            :meth:`.cables.Cables.rest_lengths`; the cable energy
                                        Q(Gamma) is the term :class:`.cables.Cables`
-II-B, one-sided quadratic Q            :func:`.cables.Q` (:func:`.cables.one_sided_quadratic`)
-II-C, contact energy (lagged friction) :func:`.contact.contact_assemble`; the term
-                                       :class:`.contact.GroundContact`
+II-B, one-sided quadratic Q            :func:`.contact.penalty.Q`
+                                       (:func:`.contact.penalty.one_sided_quadratic`)
+II-C, contact energy (lagged friction) :func:`.contact.paper.contact_assemble`; the term
+                                       :class:`.contact.paper.GroundContact` (the contact
+                                       laws: :data:`.contact.CONTACT_LAWS`)
 II-D, gravity; IV-B, incline           :class:`.gravity.Gravity`, :func:`.gravity.incline_gravity`
 eq. 4, implicit Euler by Newton        :meth:`.integrator.NewtonSolver.step` (minimises Phi,
                                        :meth:`.integrator.NewtonSolver.phi_assemble`)

@@ -9,8 +9,10 @@ cable length is ``L(x) = sum_s |p_{s+1} - p_s|`` and its deformation (eq. 2, 3)
     \Gamma(u, x) = L(x) - \alpha(u), \qquad \alpha(u) = \alpha^0 - u ,
 
 with ``u`` the contracted length pulled in by the motor. The cable is a unilateral spring with
-energy ``Q(Gamma)``, :func:`one_sided_quadratic`. In tension-control mode (paper appendix A)
-the energy is ``tau * L(x)`` with ``tau >= 0`` the prescribed tension.
+energy ``Q(Gamma)``, the one-sided quadratic :func:`~.contact.penalty.Q` (also the contact
+laws'; ``Q``, ``dQ``, ``d2Q`` and ``one_sided_quadratic`` are re-exported here). In
+tension-control mode (paper appendix A) the energy is ``tau * L(x)`` with ``tau >= 0`` the
+prescribed tension.
 
 Tendons are stored flat for the numba kernels: ``pt_nodes (P, 4)`` and ``pt_w (P, 4)`` for all
 points of all tendons, ``ptr (T+1)`` the first point of each tendon. A tendon with ``P_t``
@@ -23,6 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .contact.penalty import Q, d2Q, dQ, one_sided_quadratic
 from .terms import EnergyTerm
 
 __all__ = ["one_sided_quadratic", "Q", "dQ", "d2Q", "cable_lengths", "cable_length_gradients",
@@ -31,50 +34,6 @@ __all__ = ["one_sided_quadratic", "Q", "dQ", "d2Q", "cable_lengths", "cable_leng
 
 LENGTH_CONTROL = 0
 TENSION_CONTROL = 1
-
-
-@njit(cache=True)
-def Q(s, k, eps):
-    """Smooth one-sided quadratic: 0 for s <= 0, ``k s^3 / (6 eps)`` on (0, eps) (C2 cubic
-    blend, Q'' rising linearly from 0 to k), ``k eps^2/6 + k s (s - eps)/2`` beyond. With
-    ``eps = 0`` it is the half-quadratic ``k max(s, 0)^2 / 2`` (C1; Q'' jumps from 0 to k)."""
-    if s <= 0.0:
-        return 0.0
-    if s < eps:
-        return k * s * s * s / (6.0 * eps)
-    return k * eps * eps / 6.0 + 0.5 * k * s * (s - eps)
-
-
-@njit(cache=True)
-def dQ(s, k, eps):
-    """Q'(s): the spring force (cable tension, contact normal force)."""
-    if s <= 0.0:
-        return 0.0
-    if s < eps:
-        return 0.5 * k * s * s / eps
-    return k * (s - 0.5 * eps)
-
-
-@njit(cache=True)
-def d2Q(s, k, eps):
-    """Q''(s)."""
-    if s <= 0.0:
-        return 0.0
-    if s < eps:
-        return k * s / eps
-    return k
-
-
-def one_sided_quadratic(s, k: float, eps: float):
-    """Vectorised ``(Q, Q', Q'')`` of :func:`Q` for numpy arrays (used by objectives and tests)."""
-    s = np.asarray(s, dtype=np.float64)
-    blend = (s > 0) & (s < eps)
-    full = (s >= eps) & (s > 0)
-    eps_safe = np.where(np.asarray(eps) > 0, eps, 1.0)        # eps = 0: no blend region
-    q = np.where(blend, k * s**3 / (6 * eps_safe), np.where(full, k * eps**2 / 6 + 0.5 * k * s * (s - eps), 0.0))
-    dq = np.where(blend, 0.5 * k * s**2 / eps_safe, np.where(full, k * (s - 0.5 * eps), 0.0))
-    d2q = np.where(blend, k * s / eps_safe, np.where(full, k, 0.0))
-    return q, dq, d2q
 
 
 @njit(cache=True)

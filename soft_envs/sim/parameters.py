@@ -18,6 +18,11 @@ name                       unit    what (owner)
                                    tendons; setting it scales every tendon's stiffness alike
 =========================  ======  ================================================================
 
+Each contact law owns ``contact_stiffness`` and its *friction parameter*
+(``ContactLaw.friction_parameter``: ``friction`` for the paper's law, ``friction_coefficient``
+for Coulomb's, none for a law without friction), which :func:`scale_parameters` (domain
+randomisation, robustness studies) scales for the factor named ``"friction"``.
+
 Masses are lumped (paper II-A): ``m_i = density * V_i + payload_mass / n_p`` on the ``n_p``
 payload nodes, so ``dm_i/d density = V_i`` (the node's lumped volume) and ``dm_i/d payload_mass
 = 1 / n_p`` there (:func:`node_mass_jacobian`).
@@ -31,8 +36,10 @@ from types import MappingProxyType
 
 import numpy as np
 
-__all__ = ["PhysicalParameter", "PARAMETERS", "MASS_PARAMETERS", "check_parameters", "parameter_values",
-           "with_parameters", "node_mass_jacobian", "lame_jacobian"]
+from .contact import friction_parameters
+
+__all__ = ["PhysicalParameter", "PARAMETERS", "MASS_PARAMETERS", "FRICTION", "check_parameters", "parameter_values",
+           "with_parameters", "scale_parameters", "node_mass_jacobian", "lame_jacobian"]
 
 
 @dataclass(frozen=True)
@@ -60,6 +67,18 @@ PARAMETERS: Mapping[str, PhysicalParameter] = MappingProxyType({p.name: p for p 
 #: parameters that change the lumped masses (and so the mass matrix and gravity)
 MASS_PARAMETERS = ("density", "payload_mass")
 
+#: the factor of :func:`scale_parameters` for the robot's contact law's friction parameter
+FRICTION = "friction"
+
+#: ``[contact]`` key of a contact parameter (the laws' friction parameters are read from the key
+#: of their own name)
+_CONTACT_KEYS = {"contact_stiffness": "stiffness"}
+
+
+def _contact_key(name: str) -> str | None:
+    """The ``[contact]`` key (ContactParams field) that parameter ``name`` is, None for none."""
+    return _CONTACT_KEYS.get(name, name if name in friction_parameters() else None)
+
 
 def check_parameters(robot, names: Sequence[str], control: str = "length") -> tuple[str, ...]:
     """``names`` as a tuple after checking that each is a known parameter, given once, and one
@@ -71,12 +90,12 @@ def check_parameters(robot, names: Sequence[str], control: str = "length") -> tu
         if n in names[:i]:
             raise ValueError(f"physical parameter {n!r} is given twice")
     model = robot.contact.model
+    own = robot.contact.law.friction_parameter
     for n in names:
         why = None
-        if n == "friction" and model != "paper":
-            why = f"the robot uses contact.model = {model!r}; its friction parameter is 'friction_coefficient'"
-        elif n == "friction_coefficient" and model != "coulomb":
-            why = f"the robot uses contact.model = {model!r}; its friction parameter is 'friction'"
+        if n in friction_parameters() and n != own:
+            why = f"the robot uses contact.model = {model!r}; " + \
+                (f"its friction parameter is {own!r}" if own else "that contact law has no friction parameter")
         elif n == "payload_mass" and robot.payload_nodes.size == 0:
             why = "the robot has no payload (payload.mass = 0, no payload nodes)"
         elif n == "cable_stiffness" and (not robot.tendons or control != "length"):
@@ -88,15 +107,14 @@ def check_parameters(robot, names: Sequence[str], control: str = "length") -> tu
 
 def parameter_values(robot, names: Sequence[str]) -> np.ndarray:
     """The current values of the parameters ``names`` of ``robot`` (units of :data:`PARAMETERS`)."""
-    get = {"youngs_modulus": lambda r: r.youngs_modulus, "poisson_ratio": lambda r: r.poisson_ratio,
-           "density": lambda r: r.density, "payload_mass": lambda r: r.payload_mass,
-           "contact_stiffness": lambda r: r.contact.stiffness, "friction": lambda r: r.contact.friction,
-           "friction_coefficient": lambda r: r.contact.friction_coefficient,
-           "cable_stiffness": lambda r: float(np.mean([t.stiffness for t in r.tendons])) if r.tendons else np.nan}
-    for n in names:
-        if n not in get:
+    def get(n):
+        if n not in PARAMETERS:
             raise ValueError(f"unknown physical parameter {n!r}; known: {', '.join(PARAMETERS)}")
-    return np.array([float(get[n](robot)) for n in names], dtype=np.float64)
+        if n == "cable_stiffness":
+            return float(np.mean([t.stiffness for t in robot.tendons])) if robot.tendons else np.nan
+        key = _contact_key(n)
+        return getattr(robot.contact, key) if key else getattr(robot, n)
+    return np.array([float(get(n)) for n in names], dtype=np.float64)
 
 
 def with_parameters(robot, values: Mapping[str, float]):
@@ -109,8 +127,7 @@ def with_parameters(robot, values: Mapping[str, float]):
             raise ValueError(f"unknown physical parameter {n!r}; known: {', '.join(PARAMETERS)}")
     if not values:
         return robot
-    contact = {k: values[n] for n, k in (("contact_stiffness", "stiffness"), ("friction", "friction"),
-                                         ("friction_coefficient", "friction_coefficient")) if n in values}
+    contact = {_contact_key(n): v for n, v in values.items() if _contact_key(n)}
     changes = {k: values[k] for k in ("youngs_modulus", "poisson_ratio", "density", "payload_mass") if k in values}
     if contact:
         changes["contact"] = dataclasses.replace(robot.contact, **contact)
@@ -118,6 +135,24 @@ def with_parameters(robot, values: Mapping[str, float]):
         ratio = values["cable_stiffness"] / parameter_values(robot, ["cable_stiffness"])[0]
         changes["tendons"] = tuple(dataclasses.replace(t, stiffness=t.stiffness * ratio) for t in robot.tendons)
     return robot.replace(**changes)
+
+
+def scale_parameters(robot, factors: Mapping[str, float]):
+    """A copy of ``robot`` with its physical parameters multiplied by ``factors`` (``robot``
+    itself when every factor is 1): the one scaling of domain randomisation and robustness
+    studies. Keys are names of :data:`PARAMETERS`, or :data:`FRICTION` (``"friction"``) for
+    the friction parameter of the robot's contact law (``ContactLaw.friction_parameter``:
+    ``friction`` for the paper's law, ``friction_coefficient`` for Coulomb's). Factors of
+    parameters the robot lacks (the friction of a law without friction, the cable stiffness
+    without tendons) change nothing."""
+    scaled = {}
+    for name, factor in factors.items():
+        if name == FRICTION:
+            name = robot.contact.law.friction_parameter
+        if name is None or float(factor) == 1.0 or (name == "cable_stiffness" and not robot.tendons):
+            continue
+        scaled[name] = parameter_values(robot, [name])[0] * float(factor)
+    return with_parameters(robot, scaled)
 
 
 def node_mass_jacobian(robot, names: Sequence[str]) -> np.ndarray:

@@ -15,6 +15,7 @@ from typing import Any, Iterable, Mapping
 import meshio
 import numpy as np
 
+from .contact import CONTACT_LAWS, ContactLaw, check_contact_parameters, contact_default, contact_law
 from .markers import Marker, MarkerSet
 from .materials import lame_parameters
 from .mesh import TetMesh, load_mesh
@@ -22,41 +23,41 @@ from .mesh import TetMesh, load_mesh
 __all__ = ["Robot", "Tendon", "Motor", "ContactParams", "CableData", "Marker", "CONTACT_MODELS"]
 
 
-CONTACT_MODELS = ("paper", "coulomb")
+#: The built-in contact laws' names; every law, those registered later included, is a key of
+#: :data:`soft_envs.sim.contact.CONTACT_LAWS`.
+CONTACT_MODELS = tuple(CONTACT_LAWS)
 
 
 @dataclass(frozen=True)
 class ContactParams:
-    """Ground contact: a penalty normal law and a friction law.
+    """Ground contact, the ``[contact]`` table of ``robot.toml``: a contact law ``model`` (a name
+    of :data:`~soft_envs.sim.contact.CONTACT_LAWS`) and the parameters the laws read.
 
-    ``model``: ``"paper"`` (paper II-C, :mod:`soft_envs.sim.contact`: friction energy
+    ``"paper"`` (paper II-C, :mod:`soft_envs.sim.contact.paper`: friction energy
     ``friction * N_{k-1} |dx_t|^2`` with the weight ``friction`` [1/m]; viscous-like and
-    time-step dependent) or ``"coulomb"`` (:mod:`soft_envs.sim.coulomb`: tangential force
-    bounded by ``friction_coefficient * N_{k-1}``, held by stick anchors until a node is
-    ``slip_distance`` [m] from its anchor). Both: normal penalty ``stiffness`` [N/m] per node with a C2
-    ``blend`` [m] of the one-sided quadratic (``blend = 0``: the half-quadratic, Coulomb model
-    only). Each model reads only its own friction parameters."""
+    time-step dependent) or ``"coulomb"`` (:mod:`soft_envs.sim.contact.coulomb`: tangential
+    force bounded by ``friction_coefficient * N_{k-1}``, held by stick anchors until a node is
+    ``slip_distance`` [m] from its anchor). Both: normal penalty ``stiffness`` [N/m] per node
+    with a C2 ``blend`` [m] of the one-sided quadratic (``blend = 0``: the half-quadratic,
+    Coulomb model only). Each law reads only its own parameters, declares them (defaults,
+    units, bounds: ``contact_parameters``) and is validated by its declarations; the other
+    fields by the law that reads them (:func:`~soft_envs.sim.contact.check_contact_parameters`)."""
 
-    stiffness: float = 2000.0
-    friction: float = 500.0
-    blend: float = 5e-4
+    stiffness: float = contact_default("stiffness")
+    friction: float = contact_default("friction")
+    blend: float = contact_default("blend")
     model: str = "paper"
-    friction_coefficient: float = 0.8
-    slip_distance: float = 3e-4
+    friction_coefficient: float = contact_default("friction_coefficient")
+    slip_distance: float = contact_default("slip_distance")
 
     def __post_init__(self):
-        if self.model not in CONTACT_MODELS:
-            raise ValueError(f"contact.model must be one of {CONTACT_MODELS}, got {self.model!r}")
-        if not (np.isfinite(self.stiffness) and self.stiffness > 0):
-            raise ValueError(f"contact.stiffness must be positive, got {self.stiffness!r}")
-        if not (np.isfinite(self.blend) and (self.blend > 0 or (self.blend == 0 and self.model == "coulomb"))):
-            raise ValueError(f"contact.blend must be positive (or 0 with model = 'coulomb'), got {self.blend!r}")
-        if not (np.isfinite(self.friction) and self.friction >= 0):
-            raise ValueError(f"contact.friction must be >= 0, got {self.friction!r}")
-        if not (np.isfinite(self.friction_coefficient) and self.friction_coefficient >= 0):
-            raise ValueError(f"contact.friction_coefficient must be >= 0, got {self.friction_coefficient!r}")
-        if not (np.isfinite(self.slip_distance) and self.slip_distance > 0):
-            raise ValueError(f"contact.slip_distance must be positive, got {self.slip_distance!r}")
+        check_contact_parameters(self.model, {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                                              if f.name != "model"})
+
+    @property
+    def law(self) -> type[ContactLaw]:
+        """The contact law class of :attr:`model` (an energy term: ``law(robot)``)."""
+        return contact_law(self.model)
 
 
 @dataclass(frozen=True, eq=False)

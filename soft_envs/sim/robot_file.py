@@ -20,8 +20,9 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     nodes = "top"                # "top" or a list of node indices
     top_tolerance = 1e-4         # [m] nodes this close to the highest point are "top"
 
-    [contact]                    # optional, defaults of ContactParams
-    model = "paper"              # "paper" (II-C, viscous-like) or "coulomb" (mu N bound)
+    [contact]                    # optional, defaults of ContactParams; each law reads its own keys
+    model = "paper"              # a contact law (soft_envs.sim.contact.CONTACT_LAWS): "paper" (II-C,
+                                 # viscous-like) or "coulomb" (mu N bound)
     stiffness = 2000.0           # [N/m]
     friction = 500.0             # [1/m]
     blend = 5e-4                 # [m] C2 blend of the normal law (0: half-quadratic, coulomb)
@@ -61,6 +62,7 @@ so that a gait can be tied to the robot it was made for.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -85,9 +87,9 @@ _SCHEMA: dict[str, dict[str, tuple[type | tuple[type, ...], bool]]] = {
                  "density": ((int, float), True)},
     "payload": {"mass": ((int, float), True), "nodes": ((str, list), False),
                 "top_tolerance": ((int, float), False)},
-    "contact": {"stiffness": ((int, float), False), "friction": ((int, float), False),
-                "blend": ((int, float), False), "model": (str, False),
-                "friction_coefficient": ((int, float), False), "slip_distance": ((int, float), False)},
+    # [contact]: the fields of ContactParams (model and the keys the contact laws read)
+    "contact": {f.name: ((str if f.name == "model" else (int, float)), False)
+                for f in dataclasses.fields(ContactParams)},
     "fixed": {"nodes": (list, False), "box": (list, False)},
     "cables": {"blend": ((int, float), False)},
 }
@@ -278,7 +280,7 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
     motors = _motors(doc.get("motors", []), src)
     markers = _markers(doc.get("markers", []), to_sim, src)
     mat = tables["material"]
-    try:
+    try:      # model: one of CONTACT_LAWS; each value within the bounds its law declares
         contact = ContactParams(**{k: (v if k == "model" else float(v)) for k, v in tables["contact"].items()})
     except ValueError as exc:
         raise ValueError(f"{src}: [contact] {exc}") from exc

@@ -15,8 +15,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from .cables import Cables, CableTensions
-from .contact import GroundContact
-from .coulomb import CoulombContact
 from .elastic import Elastic
 from .gravity import Gravity
 from .parameters import MASS_PARAMETERS, check_parameters, node_mass_jacobian
@@ -82,7 +80,8 @@ class EnergySystem:
     ``gravity`` is a 3-vector [m/s^2]; ``control`` is ``"length"`` (u = contracted cable length
     [m], paper eq. 3: :class:`~.cables.Cables`) or ``"tension"`` (u = cable tension [N] >= 0,
     paper appendix A: :class:`~.cables.CableTensions`). ``terms`` lists the terms in the order
-    they are summed: elastic, cables, contact, gravity. Terms may keep a history (lagged state
+    they are summed: elastic, cables, contact (the law of ``robot.contact.model``, from
+    :data:`~.contact.CONTACT_LAWS`), gravity. Terms may keep a history (lagged state
     beyond x_prev, the Coulomb law's stick anchors): the methods take ``history``, a tuple
     aligned with the terms."""
 
@@ -104,7 +103,7 @@ class EnergySystem:
         self.free = np.flatnonzero(~self.fixed_dof)
         self.elastic = Elastic(robot)
         self.cables = (Cables if control == "length" else CableTensions)(robot)
-        self.contact = GroundContact(robot) if robot.contact.model == "paper" else CoulombContact(robot)
+        self.contact = robot.contact.law(robot)      # the law registered as [contact] model
         masses = [n for n in MASS_PARAMETERS if n != "payload_mass" or robot.payload_nodes.size]
         self._mass_jacobian = dict(zip(masses, node_mass_jacobian(robot, masses).T))
         self.terms: list[EnergyTerm] = [self.elastic, self.cables, self.contact,

@@ -1,4 +1,5 @@
-r"""Ground contact with lagged friction (paper II-C): the :class:`GroundContact` energy term.
+r"""Ground contact with lagged friction (paper II-C): the :class:`GroundContact` energy term,
+the contact law ``model = "paper"``.
 
 The ground is the plane ``y = 0``. Per contact node ``i`` (the boundary nodes that are not
 fixed), the paper's law:
@@ -13,38 +14,24 @@ normal force of the previous step. ``mu_f`` [1/m] is the paper's tunable roughne
 tangential force is ``2 mu_f N dx_t``, so a node sliding ``1/(2 mu_f)`` metres in one step
 feels a tangential force equal to its normal force. The previous state enters twice: through
 the displacement and through ``N_{k-1}`` (both in the sensitivities).
+
+It reads the ``[contact]`` keys ``stiffness``, ``blend`` and ``friction``; its friction
+parameter is ``friction`` (mu_f).
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from .cables import Q, d2Q, dQ
-from .terms import EnergyTerm
+from .law import BLEND, STIFFNESS, ContactLaw, ContactParameter
+from .penalty import d2Q, dQ, normal_forces, normal_penalty
 
-__all__ = ["GroundContact", "contact_assemble", "friction_cross", "friction_cross_T", "normal_forces"]
+__all__ = ["GroundContact", "FRICTION_WEIGHT", "contact_assemble", "friction_cross", "friction_cross_T",
+           "normal_forces"]
 
-
-@njit(cache=True)
-def normal_forces(x, nodes, k_n, eps_n):
-    """Normal force ``N_i = Q_n'(-y_i)`` at every contact node."""
-    out = np.empty(nodes.shape[0])
-    for c in range(nodes.shape[0]):
-        out[c] = dQ(-x[nodes[c], 1], k_n, eps_n)
-    return out
-
-
-@njit(cache=True, inline="always")
-def normal_penalty(x, n, k_n, eps_n, grad, hdata, slot, want_grad, want_hess):
-    """The normal penalty ``Q_n(-y)`` of node ``n`` (paper II-C; both contact laws): adds its
-    gradient (``want_grad``) and its Hessian entry ``hdata[slot]`` (``want_hess``). Returns
-    the energy."""
-    s = -x[n, 1]
-    if want_grad:
-        grad[3 * n + 1] -= dQ(s, k_n, eps_n)
-    if want_hess:
-        hdata[slot] += d2Q(s, k_n, eps_n)
-    return Q(s, k_n, eps_n)
+#: the paper's friction weight mu_f
+FRICTION_WEIGHT = ContactParameter("friction", 500.0, "1/m", "friction weight mu_f of the paper's law",
+                                   inclusive=True)
 
 
 @njit(cache=True)
@@ -109,27 +96,22 @@ def friction_cross_T(x, x_prev, nodes, k_n, eps_n, mu_f, lam, out):
             out[3 * n + 1] += 2.0 * mu_f * d * dN * lam[3 * n + t]
 
 
-class GroundContact(EnergyTerm):
+class GroundContact(ContactLaw):
     """Penalty contact with the ground plane and the paper's lagged friction (module docstring)
     at every boundary node that is not fixed. Parameters from ``robot.contact``:
     ``stiffness`` k_n [N/m], ``blend`` eps_n [m], ``friction`` mu_f [1/m]."""
 
-    name = "contact"
-    parameters = ("contact_stiffness", "friction")
+    model = "paper"
+    contact_parameters = (STIFFNESS, BLEND, FRICTION_WEIGHT)
+    friction_parameter = "friction"
 
     def __init__(self, robot):
-        c = robot.contact
-        self.k_n, self.eps_n, self.mu_f = c.stiffness, c.blend, c.friction
-        self.nodes = np.setdiff1d(robot.mesh.boundary_nodes, robot.fixed_nodes).astype(np.int64)
-        self._scratch = np.zeros(3 * robot.mesh.n_nodes)
+        super().__init__(robot)
+        self.mu_f = robot.contact.friction
 
     def bind(self, slots, diag_slots) -> None:
         super().bind(slots, diag_slots)
         self.diag_map = np.ascontiguousarray(diag_slots.reshape(-1, 3)[self.nodes])
-
-    def normal_forces(self, x: np.ndarray) -> np.ndarray:
-        """N_i = Q_n'(-y_i) at every contact node [N]."""
-        return normal_forces(x, self.nodes, self.k_n, self.eps_n)
 
     def energy(self, x, x_prev, u, hist=None) -> float:
         return contact_assemble(x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f, self._scratch,
