@@ -2,6 +2,10 @@
 
     python benchmarks/reference_rollouts.py record refs/before.npz
     python benchmarks/reference_rollouts.py compare refs/before.npz [--rtol 1e-10]
+    python benchmarks/reference_rollouts.py record refs/coulomb.npz --contact coulomb
+
+``--contact coulomb`` runs the same cases with the robots' ``[contact] model`` set to the
+Coulomb law (keys ``<case>_coulomb``); the default is the robot files' own law.
 
 Cases (both shipped robots): a smooth gait, seeded random controls within the motor bounds
 (reversing at the motors' speed limit) and zero controls, in length control; a gait in tension
@@ -17,6 +21,7 @@ sides of a refactor. The cases are those of the regression test, ``tests/data/ma
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib.util
 import sys
 from pathlib import Path
@@ -38,18 +43,22 @@ def _load_case_generator():
     return module
 
 
-def cases():
+def cases(contact: str | None = None):
     """The regression test's cases (smooth gait, random and zero controls, tension control, a
-    10-degree slope; both robots), ``K`` steps each."""
-    return _load_case_generator().cases(K)
+    10-degree slope; both robots), ``K`` steps each; with ``contact`` the robots use that
+    contact law and the keys end in ``_<contact>``."""
+    for key, robot, kw, u in _load_case_generator().cases(K):
+        if contact is not None:
+            key, robot = f"{key}_{contact}", robot.replace(contact=dataclasses.replace(robot.contact, model=contact))
+        yield key, robot, kw, u
 
 
-def record(ref_points: dict | None = None) -> dict[str, np.ndarray]:
+def record(ref_points: dict | None = None, contact: str | None = None) -> dict[str, np.ndarray]:
     """Every case's arrays; ``ref_points`` {case: (x, x_prev, u)} fixes where E, its gradient
     and Hessian are evaluated (compare uses the reference's points)."""
     ref_points = ref_points or {}
     out: dict[str, np.ndarray] = {}
-    for key, robot, kw, u in cases():
+    for key, robot, kw, u in cases(contact):
         sim = Simulator(robot, dt=0.033, **kw)
         x0 = sim.rest_state()
         rng = np.random.default_rng(99)
@@ -103,9 +112,10 @@ def main(argv=None) -> int:
     p.add_argument("action", choices=["record", "compare"])
     p.add_argument("path", type=Path)
     p.add_argument("--rtol", type=float, default=1e-10)
+    p.add_argument("--contact", default=None, help="contact law of every case (default: the robot files')")
     a = p.parse_args(argv)
     if a.action == "record":
-        new = record()
+        new = record(contact=a.contact)
         a.path.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(a.path, **new)
         print(f"wrote {a.path} ({len(new)} arrays)")
@@ -115,7 +125,7 @@ def main(argv=None) -> int:
     cases_ = {k.rsplit("/", 1)[0] for k in ref}
     points = {c: (ref[f"{c}/eval_x"], ref[f"{c}/eval_xp"], ref[f"{c}/eval_u"])
               for c in cases_ if f"{c}/eval_x" in ref}
-    new = record(points)
+    new = record(points, contact=a.contact)
     ok = compare(ref, new, a.rtol)
     print("all within rtol" if ok else "DIFFERENCES above rtol")
     return 0 if ok else 1
