@@ -353,3 +353,22 @@ def test_a_spec_value_is_converted_as_the_command_line_converts_it(tmp_path):
     assert spec.names() == ["v5.5"] and spec.runs[0].arguments()["speed"] == 5.5
     with pytest.raises(ValueError, match=r"sweep.toml: runs\[0\] \(run 'x'\): argument symmetry: must be true or false"):
         load_spec(write(tmp_path, tiny_block("x", "_k = [0]", extra="symmetry = 1\n")))
+
+
+@pytest.mark.rl
+def test_rl_runs_call_the_library_and_write_their_files(tmp_path):
+    """An rl-train run (tiny PPO, exported as a Result) and an rl-evaluate run of it, in this
+    process: their figures come from the files they wrote (policy.npz, evaluation.json)."""
+    pytest.importorskip("stable_baselines3")
+    hp = '["n_steps=32", "batch_size=32", "n_epochs=1", "policy_kwargs=dict(net_arch=[8])"]'
+    text = ('[[runs]]\nkind = "rl-train"\nname = "ppo"\n[runs.args]\nrobot = "tripod"\ntimesteps = 64\n'
+            f'n_envs = 1\nhp = {hp}\n'
+            '[[runs]]\nkind = "rl-evaluate"\nname = "ppo_eval"\n[runs.args]\nmodel = "{out}/ppo"\ncycles = 1\n')
+    out = tmp_path / "out"
+    outcome = run_sweep(load_spec(write(tmp_path, text), out), out, serial=True)
+    assert outcome.count("done") == 2, outcome.statuses
+    trained = outcome.statuses["ppo"]
+    assert trained["metrics"]["timesteps"] >= 64 and Result.load(out / "ppo" / "policy.npz").task == "rl"
+    assert trained["command"][:4] == ["trajopt", "rl", "train", "tripod"]
+    ev = json.loads((out / "ppo_eval" / "evaluation.json").read_text())
+    assert ev["cycles"] == 1 and ev["speed_bl_per_min"] == outcome.statuses["ppo_eval"]["metrics"]["speed_bl_per_min"]
