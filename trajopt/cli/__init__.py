@@ -43,7 +43,9 @@ _OVERWRITE_HELP = "replace existing output files"
 def _add_optimize(sub) -> None:
     p = sub.add_parser("optimize", help="optimise a gait (paper III) and save a result")
     p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
-    p.add_argument("--task", choices=command_line_tasks(), default="walk", help="trajopt.tasks.TASKS")
+    p.add_argument("--task", choices=command_line_tasks(), default="walk",
+                   help="what the gait does (trajopt.tasks): walk straight, turn a quarter circle, incline: walk "
+                        "up the --angle slope")
     p.add_argument("--speed", type=positive_float, default=None, help="target speed [body lengths/min]")
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--turn", choices=["right", "left"], default="right", help="turn direction (task turn)")

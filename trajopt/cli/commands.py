@@ -42,7 +42,8 @@ def _print_table(rows: list[tuple[str, str]]) -> None:
 def evaluation_rows(ev: dict, task: str = "walk") -> list[tuple[str, str]]:
     """The rows of an evaluation (speed, per cycle, heading, tilt, upright), or the simulation
     failure's reason when the replay failed. The heading is the yaw of the best-fit rotation of
-    all nodes. The speed of a task with a curved target (the turn, :attr:`~trajopt.tasks.Task.speed_along_path`) is along its COM path sampled once per cycle (along a fixed
+    all nodes. The speed of a task with a curved target (the turn,
+    :attr:`~trajopt.tasks.Task.speed_along_path`) is along its COM path sampled once per cycle (along a fixed
     direction it averages out; every step's path adds the sway within a stride); a turn also
     shows its heading per cycle and over the optimised horizon, with the COM's RMS distance from
     the quarter circle."""

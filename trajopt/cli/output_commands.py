@@ -1,4 +1,5 @@
-"""What ``trajopt render``, ``export`` and ``plot`` do (argument parsing lives in :mod:`trajopt.cli`; the library functions in :mod:`trajopt.replay`, :mod:`trajopt.export` and :mod:`trajopt.plots`).
+"""What ``trajopt render``, ``export`` and ``plot`` do (argument parsing lives in :mod:`trajopt.cli`;
+the library functions in :mod:`trajopt.replay`, :mod:`trajopt.export` and :mod:`trajopt.plots`).
 
 Each checks everything before it simulates or draws: the result file, the robot it was made for
 (``--ignore-robot-mismatch`` overrides), the tools it needs (``--mp4``: the ``video`` extra), and
@@ -117,7 +118,8 @@ def run_plot(args) -> int:
                                                   mirror_map=env.robot.mirror_map, subject=subject),
         "convergence": lambda p: plots.plot_convergence(res.history, p, subject=subject),
         "speed": lambda p: plots.plot_speed_per_cycle(np.asarray(speeds), p, subject=subject,
-                                                      target=None if speed_along_path(res.task) else s.get("speed_bl_per_min"),
+                                                      target=(None if speed_along_path(res.task)
+                                                              else s.get("speed_bl_per_min")),
                                                       reference={"tripod": 6.1, "puppy": 8.6}.get(res.robot)),
     }
     for key in wanted:
