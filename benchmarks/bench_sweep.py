@@ -1,8 +1,8 @@
 """Sweep benchmark (issue #17): eight short gait optimisations, on a local Ray with 2 workers
 vs the same runs one after another in one process (``trajopt sweep --serial``).
 
-Both use the same sweep file and the same code per run (``trajopt.cli.main`` with the run's
-arguments, writing its own directory); the serial baseline is what a hand-written loop does.
+Both use the same sweep file and the same code per run (:func:`trajopt.sweep.task.execute`: the
+library function of the run's kind, writing its own directory); the serial baseline is what a hand-written loop does.
 Prints the wall times, the ratio with the Ray start-up included and without it (Ray is
 started first, on its own, and timed), and the machine's load average at the start and end
 (the machine may be shared: rerun when it is quiet). Target: >= 1.7x on 2 cores.

@@ -300,6 +300,16 @@ FAULTS = [
     Fault("sweep_quick_ignored", "trajopt/sweep/spec.py",
           "if quick:\n            params.update(overrides)", "if False:\n            params.update(overrides)",
           ("tests/test_sweep.py::test_quick_arguments_keep_the_run_names", "tests/test_each_rule.py"), "a sweep's [runs.quick] overrides ignored under --quick"),
+    Fault("sweep_option_unchecked", "trajopt/sweep/kinds.py",
+          "        return self.parse(str(raw))", "        return raw",
+          ("tests/test_sweep.py",), "a sweep file's option values reach the run unchecked (speed = \"fast\")"),
+    # tasks
+    Fault("turn_on_the_paper_law", "trajopt/tasks.py",
+          '    contact: str | None = "coulomb"', "    contact: str | None = None",
+          ("tests/test_tasks.py", "tests/test_turn.py"), "the turn runs on the robot file's contact law"),
+    Fault("turn_heading_untracked", "trajopt/tasks.py",
+          "        return quarter_circle_heading(n_steps, dt, speed, 0.0, turn)", "        return None",
+          ("tests/test_tasks.py", "tests/test_turn.py"), "the turn's heading term has no target (COM tracking only)"),
 ]
 
 

@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from soft_envs.envs import MarkerSet, load_robot, parameter_values, with_parameters
 from trajopt.calibrate import (MarkerData, fit_parameters, kabsch, rotation_jacobian, separability_warnings,
                                synthetic_tracks)
-from trajopt.calibrate_command import HEADER
+from trajopt.calibration_files import HEADER
 from trajopt.cli import main
 from trajopt.results import Result
 from trajopt.tracks import read_tracks, write_tracks

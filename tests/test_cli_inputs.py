@@ -133,7 +133,7 @@ def test_a_finished_result_is_never_replaced_and_checkpoints_go_beside_it(tiny, 
     code, _, err = run(argv, capsys)
     assert code == 2 and "tripod_walk.npz: a result of this name exists" in err and "--overwrite" in err
 
-    import trajopt.commands as commands
+    import trajopt.optimize_run as commands
     real = commands.optimize_gait
 
     def interrupted_after_one_iteration(*args, callback, **kwargs):       # Ctrl-C during iteration 2

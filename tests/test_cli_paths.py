@@ -86,7 +86,7 @@ def test_interrupt_then_resume_ends_where_an_uninterrupted_run_ends(tmp_path, mo
     --resume runs the remaining iteration and ends with the same parameters as a run that was
     never interrupted. --resume of a finished run does nothing (exit 0); with other settings it
     is refused (exit 2)."""
-    import trajopt.commands as commands
+    import trajopt.optimize_run as commands
     assert optimize(tmp_path, "--iterations", "2", "--name", "straight") == 0
     straight = Result.load(tmp_path / "straight.npz")
     real = commands.optimize_gait
@@ -123,7 +123,7 @@ def test_evaluate_exit_codes(walk, tmp_path, monkeypatch, capsys):
     assert main(["evaluate", str(walk), "--cycles", "1"]) == 0
     out = capsys.readouterr().out
     assert "upright" in out and "yes" in out and "BL/min over 1 cycles" in out
-    import trajopt.commands as commands
+    import trajopt.cli.commands as commands
     real = commands.evaluate_result
     monkeypatch.setattr(commands, "evaluate_result",
                         lambda res, n=None, **kw: {**real(res, n, **kw), "upright": False})

@@ -136,3 +136,84 @@ def test_the_source_scan_sees_imports():
     """The scan itself finds what it should (so an empty list above means something)."""
     found = {m for _, m in _imported_modules(ROOT / "soft_envs" / "envs" / "base.py")}
     assert "soft_envs.sim" in found and "soft_envs.sim.Simulator" in found
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def import_graph(packages: tuple[str, ...] = ("trajopt", "soft_envs")) -> dict[str, dict[str, str]]:
+    """module -> {module it imports: "file:line"}, for every module of ``packages``: module-level
+    and function-level imports alike (a lazy import still closes a cycle), relative imports
+    resolved; ``from package import name`` points at the submodule when ``name`` is one, else
+    at the package, and ``from module import name`` at the module."""
+    files = {_module_name(p): p for pkg in packages for p in sorted((ROOT / pkg).rglob("*.py"))}
+    graph: dict[str, dict[str, str]] = {}
+    for module, path in files.items():
+        package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+        edges: dict[str, str] = {}
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    parts = package.split(".")
+                    base = ".".join(parts[: len(parts) - node.level + 1] + ([node.module] if node.module else []))
+                names = [f"{base}.{a.name}" if f"{base}.{a.name}" in files else base for a in node.names]
+            else:
+                continue
+            for name in names:
+                while name and name not in files:          # an imported name: its module
+                    name = name.rpartition(".")[0]
+                if name and name != module:
+                    edges.setdefault(name, f"{path.relative_to(ROOT)}:{node.lineno}")
+        graph[module] = edges
+    return graph
+
+
+def find_cycle(graph: dict[str, dict[str, str]]) -> list[str] | None:
+    """One import cycle ``[a, b, ..., a]`` of ``graph``, or None (depth-first search)."""
+    state: dict[str, int] = {}          # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        path.append(node)
+        for nxt in graph.get(node, {}):
+            if state.get(nxt) == 1:
+                return path[path.index(nxt):] + [nxt]
+            if nxt not in state:
+                found = visit(nxt)
+                if found:
+                    return found
+        state[node] = 2
+        path.pop()
+        return None
+
+    for start in sorted(graph):
+        if start not in state:
+            found = visit(start)
+            if found:
+                return found
+    return None
+
+
+def test_no_import_cycles():
+    """No module of trajopt or soft_envs imports, directly or through others, itself (issue
+    #27: the 8-file cycle cli -> sweep -> cli is gone; a lazy import inside a function counts)."""
+    graph = import_graph()
+    cycle = find_cycle(graph)
+    assert cycle is None, "import cycle: " + " -> ".join(
+        [f"{a} ({graph[a][b]})" for a, b in zip(cycle, cycle[1:])] + [cycle[-1]])
+
+
+def test_the_cycle_finder_finds_cycles():
+    """The check itself sees a cycle, also one closed by a function-level import."""
+    assert find_cycle({"a": {"b": 1}, "b": {"c": 2}, "c": {"a": 3}, "d": {"a": 1}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b": 1}, "b": {}}) is None
+    graph = import_graph()
+    assert "trajopt.sweep.runner" in graph["trajopt.robustness"]          # a function-level import
+    assert "trajopt.results" in graph["trajopt.cli.play"]                 # ... resolved to a module
+    assert "trajopt.cli.commands" in graph["trajopt.cli"]                 # relative, in a package

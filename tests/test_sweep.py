@@ -15,7 +15,7 @@ import pytest
 from trajopt import Result
 from trajopt.sweep import load_spec, read_status, run_sweep, write_summary
 from trajopt.sweep.runner import plan
-from trajopt.sweep.task import _argv
+from trajopt.sweep.task import resumes
 
 ROOT = Path(__file__).resolve().parents[1]
 #: a tiny optimisation: one Gauss-Newton iteration on short cycles (a few seconds)
@@ -57,7 +57,7 @@ def test_spec_expands_grids_names_and_arguments(tmp_path):
 @pytest.mark.parametrize("text, message", [
     ('[[runs]]\nkind = "optimise"\n', "runs[0].kind must be one of"),
     ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeeed = 3\n', "unknown argument 'speeed'"),
-    ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeed = "fast"\n', "argument --speed: must be a finite number > 0, got 'fast'"),
+    ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeed = "fast"\n', "argument speed: must be a finite number > 0, got 'fast'"),
     ('[[runs]]\nkind = "optimize"\n[runs.args]\nspeed = 3\n', "argument 'robot' is missing"),
     ('[[runs]]\nkind = "optimize"\nname = "{robot}_{sped}"\n[runs.args]\nrobot = "tripod"\n',
      "runs[0].name: {sped} is not a parameter"),
@@ -103,7 +103,7 @@ def test_contact_parameters_run_on_a_copy_of_the_robot_file(tmp_path):
     assert robot.contact.friction == 250.0 and robot.contact.stiffness == 3000.0
     assert robot.contact.blend == base.contact.blend and robot.payload_mass == base.payload_mass
     assert np.array_equal(robot.mesh.points, base.mesh.points)
-    assert _argv(run, out, out / run.name)[1] == str(path)
+    assert run.argv(path)[1] == str(path) and "robot" not in run.contact()      # the log's command
 
 
 def test_robot_given_as_a_path_expands_to_its_name_in_run_names(tmp_path, robot_dir):
@@ -309,4 +309,66 @@ def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path
     spec = load_spec(spec_path, out)
     todo, finished = plan(spec, out)
     assert sorted(finished) == ["quick3", "quick4"] and sorted(r.name for r in todo) == ["long5", "long6"]
-    assert "--resume" in _argv(spec.runs[3], out, out / "long6")     # continues from its checkpoint
+    assert resumes(spec.runs[3], out / "long6")                      # continues from its checkpoint
+
+
+def _options(parser) -> dict[str, object]:
+    """dest -> default of a parser's options (a test may read argparse's internals; of two
+    options with one dest, ``--symmetry`` / ``--no-symmetry``, the first sets the default)."""
+    out: dict[str, object] = {}
+    for a in parser._actions:
+        if a.option_strings and a.dest != "help":
+            out.setdefault(a.dest, a.default)
+    return out
+
+
+def _sub(parser, *words):
+    for word in words:
+        parser = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction").choices[word]
+    return parser
+
+
+@pytest.mark.parametrize("kind", ["optimize", "rl-train", "rl-evaluate", "evaluate"])
+def test_run_kinds_describe_the_options_of_their_command(kind):
+    """The sweep checks a run's options against the kinds' library-level description
+    (trajopt.sweep.kinds), not the command line; the two name the same options, and the
+    library functions the runs call take them with the command's defaults."""
+    import inspect
+    from trajopt.cli import build_parser
+    from trajopt.optimize_run import OPTIMIZE_OPTIONS, OptimizeRun
+    from trajopt.rl.options import TRAIN_OPTIONS, train_with_options
+    from trajopt.sweep.kinds import KINDS
+    desc = KINDS[kind]
+    command = _options(_sub(build_parser(), *desc.command))
+    assert set(desc.options) == set(command)
+    library = {"optimize": {f: getattr(OptimizeRun("tripod"), f) for f in OPTIMIZE_OPTIONS if f != "robot"},
+               "rl-train": {k: p.default for k, p in inspect.signature(train_with_options).parameters.items()
+                            if k in TRAIN_OPTIONS}}.get(kind)
+    if library is not None:
+        assert library == {k: (v if k != "hp" else ()) for k, v in command.items()}
+
+
+def test_a_spec_value_is_converted_as_the_command_line_converts_it(tmp_path):
+    spec = load_spec(write(tmp_path, tiny_block("v{speed}", 'speed = ["5.5"]')), tmp_path / "out")
+    assert spec.names() == ["v5.5"] and spec.runs[0].arguments()["speed"] == 5.5
+    with pytest.raises(ValueError, match=r"sweep.toml: runs\[0\] \(run 'x'\): argument symmetry: must be true or false"):
+        load_spec(write(tmp_path, tiny_block("x", "_k = [0]", extra="symmetry = 1\n")))
+
+
+@pytest.mark.rl
+def test_rl_runs_call_the_library_and_write_their_files(tmp_path):
+    """An rl-train run (tiny PPO, exported as a Result) and an rl-evaluate run of it, in this
+    process: their figures come from the files they wrote (policy.npz, evaluation.json)."""
+    pytest.importorskip("stable_baselines3")
+    hp = '["n_steps=32", "batch_size=32", "n_epochs=1", "policy_kwargs=dict(net_arch=[8])"]'
+    text = ('[[runs]]\nkind = "rl-train"\nname = "ppo"\n[runs.args]\nrobot = "tripod"\ntimesteps = 64\n'
+            f'n_envs = 1\nhp = {hp}\n'
+            '[[runs]]\nkind = "rl-evaluate"\nname = "ppo_eval"\n[runs.args]\nmodel = "{out}/ppo"\ncycles = 1\n')
+    out = tmp_path / "out"
+    outcome = run_sweep(load_spec(write(tmp_path, text), out), out, serial=True)
+    assert outcome.count("done") == 2, outcome.statuses
+    trained = outcome.statuses["ppo"]
+    assert trained["metrics"]["timesteps"] >= 64 and Result.load(out / "ppo" / "policy.npz").task == "rl"
+    assert trained["command"][:4] == ["trajopt", "rl", "train", "tripod"]
+    ev = json.loads((out / "ppo_eval" / "evaluation.json").read_text())
+    assert ev["cycles"] == 1 and ev["speed_bl_per_min"] == outcome.statuses["ppo_eval"]["metrics"]["speed_bl_per_min"]

@@ -7,7 +7,8 @@ a motor's mirror motor plays the same signal half a period later. The paper: 24 
 (168 steps, 5.5 s at h = 0.033 s), 4 keyframes, symmetric walks and an asymmetric turn. A gait is
 evaluated over :data:`DEFAULT_EVAL_CYCLES` cycles after the prep phase.
 
-The turn's default has :data:`TURN_KEYFRAMES` keyframes per cycle instead of 4: with 4, a leg
+A task changes these defaults (:attr:`trajopt.tasks.Task.gait_defaults`): the turn has
+:data:`~trajopt.tasks.TURN_KEYFRAMES` keyframes per cycle instead of 4: with 4, a leg
 makes one stride per 72-step cycle, and the Puppy cannot both walk and turn a quarter circle in
 two such strides (the optimised turn reached 43-56 degrees in 10 cycles); 12 keyframes let
 each leg make up to three strides per cycle, and the walk's 4 keyframes warm-start it as three strides
@@ -22,12 +23,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from .tasks import TASKS, TURN_KEYFRAMES
+
 __all__ = ["GaitSpec", "DEFAULT_EVAL_CYCLES", "TURN_KEYFRAMES"]
 
 #: cycles played after the prep phase when a gait is evaluated (speed in BL/min, upright)
 DEFAULT_EVAL_CYCLES = 6
-#: keyframes per cycle of the turn (task "turn"; the walk and incline keep the paper's 4)
-TURN_KEYFRAMES = 12
 
 
 @dataclass(frozen=True)
@@ -58,12 +59,14 @@ class GaitSpec:
 
     @classmethod
     def for_task(cls, task: str, *, symmetry: bool | None = None, **fields: Any) -> "GaitSpec":
-        """The gait of a task: symmetric unless ``task == "turn"`` (paper IV-B) when ``symmetry``
-        is None; the turn has :data:`TURN_KEYFRAMES` keyframes. ``fields`` that are not None
-        override the other defaults."""
-        defaults = {"n_keyframes": TURN_KEYFRAMES} if task == "turn" else {}
-        fields = defaults | {k: v for k, v in fields.items() if v is not None}
-        return cls(symmetry=(task != "turn") if symmetry is None else bool(symmetry), **fields)
+        """The gait of a task: the task's :attr:`~trajopt.tasks.Task.gait_defaults` over the
+        paper's (the turn: asymmetric, paper IV-B, with :data:`~trajopt.tasks.TURN_KEYFRAMES`
+        keyframes). ``symmetry`` and the ``fields`` that are not None override them."""
+        task_defaults = TASKS[task].gait_defaults if task in TASKS else {}
+        fields = dict(task_defaults) | {k: v for k, v in fields.items() if v is not None}
+        if symmetry is not None:
+            fields["symmetry"] = bool(symmetry)
+        return cls(**fields)
 
     def n_steps(self, n_cycles: int | None = None) -> int:
         """Simulation steps of the prep phase and ``n_cycles`` cycles (default ``self.n_cycles``)."""

@@ -28,13 +28,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .heading import HeadingMeasure
+from .tasks import TASKS, TURN_HEADING_WEIGHT
 
-__all__ = ["ObjectiveWeights", "HeadingTarget", "gait_residuals", "slack_eating_residual"]
-
-
-#: the turn's default heading weight (:meth:`ObjectiveWeights.for_task`): a heading error of
-#: 1 rad costs as much as a COM error of 1 body length (weights 0.1 and 0.3 turned less)
-TURN_HEADING_WEIGHT = 1.0
+__all__ = ["ObjectiveWeights", "HeadingTarget", "gait_residuals", "slack_eating_residual", "TURN_HEADING_WEIGHT"]
 
 
 @dataclass(frozen=True)
@@ -53,8 +49,9 @@ class ObjectiveWeights:
 
     @classmethod
     def for_task(cls, task: str) -> "ObjectiveWeights":
-        """The default weights of ``task``: the turn also tracks the heading."""
-        return cls(heading=TURN_HEADING_WEIGHT) if task == "turn" else cls()
+        """The default weights of ``task``: its :attr:`~trajopt.tasks.Task.weight_defaults` over
+        these (the turn also tracks the heading)."""
+        return cls(**TASKS[task].weight_defaults) if task in TASKS else cls()
 
 
 @dataclass(frozen=True)

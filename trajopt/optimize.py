@@ -5,10 +5,11 @@
 >>> result = optimize_gait(gym.make("SoftTripod-v0"), task="walk")
 >>> result.save("tripod_walk.npz")
 
-Tasks: ``"walk"`` (straight line at ``speed_bl_per_min`` along ``heading_deg``), ``"turn"``
-(quarter circle to the ``turn`` side; paper: symmetry off, warm-started from a walk),
-``"incline"`` (a walk on an environment whose gravity is rotated; the same objective), or a
-custom ``target`` array (K+1, 2).
+Tasks (:data:`trajopt.tasks.TASKS`): ``"walk"`` (straight line at ``speed_bl_per_min`` along
+``heading_deg``), ``"turn"`` (quarter circle to the ``turn`` side; paper: symmetry off,
+warm-started from a walk), ``"incline"`` (a walk on an environment whose gravity is rotated;
+the same objective), or a custom ``target`` array (K+1, 2). Each task gives its target, heading
+term, gait shape, weights and default contact law (:class:`trajopt.tasks.Task`).
 
 The steps, in order: :func:`build_problem` (parameterisation, target path, objective),
 :func:`choose_start` (resume, given z0, or the best of the warm start and the seeds),
@@ -33,16 +34,15 @@ from .objectives import HeadingTarget, ObjectiveWeights, gait_residuals
 from .parameterization import GaitParameterization
 from .results import Result
 from .robot_match import describe_difference, fingerprint_of
-from .targets import bl_per_min_to_mps, from_array, quarter_circle, quarter_circle_heading, straight_line
+from .targets import bl_per_min_to_mps, from_array
+from .tasks import TASKS, Task, get_task
 
 __all__ = ["optimize_gait", "GaitProblem", "Start", "Recorder", "build_problem", "choose_start", "check_resume",
            "finish", "DEFAULT_SPEED", "TASKS", "TASK_CONTACT"]
 
-TASKS = ("walk", "turn", "incline", "custom")
-#: the contact law a task runs on when none is chosen (None: the robot file's). The turn pivots
-#: on feet that stick, which the paper's viscous-like friction cannot hold: with it the Puppy
-#: turns 36 degrees per cycle (74 over the horizon), with the Coulomb law 43 (89; the README's turn row)
-TASK_CONTACT = {"turn": "coulomb"}
+#: the contact law a task runs on when none is chosen (absent: the robot file's):
+#: :attr:`trajopt.tasks.Task.contact` of each task (the turn's Coulomb: the README's turn row)
+TASK_CONTACT = {name: t.contact for name, t in TASKS.items() if t.contact is not None}
 #: default target speeds [BL/min], a little above the paper's Table I (Tripod 6.1, Puppy 8.6)
 DEFAULT_SPEED = {"tripod": 8.0, "puppy": 10.0}
 #: the settings a resumed run must share with the interrupted one (besides the task)
@@ -101,18 +101,14 @@ class Start:
 
 
 # ---------------------------------------------------------------------- 1. the problem
-def _target_path(task: str, env: GradientEnv, n_steps: int, speed: float, heading_deg: float, turn: str,
+def _target_path(task: Task, env: GradientEnv, n_steps: int, speed: float, heading_deg: float, turn: str,
                  target) -> np.ndarray:
+    if target is not None:
+        return from_array(target, n_steps)
     x0, _ = env.reset_state()
     start = env.robot.com(x0)[[0, 2]]
     v = bl_per_min_to_mps(speed, env.robot.body_length)
-    if target is not None:
-        return from_array(target, n_steps)
-    if task in ("walk", "incline"):
-        return straight_line(start, n_steps, env.timestep, v, heading_deg)
-    if task == "turn":
-        return quarter_circle(start, n_steps, env.timestep, v, heading_deg, direction=turn)
-    raise ValueError(f"task must be one of {TASKS} (or give target=...), got {task!r}")
+    return task.target_path(start, n_steps, env.timestep, v, heading_deg, turn)
 
 
 def build_problem(env: GradientEnv, task: str, gait: GaitSpec, *, speed_bl_per_min: float, heading_deg: float,
@@ -121,12 +117,14 @@ def build_problem(env: GradientEnv, task: str, gait: GaitSpec, *, speed_bl_per_m
     target COM path at ``speed_bl_per_min`` along ``heading_deg`` (or ``target``), the
     objective's ``weights``."""
     param = GaitParameterization.for_robot(env.robot, gait)
-    path = _target_path(task, env, param.n_steps(), speed_bl_per_min, heading_deg, turn, target)
+    the_task = get_task(task)
+    path = _target_path(the_task, env, param.n_steps(), speed_bl_per_min, heading_deg, turn, target)
     heading = None
-    if task == "turn" and target is None:       # the body turns as the arc does, from where it faces
-        v = bl_per_min_to_mps(speed_bl_per_min, env.robot.body_length)
+    v = bl_per_min_to_mps(speed_bl_per_min, env.robot.body_length)
+    yaw = the_task.target_heading(param.n_steps(), env.timestep, v, turn) if target is None else None
+    if yaw is not None:                  # e.g. the turn: the body turns as the arc does, from where it faces
         measure = HeadingMeasure(env.reset_state()[0], env.robot.node_masses)
-        heading = HeadingTarget(measure, quarter_circle_heading(param.n_steps(), env.timestep, v, 0.0, turn))
+        heading = HeadingTarget(measure, yaw)
     return GaitProblem(env, param, path, weights, heading)
 
 
@@ -272,10 +270,10 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
 
     ``env``: a Gymnasium env offering :class:`~soft_envs.envs.GradientEnv` (its contact law is
     used), or a robot / name / robot.toml path (:func:`~soft_envs.envs.make_gradient_env`, with
-    the task's contact law :data:`TASK_CONTACT`: Coulomb for the turn, else the robot file's).
+    the task's contact law :attr:`trajopt.tasks.Task.contact`: Coulomb for the turn, else the robot file's).
     ``gait``: the control trajectory's shape; default ``GaitSpec.for_task(task)``, the paper's
     24 + 2 x 72 steps and 4 keyframes, symmetric except for the turn (paper IV-B), which has 12
-    keyframes (:data:`~trajopt.gait.TURN_KEYFRAMES`). ``weights``: default
+    keyframes (:data:`~trajopt.tasks.TURN_KEYFRAMES`). ``weights``: default
     ``ObjectiveWeights.for_task(task)`` (the turn also tracks the body's heading).
     ``warm_start``: another result whose keyframes are a starting candidate (e.g. turn from walk;
     symmetric and asymmetric parameterisations are converted, and 4 keyframes repeated to 12). The
@@ -286,11 +284,10 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
     ``callback(entry, partial_result)`` runs after each Gauss-Newton iteration (checkpointing,
     progress); returning True stops the optimisation.
     """
-    if task not in TASKS:
-        raise ValueError(f"task must be one of {TASKS}, got {task!r}")
-    if task == "custom" and target is None:
-        raise ValueError("task='custom' needs a target array")
-    env = as_gradient_env(env, contact=TASK_CONTACT.get(task))
+    the_task = get_task(task)
+    if the_task.needs_target and target is None:
+        raise ValueError(f"task={task!r} needs a target array")
+    env = as_gradient_env(env, contact=the_task.contact)
     if eval_cycles < 1:
         raise ValueError(f"eval_cycles must be >= 1, got {eval_cycles}")
     robot = env.robot

@@ -35,6 +35,7 @@ import numpy as np
 from .files import atomic_write_bytes
 from .gait import GaitSpec
 from .result_checks import check_controls
+from .tasks import speed_along_path
 
 __all__ = ["Result", "ResultFileWarning", "atomic_write_bytes", "result_path", "partial_path", "FORMAT_VERSION"]
 
@@ -83,14 +84,14 @@ class Result:
     """A gait.
 
     robot : shipped robot name or path of its robot.toml.
-    task : "walk" | "turn" | "incline" | "custom" | "rl".
+    task : a task of :data:`trajopt.tasks.TASKS` ("walk", "turn", "incline", "custom"), or "rl".
     motor_names, dt : controls' columns and the simulation time step [s] (one row of u per step).
     z : parameters (keyframes); u : (K, n_motors) optimised controls (prep + 2 cycles) [m];
     u_post : the zero-slack controls (paper III-B-2), what hardware plays.
     target : (K+1, 2) target horizontal COM path; com : (K+1, 3) simulated COM.
     settings : everything that made it (parameterisation, weights, incline, speed ...).
     history : one dict per Gauss-Newton iteration. evaluation : see trajopt.evaluation.
-    status : how the run ended (:data:`trajopt.commands.STATUS_MEANING`); "running" or
+    status : how the run ended (:data:`trajopt.cli.commands.STATUS_MEANING`); "running" or
     "interrupted" for a checkpoint.
     robot_fingerprint : the robot it was made for (:func:`trajopt.robot_match.fingerprint_of`);
     empty for robots built in Python and for files of older versions.
@@ -247,7 +248,7 @@ class Result:
         parts = [f"{self.robot} {self.task}", f"{len(self.u)} steps x {len(self.motor_names)} motors"]
         if "sim_failure" in ev:
             parts.append(f"its evaluation's simulation failed ({ev['sim_failure']})")
-        elif self.task == "turn" and ev.get("cycle_path_speed_bl_per_min") is not None:
+        elif speed_along_path(self.task) and ev.get("cycle_path_speed_bl_per_min") is not None:
             parts.append(f"{ev['cycle_path_speed_bl_per_min']:.2f} BL/min along its path "
                          f"over {ev.get('cycles')} cycles")
             parts.append("upright" if ev.get("upright") else "FELL")

@@ -1,5 +1,6 @@
-"""``trajopt robustness``: the run (resumable), its files and its plot. The replays themselves are
-:mod:`trajopt.robustness`.
+"""A robustness study (``trajopt robustness``, whose printing is :mod:`trajopt.cli.robustness_command`):
+the run (resumable, :func:`run_robustness_study`), its files and its plot. The replays
+themselves are :mod:`trajopt.robustness`.
 
 ``DIR/settings.json`` (the gait file's hash, cycles, seed, ranges), ``DIR/samples.jsonl`` (one
 line per finished sample, appended as they finish), ``DIR/report.json`` and ``DIR/samples.csv``
@@ -27,7 +28,7 @@ from .results import Result, atomic_write_bytes
 from .robustness import (DERIVED_NAMES, PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample,
                          summarize)
 
-__all__ = ["run_robustness", "plot_robustness", "robustness_jobs"]
+__all__ = ["run_robustness_study", "plot_robustness", "robustness_jobs"]
 
 
 def robustness_jobs(res: Result, cycles: int, samples: int, seed: int) -> tuple[SampleJob, list[SampleJob]]:
@@ -177,26 +178,31 @@ def _write_csv(path: Path, samples: list[dict]) -> None:
     atomic_write_bytes(path, buf.getvalue().encode())
 
 
-def run_robustness(args) -> int:
+def run_robustness_study(result: str | os.PathLike, out: str | os.PathLike, *, samples: int = 32, cycles: int = 4,
+                         seed: int = 0, workers: int = 1, overwrite: bool = False) -> tuple[dict[str, Any], list[Path]]:
+    """Replay the gait of the result file ``result`` ``samples`` times under perturbations for
+    ``cycles`` cycles and write the study to ``out`` (see the module docstring): ``(report,
+    files written)``. Resumes the samples of a study with the same settings there (``overwrite``:
+    discard them); a second study into the same ``out`` is refused while this one runs."""
     from .reservation import reserve       # a second study into the same --out is refused (issue #26 item 2)
-    with reserve(Path(args.out) / "robustness.lock", f"robustness folder {args.out}"):
-        return _run_robustness(args)
+    with reserve(Path(out) / "robustness.lock", f"robustness folder {out}"):
+        return _run_study(Path(result), Path(out), samples, cycles, seed, workers, overwrite)
 
 
-def _run_robustness(args) -> int:
-    res = Result.load(args.result)
-    nominal_job, jobs = robustness_jobs(res, args.cycles, args.samples, args.seed)
-    out = Path(args.out)
-    settings = _settings(Path(args.result), args.cycles, args.seed)
-    if getattr(args, "overwrite", False):      # a new run from scratch: its samples replace the old ones
+def _run_study(result: Path, out: Path, samples: int, cycles: int, seed: int, workers: int,
+               overwrite: bool) -> tuple[dict[str, Any], list[Path]]:
+    res = Result.load(result)
+    nominal_job, jobs = robustness_jobs(res, cycles, samples, seed)
+    settings = _settings(result, cycles, seed)
+    if overwrite:      # a new run from scratch: its samples replace the old ones
         (out / "samples.jsonl").unlink(missing_ok=True)
         (out / "settings.json").unlink(missing_ok=True)
     done = _done_samples(out, settings)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(out / "settings.json", json.dumps(settings, indent=1).encode())
     todo = [j for j in jobs if j.index not in done]
-    results, where = map_samples(todo, getattr(args, "workers", 1))
-    print(f"{res.summary()}\n{len(jobs)} replays of {args.cycles} cycles ({len(jobs) - len(todo)} done before), "
+    results, where = map_samples(todo, workers)
+    print(f"{res.summary()}\n{len(jobs)} replays of {cycles} cycles ({len(jobs) - len(todo)} done before), "
           f"running {where}")
     nominal = run_sample(nominal_job)
     from tqdm import tqdm
@@ -204,21 +210,10 @@ def _run_robustness(args) -> int:
                        disable=not sys.stderr.isatty()):
         done[sample["index"]] = sample
         _append(out / "samples.jsonl", sample)
-    samples = [done[j.index] for j in jobs]
-    report = summarize(nominal, samples)
-    report.update(result=str(args.result), cycles=args.cycles, seed=args.seed, backend=where)
+    samples_done = [done[j.index] for j in jobs]
+    report = summarize(nominal, samples_done)
+    report.update(result=str(result), cycles=cycles, seed=seed, backend=where)
     atomic_write_bytes(out / "report.json", json.dumps(report, indent=1).encode())
-    _write_csv(out / "samples.csv", samples)
-    png = plot_robustness(report, samples, out / "robustness.png")
-    q, d = report["speed_bl_per_min"], report["heading_drift_deg_per_cycle"]
-    print(f"  nominal speed      {report['nominal'].get('speed_bl_per_min', float('nan')):.2f} BL/min "
-          f"(upright {report['nominal'].get('upright')})")
-    print(f"  perturbed speed    median {q['median']:.2f}, 5th-95th percentile {q['p5']:.2f} - {q['p95']:.2f} BL/min")
-    print(f"  upright            {100 * report['upright_fraction']:.0f} % of {len(samples)} "
-          f"({report['failed']} failed)")
-    print(f"  heading drift      median {d['median_abs']:.2f}, 95th percentile {d['p95_abs']:.2f} deg/cycle")
-    for w in report["worst"]:
-        keys = ", ".join(f"{k} {w[k]:.3g}" for k in PERTURBATIONS)
-        print(f"  worst: sample {w['index']}: {w['speed_bl_per_min']:.2f} BL/min, upright {w['upright']}: {keys}")
-    print(f"wrote {out / 'report.json'}, {out / 'samples.csv'}, {png}")
-    return 0
+    _write_csv(out / "samples.csv", samples_done)
+    png = plot_robustness(report, samples_done, out / "robustness.png")
+    return report, [out / "report.json", out / "samples.csv", png]

@@ -7,7 +7,8 @@
   which stops were confirmed (read back) and which were not;
 * :class:`Terminated` -- what SIGTERM / SIGHUP raise during a playback (after its stop sequence);
 * :class:`RoboClawEmulator` -- pty-based emulated controllers for tests and demos (POSIX);
-* :func:`add_play_parser` / :func:`run_play` -- the ``trajopt play`` sub-command.
+* :func:`add_play_parser` / :func:`run_play` -- the ``trajopt play`` sub-command (its home is
+  :mod:`trajopt.cli.play`; loaded from there on first use).
 
 Importing this package does not need pyserial; opening a port without it raises
 ``ImportError("... pip install soft-envs[hardware]")``.
@@ -17,7 +18,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from .cli import add_play_parser, run_play
 from .config import (
     DEFAULT_COUNTS_PER_REV,
     EXAMPLE_PUPPY,
@@ -63,7 +63,11 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    """Import the emulator lazily (it needs POSIX ptys)."""
+    """Import the emulator lazily (it needs POSIX ptys), and the command line's play hook."""
+    if name in ("add_play_parser", "run_play"):
+        from ..cli import play
+
+        return getattr(play, name)
     if name == "RoboClawEmulator":
         from .emulator import RoboClawEmulator
 

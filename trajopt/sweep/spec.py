@@ -19,8 +19,9 @@ A sweep file lists blocks of runs; each block has a kind, fixed arguments, a par
     [runs.quick]                       # replaces arguments with --quick or SOFT_ENVS_QUICK=1
     iterations = 1
 
-Arguments are the options of the command the kind runs (``trajopt optimize``, ``trajopt rl
-train``, ``trajopt rl evaluate``, ``trajopt evaluate``), spelt with ``-`` or ``_``
+Arguments are the options of the kind (:data:`trajopt.sweep.kinds.KINDS`: those of the command
+doing the same, ``trajopt optimize``, ``trajopt rl train``, ``trajopt rl evaluate``, ``trajopt
+evaluate``; a run calls the library, not the command), spelt with ``-`` or ``_``
 (``cycle_steps``); ``true``/``false`` for flags (``symmetry = false`` is ``--no-symmetry``), a
 list for a repeatable option (``hp = ["gamma=0.95"]``); the positional argument by its name
 (``robot``, ``model``, ``result``). Optimisations also take ``contact_<field>`` (``stiffness``,
@@ -37,7 +38,6 @@ not UTF-8: the byte offset).
 """
 from __future__ import annotations
 
-import functools
 import itertools
 import os
 import re
@@ -48,18 +48,10 @@ from pathlib import Path
 from typing import Any
 
 from ..files import decode_utf8
+from .kinds import KINDS
 
 __all__ = ["KINDS", "Run", "SweepSpec", "load_spec", "quick_requested"]
 
-#: kind -> (trajopt sub-command words, positional argument, options the sweep sets itself)
-KINDS: dict[str, tuple[tuple[str, ...], str, frozenset[str]]] = {
-    "optimize": (("optimize",), "robot", frozenset({"out", "name", "quiet", "resume"})),
-    "rl-train": (("rl", "train"), "robot", frozenset({"out", "name", "no_progress", "overwrite", "verbose"})),
-    "rl-evaluate": (("rl", "evaluate"), "model", frozenset({"json"})),
-    "evaluate": (("evaluate",), "result", frozenset({"json"})),
-}
-#: evaluations start once every producing run (phase 0) has ended
-PHASE = {"optimize": 0, "rl-train": 0, "rl-evaluate": 1, "evaluate": 1}
 CONTACT_PREFIX = "contact_"
 _BLOCK_KEYS = {"kind", "name", "cpus", "args", "grid", "quick", "export", "evaluate_checkpoints"}
 _NAME_OK = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+=-]*$")
@@ -84,16 +76,23 @@ class Run:
 
     @property
     def phase(self) -> int:
-        return PHASE[self.kind]
+        return KINDS[self.kind].phase
 
     def contact(self) -> dict[str, Any]:
         return {k[len(CONTACT_PREFIX):]: v for k, v in self.params.items() if k.startswith(CONTACT_PREFIX)}
 
+    def arguments(self) -> dict[str, Any]:
+        """The run's arguments, checked and converted as the command line converts its text
+        (:meth:`trajopt.sweep.kinds.RunKind.values`; no ``_template`` or ``contact_*`` keys)."""
+        return KINDS[self.kind].values(self.params)
+
     def argv(self, robot_file: Path | None = None) -> list[str]:
-        """The ``trajopt`` arguments of this run without the sweep's own options (those are
-        added by :mod:`trajopt.sweep.task`). ``robot_file`` replaces the robot (a derived
-        robot.toml with the contact parameters)."""
-        words, positional, _ = KINDS[self.kind]
+        """The ``trajopt`` command line doing what this run does, without the sweep's own
+        options (for the run's log and ``--dry-run``; the run itself calls the library,
+        :mod:`trajopt.sweep.task`). ``robot_file`` replaces the robot (a derived robot.toml
+        with the contact parameters)."""
+        kind = KINDS[self.kind]
+        words, positional = kind.command, kind.positional
         args = list(words)
         params = dict(self.params)
         if robot_file is not None:
@@ -146,34 +145,10 @@ def _table(block: dict, key: str, where: str) -> dict[str, Any]:
     return t
 
 
-@functools.lru_cache(maxsize=None)
-def _parsers(kind: str):
-    """The argparse parser of the command ``kind`` runs (its errors raise :class:`_ArgError`)."""
-    from ..cli import build_parser
-    parser = build_parser()
-    for word in KINDS[kind][0]:
-        sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
-        if word not in sub.choices:
-            raise ValueError(f"kind {kind!r} needs 'trajopt {' '.join(KINDS[kind][0])}', which is "
-                             "not available here (pip install soft-envs[rl] for the RL kinds)")
-        parser = sub.choices[word]
-    parser.error = _raise                                   # type: ignore[method-assign]
-    return parser
-
-
-class _ArgError(Exception):
-    pass
-
-
-def _raise(message: str):
-    raise _ArgError(message)
-
-
-def _validate_argv(run: Run, where: str) -> None:
-    parser = _parsers(run.kind)
-    known = {_norm(a.dest) for a in parser._actions} | {_norm(o.lstrip("-")) for a in parser._actions
-                                                        for o in a.option_strings}
-    _, positional, reserved = KINDS[run.kind]
+def _validate(run: Run, where: str) -> None:
+    """Every parameter of ``run`` is an option of its kind with a valid value (the kind's
+    library-level description, :data:`trajopt.sweep.kinds.KINDS`)."""
+    kind = KINDS[run.kind]
     for key in run.params:
         if key.startswith("_"):
             continue
@@ -181,18 +156,16 @@ def _validate_argv(run: Run, where: str) -> None:
             if run.kind != "optimize":
                 raise ValueError(f"{where}: {key} (contact parameters) applies to kind 'optimize' only")
             continue
-        if key in reserved:
+        if key in kind.reserved:
             raise ValueError(f"{where}: argument {key!r} is set by the sweep itself; remove it")
-        if key not in known or key == "help":
-            opts = sorted(_norm(o.lstrip('-')) for a in parser._actions for o in a.option_strings
-                          if o.startswith("--") and _norm(o.lstrip('-')) not in reserved | {"help"})
+        if key != kind.positional and key not in kind.options:
             raise ValueError(f"{where}: unknown argument {key!r} for kind {run.kind!r} "
-                             f"(allowed: {positional}, {', '.join(opts)}, contact_<field> for optimize)")
-    if positional not in run.params:
-        raise ValueError(f"{where}: argument {positional!r} is missing (in args or grid)")
+                             f"(allowed: {kind.positional}, {', '.join(kind.allowed())}, contact_<field> for optimize)")
+    if kind.positional not in run.params:
+        raise ValueError(f"{where}: argument {kind.positional!r} is missing (in args or grid)")
     try:
-        parser.parse_args(run.argv()[len(KINDS[run.kind][0]):])
-    except _ArgError as exc:
+        run.arguments()
+    except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
 
 
@@ -294,7 +267,7 @@ def _expand_block(block: Any, index: int, src: str, base: Path, quick: bool, out
                 params[k] = _format(v, values, where, f"args.{k}")
         _resolve_paths(params, base)
         run = Run(name=name, kind=kind, params=params, cpus=cpus, options=dict(options), source=where)
-        _validate_argv(run, f"{where} (run {name!r})")
+        _validate(run, f"{where} (run {name!r})")
         runs.append(run)
     return runs
 

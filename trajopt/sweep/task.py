@@ -1,16 +1,18 @@
 """One run of a sweep, as a Ray task executes it (or in-process with ``--serial``).
 
-:func:`execute` runs the same code path as the single command (``trajopt.cli.main`` with the
-run's arguments, ``--out DIR/<run>``), its output going to ``DIR/<run>/log.txt``, and keeps
-``DIR/<run>/status.json`` (atomic writes) up to date: ``running`` when it starts, then
-``done``, ``failed`` (with the reason) or ``interrupted``. A rerun of an interrupted
-optimisation continues from its last Gauss-Newton checkpoint (``trajopt optimize --resume``);
-an interrupted RL training starts again.
+:func:`execute` calls the library function of the run's kind (:mod:`trajopt.sweep.kinds`:
+:func:`~trajopt.optimize_run.run_optimization`, :func:`~trajopt.rl.options.train_with_options`,
+:func:`~trajopt.evaluation.evaluate_result`, :func:`~trajopt.rl.evaluate.evaluate_policy_metric`)
+with the run's arguments and ``DIR/<run>`` as its folder, its output going to
+``DIR/<run>/log.txt``, and keeps ``DIR/<run>/status.json`` (atomic writes) up to date:
+``running`` when it starts, then ``done``, ``failed`` (with the reason) or ``interrupted``.
+The figures of a finished run are read from the files it wrote (a :class:`~trajopt.results.Result`,
+the RL run's config, ``evaluation.json``). A rerun of an interrupted optimisation continues
+from its last Gauss-Newton checkpoint (``resume``); an interrupted RL training starts again.
 """
 from __future__ import annotations
 
 import contextlib
-import io
 import json
 import os
 import platform
@@ -20,10 +22,11 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+from ..gait import DEFAULT_EVAL_CYCLES
 from ..results import Result, atomic_write_bytes, partial_path
 from .spec import Run
 
-__all__ = ["execute", "read_status", "write_status", "recover_status", "result_present", "check_run",
+__all__ = ["execute", "read_status", "write_status", "recover_status", "result_present", "check_run", "resumes",
            "STATUS_NAME", "LOG_NAME", "result_path"]
 
 STATUS_NAME = "status.json"
@@ -79,7 +82,7 @@ def recover_status(run: Run, run_dir: Path) -> dict[str, Any] | None:
             res = Result.load(result_path(run, run_dir))
             if res.status in ("running", "interrupted"):
                 return None
-            metrics = _metrics(run, run_dir, "")
+            metrics = _metrics(run, run_dir)
         elif run.kind == "rl-train":
             from ..rl.training import CONFIG_NAME
             cfg = json.loads((run_dir / CONFIG_NAME).read_text())
@@ -118,20 +121,6 @@ def check_run(run: Run) -> None:
         raise ValueError(f"{run.source} (run {run.name!r}): {str(exc).strip().splitlines()[0]}") from None
 
 
-class _Tee(io.TextIOBase):
-    def __init__(self, *streams):
-        self._streams = streams
-
-    def write(self, s: str) -> int:
-        for st in self._streams:
-            st.write(s)
-        return len(s)
-
-    def flush(self) -> None:
-        for st in self._streams:
-            st.flush()
-
-
 def _derived_robot(run: Run, run_dir: Path) -> Path:
     """A copy of the run's robot.toml with its [contact] fields replaced (mesh path made
     absolute), written to ``run_dir/robot.toml``."""
@@ -158,6 +147,12 @@ def _derived_robot(run: Run, run_dir: Path) -> Path:
     return path
 
 
+def resumes(run: Run, run_dir: Path) -> bool:
+    """Whether ``run`` continues from a checkpoint in ``run_dir`` (an interrupted or killed
+    optimisation left its ``NAME.partial.npz``)."""
+    return run.kind == "optimize" and _resumable(partial_path(result_path(run, run_dir)))
+
+
 def _resumable(path: Path) -> bool:
     """An optimisation checkpoint (``NAME.partial.npz``) left by an interrupted or killed run."""
     meta = path.with_suffix(".json")
@@ -167,23 +162,43 @@ def _resumable(path: Path) -> bool:
         return False
 
 
-def _argv(run: Run, out: Path, run_dir: Path) -> list[str]:
-    robot_file = _derived_robot(run, run_dir) if run.contact() else None
-    argv = run.argv(robot_file)
+def _call(run: Run, out: Path, run_dir: Path, robot_file: Path | None = None) -> None:
+    """Run ``run`` through the library function of its kind; its files go to ``run_dir``
+    (an RL run's to ``out/<run>``, the same folder). ``robot_file`` replaces the robot (the
+    copy with the run's contact parameters, :func:`_derived_robot`)."""
+    args = run.arguments()
+    if robot_file is not None:
+        args["robot"] = str(robot_file)
     if run.kind == "optimize":
-        argv += ["--out", str(run_dir), "--name", run.name, "--quiet"]
-        if _resumable(partial_path(result_path(run, run_dir))):
-            argv.append("--resume")
+        from ..optimize_run import OptimizeRun, run_optimization
+        run_optimization(OptimizeRun.from_mapping({**args, "out": run_dir, "name": run.name, "quiet": True,
+                                                   "resume": resumes(run, run_dir)}))
     elif run.kind == "rl-train":
-        argv += ["--out", str(out), "--name", run.name, "--no-progress", "--overwrite"]
-        if "n_envs" not in run.params:
-            argv += ["--n-envs", str(run.cpus)]
-    elif run.kind in ("rl-evaluate", "evaluate"):
-        argv.append("--json")
-    return argv
+        from ..rl.options import train_with_options
+        args.setdefault("n_envs", run.cpus)
+        train_run = train_with_options(args.pop("robot"), **{**args, "out": out, "name": run.name,
+                                                             "no_progress": True, "overwrite": True})
+        if train_run.status == "interrupted":
+            raise KeyboardInterrupt
+    elif run.kind == "rl-evaluate":
+        from ..rl.evaluate import evaluate_policy_metric, load_policy
+        ev = evaluate_policy_metric(load_policy(args["model"]), n_cycles=args.get("cycles", DEFAULT_EVAL_CYCLES),
+                                    seed=args.get("seed", 0), reset_noise_scale=args.get("reset_noise", 0.0))
+        _write_evaluation(run_dir, ev)
+    else:
+        from ..evaluation import evaluate_result
+        ev = evaluate_result(Result.load(args["result"]), args.get("cycles"),
+                             ignore_robot_mismatch=args.get("ignore_robot_mismatch", False))
+        _write_evaluation(run_dir, ev)
 
 
-def _metrics(run: Run, run_dir: Path, stdout: str) -> dict[str, Any]:
+def _write_evaluation(run_dir: Path, ev: dict[str, Any]) -> None:
+    """An evaluation as ``evaluation.json`` (what ``--json`` prints: all but the COM path)."""
+    text = json.dumps({k: v for k, v in ev.items() if k != "com"}, indent=1, allow_nan=True)
+    atomic_write_bytes(run_dir / EVALUATION_NAME, text.encode())
+
+
+def _metrics(run: Run, run_dir: Path) -> dict[str, Any]:
     """The figures the summary shows, read from the files the run wrote."""
     m: dict[str, Any] = {}
     if run.kind == "optimize":
@@ -205,13 +220,8 @@ def _metrics(run: Run, run_dir: Path, stdout: str) -> dict[str, Any]:
                      result=str(run_dir / POLICY_RESULT))
         if run.options.get("evaluate_checkpoints"):
             m["curve"] = _checkpoint_curve(run_dir, int(cfg["env"]["frame_skip"]))
-    elif run.kind == "rl-evaluate":
-        ev = json.loads(stdout[stdout.index("{"):])
-        atomic_write_bytes(run_dir / EVALUATION_NAME, json.dumps(ev, indent=1).encode())
-        m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"))
-    else:                                                  # evaluate --json: one JSON object
-        ev = json.loads(stdout[stdout.index("{"):])
-        atomic_write_bytes(run_dir / EVALUATION_NAME, json.dumps(ev, indent=1).encode())
+    else:                                                  # evaluate, rl-evaluate: evaluation.json
+        ev = json.loads((run_dir / EVALUATION_NAME).read_text())
         m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"))
     return m
 
@@ -229,15 +239,22 @@ def _checkpoint_curve(run_dir: Path, frame_skip: int) -> list[list[float]]:
 
 
 def _reason(exc: BaseException) -> str:
+    """One line: the message of a bad input (ValueError, OSError: what the command prints after
+    ``trajopt: error:``), else the exception's type and first line."""
     text = str(exc).strip().splitlines()
-    return f"{type(exc).__name__}: {text[0] if text else ''}".strip()
+    first = text[0] if text else ""
+    if isinstance(exc, (ValueError, OSError)) and first:
+        return first
+    from soft_envs.envs import SimulationError
+    if isinstance(exc, SimulationError):
+        return f"simulation failed: {first}"
+    return f"{type(exc).__name__}: {first}".strip()
 
 
 def execute(run: Run, out: str | os.PathLike, threads: int | None = None) -> dict[str, Any]:
     """Run ``run`` under ``out/run.name`` and return its final status (also in status.json).
     ``threads``: cap the compute threads of this process (default: the run's CPUs)."""
     from soft_envs.envs.threads import limit_threads
-    from ..cli import main as trajopt_main
 
     out = Path(out)
     run_dir = out / run.name
@@ -252,39 +269,29 @@ def execute(run: Run, out: str | os.PathLike, threads: int | None = None) -> dic
     run_dir.mkdir(parents=True, exist_ok=True)
     write_status(run_dir, status)
     limit_threads(threads or run.cpus)
-    out_buf, err_buf = io.StringIO(), io.StringIO()
-    code: int | None = None
     try:
         with open(run_dir / LOG_NAME, "a") as log:
             log.write(f"\n=== {time.strftime('%Y-%m-%d %H:%M:%S')} on {platform.node()} (pid {os.getpid()})\n")
             try:
-                argv = _argv(run, out, run_dir)
-                status["argv"] = ["trajopt", *argv]
-                log.write("$ trajopt " + " ".join(argv) + "\n")
+                robot_file = _derived_robot(run, run_dir) if run.contact() else None
+                command = ["trajopt", *run.argv(robot_file)]     # what does the same from a shell
+                status["command"] = command
+                log.write("$ " + " ".join(command) + "\n")
                 log.flush()
-                with contextlib.redirect_stdout(_Tee(log, out_buf)), contextlib.redirect_stderr(_Tee(log, err_buf)):
-                    saved_argv, sys.argv = sys.argv, ["trajopt", *argv]   # the command a reservation records
+                with contextlib.redirect_stdout(log), contextlib.redirect_stderr(log):
+                    saved_argv, sys.argv = sys.argv, command   # the command a reservation records
                     try:
-                        code = int(trajopt_main(argv) or 0)
-                    except SystemExit as exc:       # argparse (the spec was checked, so rare)
-                        code = exc.code if isinstance(exc.code, int) else 2
+                        _call(run, out, run_dir, robot_file)
                     finally:
                         sys.argv = saved_argv
-                if code == 130:
-                    status.update(status="interrupted", reason="interrupted (Ctrl-C or cancelled)")
-                elif code not in (0, 1) or (code == 1 and run.kind not in ("evaluate", "rl-evaluate")):
-                    lines = [ln for ln in err_buf.getvalue().splitlines() if ln.strip()]
-                    reason = lines[-1] if lines else f"exit code {code}"
-                    status.update(status="failed", reason=reason.removeprefix("trajopt: error: "))
-                else:
-                    status.update(status="done", metrics=_metrics(run, run_dir, out_buf.getvalue()))
+                status.update(status="done", metrics=_metrics(run, run_dir))
             except KeyboardInterrupt:
                 status.update(status="interrupted", reason="interrupted (Ctrl-C or cancelled)")
             except Exception as exc:                # SimulationError, bad files, bugs: recorded
                 traceback.print_exc(file=log)
                 status.update(status="failed", reason=_reason(exc))
     finally:
-        status.update(exit_code=code, finished=time.time(), wall_time_s=time.time() - t0,
+        status.update(finished=time.time(), wall_time_s=time.time() - t0,
                       cpu_time_s=time.process_time() - cpu0)     # this process (not its subprocesses)
         if status["status"] == "running":           # left by a BaseException we do not handle
             status.update(status="interrupted", reason="stopped before the run ended")

@@ -15,6 +15,8 @@
     trajopt calibrate tripod --markers examples/data/tripod_tracks.csv --controls examples/data/tripod_gait.npz --marker-points examples/data/tripod_markers.csv --fit youngs_modulus --out results/calib
     trajopt robustness results/tripod_walk.npz --samples 64 --cycles 4 --out results/robustness [--overwrite]
 
+The package holds the command line only (parsing, printing, exit codes): each command calls
+library functions (optimize_run, evaluation, replay, robustness_report, sweep, rl, hardware).
 Everything the commands write goes under results/ by default (RESULTS_DIR). A file that exists
 is never replaced without --overwrite; a result is only used with the robot it was made for
 (--ignore-robot-mismatch overrides). Bad arguments end in one line naming them, exit code 2.
@@ -26,12 +28,11 @@ import sys
 import warnings
 from pathlib import Path
 
-import numpy as np
-
-from .argtypes import (cycles, file_name, frame_size, integer, number, output_dir, output_file, positive_float,
+from ..argtypes import (cycles, file_name, frame_size, integer, number, output_dir, output_file, positive_float,
                        positive_int, slope_deg, steps)
-from .files import RESULTS_DIR
-from .gait import DEFAULT_EVAL_CYCLES, TURN_KEYFRAMES, GaitSpec
+from ..files import RESULTS_DIR
+from ..gait import DEFAULT_EVAL_CYCLES, GaitSpec
+from ..tasks import TURN_KEYFRAMES, command_line_tasks
 
 __all__ = ["main", "build_parser", "RESULTS_DIR"]
 
@@ -42,7 +43,9 @@ _OVERWRITE_HELP = "replace existing output files"
 def _add_optimize(sub) -> None:
     p = sub.add_parser("optimize", help="optimise a gait (paper III) and save a result")
     p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
-    p.add_argument("--task", choices=["walk", "turn", "incline"], default="walk")
+    p.add_argument("--task", choices=command_line_tasks(), default="walk",
+                   help="what the gait does (trajopt.tasks): walk straight, turn a quarter circle, incline: walk "
+                        "up the --angle slope")
     p.add_argument("--speed", type=positive_float, default=None, help="target speed [body lengths/min]")
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--turn", choices=["right", "left"], default="right", help="turn direction (task turn)")
@@ -154,7 +157,7 @@ def _add_robot_commands(sub) -> None:
     p.add_argument("--no-picture", action="store_true", help="do not draw")
     p.set_defaults(func=_cmd_check)
 def _add_sweep(sub) -> None:
-    from .sweep.cli import add_sweep_parser     # imports Ray only when a sweep runs
+    from .sweep import add_sweep_parser     # imports Ray only when a sweep runs
     add_sweep_parser(sub)
 
 
@@ -205,12 +208,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_robot_commands(sub)
     _add_identification_commands(sub)
     try:
-        from .hardware.cli import add_play_parser
+        from .play import add_play_parser
         add_play_parser(sub)
     except ImportError:   # pragma: no cover
         pass
     try:
-        from .rl.cli import add_rl_parser
+        from .rl import add_rl_parser
         add_rl_parser(sub)
     except ImportError:
         pass
@@ -295,10 +298,5 @@ def _cmd_calibrate(args) -> int:
 
 
 def _cmd_robustness(args) -> int:
-    from .robustness_report import run_robustness
+    from .robustness_command import run_robustness
     return run_robustness(args)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    np.seterr(all="ignore")
-    sys.exit(main())

@@ -1,0 +1,107 @@
+"""What ``trajopt optimize`` and ``trajopt evaluate`` do (argument parsing lives in
+:mod:`trajopt.cli`; render, export and plot in :mod:`trajopt.cli.output_commands`; the library
+functions they call in :mod:`trajopt.optimize_run` (the run's files, checkpoints and resume),
+:mod:`trajopt.optimize`, :mod:`trajopt.evaluation` and :mod:`trajopt.replay`).
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from ..evaluation import evaluate_result
+from ..files import RESULTS_DIR
+from ..optimize_run import OptimizeRun, run_optimization
+from ..progress import IterationProgress
+from ..results import Result
+from ..tasks import speed_along_path
+
+__all__ = ["run_optimize", "run_evaluate", "STATUS_MEANING", "evaluation_rows"]
+
+
+#: What the ``status`` of a result means (Gauss-Newton's stopping criteria, and checkpoints).
+STATUS_MEANING = {
+    "max_iter": "ran all the Gauss-Newton iterations asked for (--iterations); not a failure: the gait "
+                "is usable, and more iterations may still improve it",
+    "ftol": "converged: the last step lowered the objective by less than 1e-4 of it",
+    "gtol": "converged: the objective's projected gradient vanished",
+    "xtol": "converged: the last accepted step was negligible",
+    "stalled": "stopped: three iterations in a row found no lower objective (a local minimum)",
+    "callback": "stopped by its callback",
+    "running": "a checkpoint of a run in progress (or killed): continue it with --resume",
+    "interrupted": "a checkpoint of an interrupted run: continue it with --resume",
+}
+
+
+def _print_table(rows: list[tuple[str, str]]) -> None:
+    w = max(len(k) for k, _ in rows)
+    for k, v in rows:
+        print(f"  {k.ljust(w)}  {v}")
+
+
+def evaluation_rows(ev: dict, task: str = "walk") -> list[tuple[str, str]]:
+    """The rows of an evaluation (speed, per cycle, heading, tilt, upright), or the simulation
+    failure's reason when the replay failed. The heading is the yaw of the best-fit rotation of
+    all nodes. The speed of a task with a curved target (the turn,
+    :attr:`~trajopt.tasks.Task.speed_along_path`) is along its COM path sampled once per cycle (along a fixed
+    direction it averages out; every step's path adds the sway within a stride); a turn also
+    shows its heading per cycle and over the optimised horizon, with the COM's RMS distance from
+    the quarter circle."""
+    if "sim_failure" in ev:
+        return [("simulation", f"FAILED: {ev['sim_failure']}"), ("upright", "False (the simulation failed)")]
+    nan = float("nan")
+    if not speed_along_path(task):
+        rows = [("speed", f"{ev['speed_bl_per_min']:.3f} BL/min over {ev['cycles']} cycles"),
+                ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
+                ("heading change", f"{ev.get('heading_change_deg', nan):+.1f} deg over {ev['cycles']} cycles")]
+    else:
+        rows = [("speed", f"{ev.get('cycle_path_speed_bl_per_min', nan):.2f} BL/min along the COM path "
+                          f"(cycle to cycle) over {ev['cycles']} cycles"),
+                ("heading change", f"{ev.get('heading_change_deg', nan):+.1f} deg over {ev['cycles']} cycles"),
+                ("heading per cycle", " ".join(f"{v:+.1f}" for v in ev.get("heading_per_cycle_deg", [])))]
+        if "horizon_heading_change_deg" in ev:
+            rows.append(("heading, horizon", f"{ev['horizon_heading_change_deg']:+.1f} deg over the optimised "
+                                             f"{ev['horizon_steps']} steps; COM {ev['horizon_rms_to_target_bl']:.3f} "
+                                             "BL RMS from the target"))
+    return rows + [("max tilt", f"{ev.get('max_tilt_deg', nan):.1f} deg"),
+                   ("upright", "yes" if ev["upright"] else "NO: it fell (tilt over 60 deg or COM below half its height)")]
+
+
+# ---------------------------------------------------------------------- optimize
+def run_optimize(args) -> int:
+    run = OptimizeRun.from_mapping(vars(args))
+    t0 = time.perf_counter()
+    try:
+        done = run_optimization(run, None if run.quiet else
+                                (lambda first: IterationProgress(run.iterations, first=first)))
+    except KeyboardInterrupt:              # the checkpoint is saved and the way on printed
+        return 130
+    if done is not None:
+        _report(*done, time.perf_counter() - t0)
+    return 0
+
+
+def _report(res: Result, path: Path, seconds: float) -> None:
+    ev = res.evaluation
+    print(f"\nsaved {path} and {path.with_suffix('.json')} ({seconds:.1f} s)")
+    rows = [("status", f"{res.status}: {STATUS_MEANING.get(res.status, '')}"),
+            ("iterations", str(len(res.history))),
+            ("objective", f"{ev['objective']:.5g}"),
+            ("target speed", f"{res.settings['speed_bl_per_min']:g} BL/min")]
+    rows += evaluation_rows(ev, res.task)
+    rows.append(("simulation steps", str(ev["optimization_sim_steps"])))
+    _print_table(rows)
+    print(f"\nnext:\n  trajopt render {path}      # animation: {RESULTS_DIR / (path.stem + '.gif')}\n"
+          f"  trajopt plot {path}        # COM path, controls, convergence: {RESULTS_DIR / 'plots'}/\n"
+          f"  trajopt evaluate {path} --cycles 10")
+
+
+def run_evaluate(args) -> int:
+    res = Result.load(args.result)
+    ev = evaluate_result(res, args.cycles, ignore_robot_mismatch=args.ignore_robot_mismatch)
+    if getattr(args, "json", False):
+        print(json.dumps({k: v for k, v in ev.items() if k != "com"}, allow_nan=True))
+    else:
+        print(res.summary())
+        _print_table(evaluation_rows(ev, res.task))
+    return 0 if ev["upright"] else 1

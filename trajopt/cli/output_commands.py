@@ -1,0 +1,129 @@
+"""What ``trajopt render``, ``export`` and ``plot`` do (argument parsing lives in :mod:`trajopt.cli`;
+the library functions in :mod:`trajopt.replay`, :mod:`trajopt.export` and :mod:`trajopt.plots`).
+
+Each checks everything before it simulates or draws: the result file, the robot it was made for
+(``--ignore-robot-mismatch`` overrides), the tools it needs (``--mp4``: the ``video`` extra), and
+its outputs (an existing one is refused without ``--overwrite``). Every file is written
+atomically (:mod:`trajopt.files`): an interrupted command leaves the previous file or none, never
+half a file or a temporary. Defaults follow the results folder (:data:`trajopt.files.RESULTS_DIR`).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from soft_envs.envs import cable_points, strain_energy_density
+
+from ..files import RESULTS_DIR, atomic_output, refuse_existing
+from ..replay import env_for_result, replay
+from ..results import Result
+from ..tasks import speed_along_path
+
+__all__ = ["run_render", "run_export", "run_plot", "check_video_writer"]
+
+
+def check_video_writer() -> None:
+    """A ValueError saying what to install when MP4 cannot be written (before any rendering)."""
+    try:
+        import imageio.v2  # noqa: F401
+        import imageio_ffmpeg  # noqa: F401
+    except ImportError:
+        raise ValueError("--mp4 needs the video extra (imageio, imageio-ffmpeg): pip install 'soft-envs[video]'; "
+                         "or write a GIF with --gif") from None
+
+
+def run_render(args) -> int:
+    from soft_envs.animation import write_animation
+    from soft_envs.render import Renderer
+    res = Result.load(args.result)
+    gif = args.gif
+    if gif is None and args.mp4 is None:
+        gif = RESULTS_DIR / f"{Path(args.result).stem}.gif"
+    outputs = [p for p in (gif, args.mp4) if p is not None]
+    for path, ext in ((gif, ".gif"), (args.mp4, ".mp4")):
+        if path is not None and path.suffix.lower() != ext:
+            raise ValueError(f"{path}: the {ext[1:].upper()} file name must end in {ext}")
+    if args.mp4 is not None:
+        check_video_writer()
+    refuse_existing(outputs, args.overwrite)
+    env, u, traj = replay(res, args.cycles, ignore_robot_mismatch=args.ignore_robot_mismatch)
+    robot = env.robot
+    w, h = args.size
+    steps = range(0, len(traj.x), args.every)
+    tensions = [env.cable_tension(traj.x[k], u[min(max(k - 1, 0), len(u) - 1)]) for k in steps]
+    top = max([float(np.max(t)) for t in tensions if len(t)] + [1e-3])      # one colour scale for the film
+    renderer = Renderer(robot.mesh.surface, width=w, height=h, body_length=robot.body_length, tension_max=top,
+                        legend=True, scale_bar=True)
+    frames = []
+    for k, tension in zip(steps, tensions):
+        cables = [(pts, float(t)) for pts, t in zip(cable_points(robot, traj.x[k]), tension)]
+        frames.append(renderer.render(traj.x[k], cables=cables, com_trail=traj.com[:k + 1], gravity=env.gravity,
+                                      title=f"{robot.name}, {res.task}: t = {k * env.timestep:.2f} s"))
+    fps = 1.0 / (env.timestep * args.every)
+    for path in outputs:
+        with atomic_output(path) as tmp:
+            write_animation(frames, tmp, fps)
+        print(f"wrote {path} ({len(frames)} frames, {fps:.1f} frames/s)")
+    return 0
+
+
+def _series_files(directory: Path, stem: str) -> list[Path]:
+    """The files of an earlier export of ``stem`` into ``directory``."""
+    if not directory.is_dir():
+        return []
+    return sorted(p for p in directory.iterdir()
+                  if p.name in (f"{stem}.pvd", f"{stem}_cables.pvd")
+                  or (p.name.startswith(f"{stem}_") and p.suffix == ".vtu"
+                      and p.stem[len(stem) + 1:].removeprefix("cables_").isdigit()))
+
+
+def run_export(args) -> int:
+    from ..export import export_vtu_series
+    res = Result.load(args.result)
+    stem = Path(args.result).stem
+    out = args.vtu if args.vtu is not None else RESULTS_DIR / "paraview" / stem
+    old = _series_files(out, stem)
+    refuse_existing(old, args.overwrite, "an earlier export")
+    env, u, traj = replay(res, args.cycles, ignore_robot_mismatch=args.ignore_robot_mismatch)
+    for p in old:                                   # --overwrite: no stale steps of a longer export
+        p.unlink(missing_ok=True)
+    robot = env.robot
+    pvd = export_vtu_series(out, robot.mesh.tets, robot.mesh.points, traj.x, env.timestep,
+                            cell_data={"strain_energy_density": strain_energy_density(robot, traj.x)},
+                            cables=cable_points(robot, traj.x), basename=stem)
+    print(f"wrote {pvd} ({len(traj.x)} steps; open it in ParaView)")
+    return 0
+
+
+def run_plot(args) -> int:
+    from .. import plots
+    res = Result.load(args.result)
+    out = Path(args.out)
+    stem = Path(args.result).stem
+    ext = args.format
+    names = {k: out / f"{stem}_{k}.{ext}" for k in ("com", "controls", "convergence", "speed")}
+    speeds = res.evaluation.get("speed_per_cycle_bl_per_min")
+    wanted = ["com", "controls"] + (["convergence"] if res.history else []) + (["speed"] if speeds else [])
+    refuse_existing([names[k] for k in wanted], args.overwrite)
+    env = env_for_result(res, ignore_robot_mismatch=args.ignore_robot_mismatch)
+    x0, _ = env.reset_state()
+    s = res.settings
+    subject = f"{res.robot}, task {res.task}: {Path(args.result).name}"     # every title names what it shows
+    draw = {
+        "com": lambda p: plots.plot_com_topdown(res.com, res.target, p, body_outline=x0, prep_steps=s.get("n_prep"),
+                                                subject=subject),
+        "controls": lambda p: plots.plot_controls(res.u, res.dt, res.motor_names, p, n_prep=s.get("n_prep"),
+                                                  n_cycle=s.get("n_cycle"), u_post=res.u_post,
+                                                  mirror_map=env.robot.mirror_map, subject=subject),
+        "convergence": lambda p: plots.plot_convergence(res.history, p, subject=subject),
+        "speed": lambda p: plots.plot_speed_per_cycle(np.asarray(speeds), p, subject=subject,
+                                                      target=(None if speed_along_path(res.task)
+                                                              else s.get("speed_bl_per_min")),
+                                                      reference={"tripod": 6.1, "puppy": 8.6}.get(res.robot)),
+    }
+    for key in wanted:
+        with atomic_output(names[key]) as tmp:
+            draw[key](tmp)
+        print(f"wrote {names[key]}")
+    return 0

@@ -1,0 +1,157 @@
+"""``trajopt rl``: train, evaluate and export the RL baseline.
+
+    trajopt rl train tripod --algo ppo --timesteps 30000 --seed 0     # results/runs/tripod_ppo_seed0/
+    trajopt rl train puppy --algo sac --timesteps 10000 --hp learning_rate=1e-3
+    trajopt rl evaluate results/runs/tripod_ppo_seed0 [--cycles 6] [--seed 0] [--json]
+    trajopt rl export results/runs/tripod_ppo_seed0                   # results/tripod_ppo_seed0.npz
+    trajopt render results/tripod_ppo_seed0.npz                       # results/tripod_ppo_seed0.gif
+
+This module imports neither Stable-Baselines3 nor PyTorch: the parser exists without them and
+the commands say how to install them (``pip install soft-envs[rl]``).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from ..argtypes import (cycles, file_name, integer, nonnegative_float, number, output_dir, output_file, positive_int,
+                        slope_deg)
+from ..files import RESULTS_DIR, refuse_existing
+from ..rl.envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOTS, TRAIN_HORIZON
+from ..rl.hyperparams import ALGOS
+from ..rl.options import RUNS_DIR, TRAIN_OPTIONS
+
+SEED = integer(0, 2**32 - 1)          # what NumPy's legacy seeding accepts
+
+__all__ = ["add_rl_parser"]
+
+
+def add_rl_parser(sub) -> argparse.ArgumentParser:
+    """Add ``rl`` (with ``train``, ``evaluate``, ``export``) to the ``trajopt`` sub-parsers."""
+    rl = sub.add_parser("rl", help="RL baseline (Stable-Baselines3 PPO / SAC) on the same simulator",
+                        description="RL baseline: Stable-Baselines3 PPO and SAC on SoftTripod-v0 / "
+                                    "SoftPuppy-v0, scored with trajopt's metric. Needs "
+                                    "pip install soft-envs[rl].")
+    rsub = rl.add_subparsers(dest="rl_command", required=True)
+
+    p = rsub.add_parser("train", help="train a policy (checkpoints, TensorBoard + CSV logs)")
+    p.add_argument("robot", choices=sorted(ROBOTS), help="robot (environment SoftTripod-v0 / SoftPuppy-v0)")
+    p.add_argument("--algo", choices=ALGOS, default="ppo")
+    p.add_argument("--timesteps", type=positive_int, default=30_000, help="environment steps to train for")
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--out", type=output_dir, default=RUNS_DIR,
+                   help=f"parent directory of the run (default {RUNS_DIR}/)")
+    p.add_argument("--name", type=file_name, default=None, help="run directory name (default ROBOT_ALGO_seedS)")
+    p.add_argument("--n-envs", type=positive_int, default=None, help="parallel environments (default: CPU count)")
+    p.add_argument("--vec-env", choices=["auto", "subproc", "dummy"], default="auto",
+                   help="auto: SubprocVecEnv when n-envs > 1")
+    p.add_argument("--frame-skip", type=positive_int, default=1, help="simulation steps per action")
+    p.add_argument("--episode-steps", type=positive_int, default=TRAIN_HORIZON,
+                   help=f"max_episode_steps (default {TRAIN_HORIZON}, trajopt's horizon)")
+    p.add_argument("--incline", type=slope_deg, default=0.0, help="ground slope [deg]")
+    p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
+                   help="ground contact law (paper: -v0's; coulomb: -v1's); default: the robot file's (paper)")
+    p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
+    p.add_argument("--checkpoint-every", type=positive_int, default=None,
+                   help="environment steps between checkpoints (default: a tenth of the budget)")
+    p.add_argument("--hp", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a hyper-parameter (Python literal), repeatable")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing run of the same name")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bar (there is none either when stderr is not a terminal)")
+    p.add_argument("--verbose", action="store_true", help="also print the SB3 logger to stdout")
+    p.set_defaults(func=_cmd_train)
+
+    p = rsub.add_parser("evaluate", help="trajopt's metric (BL/min along the target, upright) for a policy")
+    p.add_argument("model", type=Path, help="run directory, its model.zip or a checkpoint .zip")
+    p.add_argument("--cycles", type=cycles, default=DEFAULT_EVAL_CYCLES,
+                   help=f"gait cycles of {GAIT.n_cycle} steps after {GAIT.n_prep} prep steps")
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--reset-noise", type=nonnegative_float, default=0.0,
+                   help="reset noise [m] (default 0: trajopt's start, the exact rest state)")
+    p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
+    p.set_defaults(func=_cmd_evaluate)
+
+    p = rsub.add_parser("export", help="save the policy's deterministic rollout as a trajopt Result (.npz)")
+    p.add_argument("model", type=Path, help="run directory, its model.zip or a checkpoint .zip")
+    p.add_argument("--out", type=output_file, default=None,
+                   help=f"result file (.npz, with a .json sibling; default {RESULTS_DIR}/RUN_NAME.npz)")
+    p.add_argument("--cycles", type=cycles, default=DEFAULT_EVAL_CYCLES)
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--reset-noise", type=nonnegative_float, default=0.0)
+    p.add_argument("--overwrite", action="store_true", help="replace an existing result file")
+    p.set_defaults(func=_cmd_export)
+    return rl
+
+
+def _missing(exc: Exception) -> int:
+    print(f"trajopt: error: {exc}", file=sys.stderr)
+    return 2
+
+
+def _cmd_train(args) -> int:
+    from ..rl import MissingRLDependencies
+    try:
+        from ..rl.options import train_with_options
+        run = train_with_options(args.robot, **{k: v for k, v in vars(args).items() if k in TRAIN_OPTIONS})
+    except MissingRLDependencies as exc:
+        return _missing(exc)
+    print(f"{run.status}: {run.timesteps} steps ({run.sim_steps} simulation steps) in "
+          f"{run.wall_time_s:.1f} s; saved {run.model_path}")
+    print(f"  evaluate:    trajopt rl evaluate {run.run_dir}")
+    print(f"  TensorBoard: tensorboard --logdir {run.run_dir / 'logs'}")
+    return 130 if run.status == "interrupted" else 0
+
+
+def _print_eval(ev: dict) -> None:
+    rows = [("speed", f"{ev['speed_bl_per_min']:.3f} BL/min over {ev.get('cycles')} cycles "
+                      f"(after {ev.get('n_prep')} prep steps)"),
+            ("per cycle", " ".join(f"{v:.2f}" for v in ev.get("speed_per_cycle_bl_per_min", []))),
+            ("displacement", f"{ev.get('displacement_m', float('nan')) * 1000:.2f} mm along the target"),
+            ("heading change", f"{ev.get('heading_change_deg', float('nan')):+.1f} deg"),
+            ("max tilt", f"{ev.get('max_tilt_deg', float('nan')):.1f} deg"),
+            ("upright", str(ev["upright"]))]
+    if "sim_failure" in ev:
+        rows.append(("simulation failure", ev["sim_failure"]))
+    w = max(len(k) for k, _ in rows)
+    for k, v in rows:
+        print(f"  {k.ljust(w)}  {v}")
+
+
+def _cmd_evaluate(args) -> int:
+    from ..rl import MissingRLDependencies
+    try:
+        from ..rl.evaluate import evaluate_policy_metric, load_policy
+        policy = load_policy(args.model)
+        ev = evaluate_policy_metric(policy, n_cycles=args.cycles, seed=args.seed,
+                                    reset_noise_scale=args.reset_noise)
+    except MissingRLDependencies as exc:
+        return _missing(exc)
+    if args.json:
+        print(json.dumps({k: v for k, v in ev.items() if k != "com"}, indent=1))
+    else:
+        cfg = policy.config
+        print(f"{cfg['robot']} {cfg['algo'].upper()} seed {cfg.get('seed')}, "
+              f"{cfg.get('timesteps_done', '?')} training steps ({cfg.get('status', '?')}); {policy.path}")
+        _print_eval(ev)
+    return 0 if ev["upright"] else 1
+
+
+def _cmd_export(args) -> int:
+    from ..rl import MissingRLDependencies
+    from ..results import result_path
+    model = Path(args.model)
+    default = RESULTS_DIR / f"{model.name if model.is_dir() else model.stem}.npz"
+    path = result_path(args.out if args.out is not None else default)
+    refuse_existing([path], args.overwrite)
+    try:
+        from ..rl.evaluate import export_result
+        res = export_result(args.model, path, n_cycles=args.cycles, seed=args.seed,
+                            reset_noise_scale=args.reset_noise, overwrite=args.overwrite)
+    except MissingRLDependencies as exc:
+        return _missing(exc)
+    print(f"wrote {path}: {res.summary()}")
+    print(f"  render: trajopt render {path}      # {RESULTS_DIR / (path.stem + '.gif')}")
+    return 0

@@ -1,0 +1,211 @@
+"""One optimisation run into files: ``OUT/NAME.npz`` (+ ``.json``), with checkpoints and resume.
+
+What ``trajopt optimize`` does and a sweep's ``optimize`` runs do (:mod:`trajopt.sweep.task`),
+as a library function: :func:`run_optimization` of an :class:`OptimizeRun` (the run's options,
+named as the command's). It writes ``OUT/NAME.npz`` only when the run finishes; until then its
+checkpoints (one per Gauss-Newton iteration, and the last iterate on Ctrl-C) go to
+``OUT/NAME.partial.npz``, which ``resume`` continues and a finished run removes. A finished
+result, or an interrupted run's checkpoint, is never replaced without ``overwrite``, and while a
+run lives its name is reserved (``OUT/NAME.lock``, :mod:`trajopt.reservation`): a second run of
+the same name and folder is refused at once.
+"""
+from __future__ import annotations
+
+import dataclasses
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from soft_envs.envs import compile_ahead, make_gradient_env
+
+from .files import RESULTS_DIR
+from .gait import DEFAULT_EVAL_CYCLES, GaitSpec
+from .gauss_newton import GaussNewtonOptions
+from .optimize import optimize_gait
+from .reservation import lock_path, reserve
+from .results import Result, partial_path, result_path
+from .tasks import get_task
+
+__all__ = ["OptimizeRun", "run_optimization", "OPTIMIZE_OPTIONS"]
+
+_PAPER = GaitSpec()
+
+
+@dataclass(frozen=True)
+class OptimizeRun:
+    """The options of one optimisation run (``trajopt optimize ROBOT --OPTION ...``): the robot
+    (shipped name or robot.toml path), the task (:data:`trajopt.tasks.TASKS`), its target speed
+    [BL/min] (None: the robot's default), heading [deg], turn side, slope ``angle`` [deg] (a task
+    on a slope), contact law (None: the task's, else the robot file's), symmetry (None: the
+    task's), warm start result, Gauss-Newton iterations, keyframes (None: the task's), cycle and
+    prep steps, random seeds, evaluation cycles, output folder and result name (None:
+    ``ROBOT_TASK``), resume / overwrite, and quiet (no progress)."""
+
+    robot: str
+    task: str = "walk"
+    speed: float | None = None
+    heading: float = 0.0
+    turn: str = "right"
+    angle: float = 20.0
+    contact: str | None = None
+    symmetry: bool | None = None
+    warm_start: Path | None = None
+    iterations: int = 10
+    keyframes: int | None = None
+    cycle_steps: int = _PAPER.n_cycle
+    prep_steps: int = _PAPER.n_prep
+    seeds: int = 8
+    cycles: int = DEFAULT_EVAL_CYCLES
+    out: Path = RESULTS_DIR
+    name: str | None = None
+    resume: bool = False
+    overwrite: bool = False
+    quiet: bool = False
+
+    @classmethod
+    def from_mapping(cls, options: Mapping[str, Any]) -> "OptimizeRun":
+        """The run of ``options`` (a command's parsed arguments, a sweep run's parameters);
+        keys that are no option are ignored."""
+        return cls(**{k: v for k, v in options.items() if k in OPTIMIZE_OPTIONS})
+
+    def result_file(self) -> Path:
+        """``OUT/NAME.npz`` (NAME default ``ROBOT_TASK``; a dot in NAME is kept)."""
+        robot = str(self.robot)
+        name = self.name or f"{Path(robot).stem if robot.endswith('.toml') else robot}_{self.task}"
+        return result_path(Path(self.out) / name)
+
+
+#: the options an optimisation run takes (a sweep file's ``optimize`` arguments)
+OPTIMIZE_OPTIONS = tuple(f.name for f in dataclasses.fields(OptimizeRun))
+
+
+def _refuse(path: Path, what: str, advice: str) -> None:
+    raise ValueError(f"{path}: {what}; {advice}")
+
+
+def _plan(out: Path, partial: Path, run: OptimizeRun) -> tuple[Result | None, bool]:
+    """``(resume, done)``: the interrupted run to continue (or None), and whether there is
+    nothing to do (``--resume`` of a finished result). Refuses (ValueError, nothing written) to
+    replace a finished result or an interrupted run's checkpoint without ``--overwrite``."""
+    for p in (out, partial):
+        if p.exists() and not p.is_file():
+            _refuse(p, "exists and is not a file", "choose another --name or --out")
+    if run.resume:
+        if partial.is_file():
+            if out.is_file() and not run.overwrite:
+                _refuse(out, "a finished result of this name exists", f"resuming {partial} would replace it when "
+                        "it finishes: add --overwrite, or resume under another --name after renaming the checkpoint")
+            return _load_checkpoint(partial), False
+        if out.is_file():
+            prev = Result.load(out)
+            if prev.status in ("running", "interrupted"):     # a checkpoint of an older version
+                return _load_checkpoint(out), False
+            print(f"{out} is finished ({prev.status}); nothing to resume. {prev.summary()}")
+            return None, True
+        print(f"no interrupted run to resume ({partial} not found): starting afresh", file=sys.stderr)
+        return None, False
+    if partial.is_file() and not run.overwrite:
+        _refuse(partial, "holds the checkpoint of an interrupted run of this name",
+                "continue it with --resume, or start afresh with --overwrite")
+    if out.is_file() and not run.overwrite:
+        status = _status_of(out)
+        _refuse(out, f"a result of this name exists ({status})",
+                "pass --overwrite to replace it when the new run finishes, or choose another --name")
+    return None, False
+
+
+def _status_of(path: Path) -> str:
+    try:
+        return f"status {Result.load(path).status}"
+    except ValueError:
+        return "not a readable result"
+
+
+def _load_checkpoint(path: Path) -> Result:
+    prev = Result.load(path)
+    print(f"resuming {path} after iteration {len(prev.history)}")
+    prev.settings["source"] = str(path)          # named by the settings check's error
+    return prev
+
+
+def _gait(run: OptimizeRun) -> GaitSpec:
+    try:
+        return GaitSpec.for_task(run.task, symmetry=run.symmetry, n_prep=run.prep_steps,
+                                 n_cycle=run.cycle_steps, n_keyframes=run.keyframes)
+    except ValueError:
+        raise ValueError(f"--keyframes {run.keyframes} must be at most --cycle-steps {run.cycle_steps}") from None
+
+
+def _finish_files(res: Result, out: Path, partial: Path) -> Path:
+    """Save the finished result and remove the checkpoint (the other way round never)."""
+    path = res.save(out)
+    for p in (partial, partial.with_suffix(".json")):
+        p.unlink(missing_ok=True)
+    return path
+
+
+def run_optimization(run: OptimizeRun, progress: Callable[[int], Any] | None = None) -> tuple[Result, Path] | None:
+    """Optimise as ``run`` says and save the result (see the module docstring): ``(result,
+    its file)``, or None when there is nothing to do (``resume`` of a finished result).
+    ``progress(first_iteration)``: makes an object whose ``update(entry)`` sees every
+    Gauss-Newton iteration and whose ``close()`` ends it (a progress bar). Bad options, files
+    or robots: ValueError, nothing written. Ctrl-C: the last iterate is saved as an
+    "interrupted" checkpoint (continue with ``resume``) and KeyboardInterrupt raised again."""
+    get_task(run.task)
+    out = run.result_file()
+    partial = partial_path(out)
+    gait = _gait(run)
+    with reserve(lock_path(out), f"result {out.name}"):   # a second run of this name is refused
+        return _optimize_reserved(run, out, partial, gait, progress)
+
+
+def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpec,
+                       make_progress: Callable[[int], Any] | None) -> tuple[Result, Path] | None:
+    resume, done = _plan(out, partial, run)
+    if done:
+        return None
+    warm = Result.load(run.warm_start) if run.warm_start else None
+    if warm is not None:
+        warm.settings["source"] = str(run.warm_start)
+    task = get_task(run.task)
+    incline = run.angle if task.on_slope else 0.0
+    contact = run.contact or task.contact          # e.g. the turn pivots on feet that stick
+    with compile_ahead(run.robot):            # first run on a machine: numba compiles meanwhile
+        env = make_gradient_env(run.robot, incline_deg=incline, heading_deg=run.heading, contact=contact)
+    print(f"{env.robot.summary()}; task {task.name}; {env.contact_model} contact law"
+          + (f" (the {task.name}'s default; --contact paper for the paper's)" if contact and not run.contact else "")
+          + (f", slope {incline:g} deg" if incline else ""))
+    print(f"writes {out} (+ .json) when it finishes; checkpoints in {partial} until then")
+    done_before = len(resume.history) if resume else 0
+    progress = None if make_progress is None else make_progress(done_before + 1)
+    latest: dict = {}
+
+    def checkpoint(entry: dict, partial_result: Result) -> None:
+        latest["result"] = partial_result
+        partial_result.save(partial)           # atomic: a crash leaves the previous checkpoint
+        if progress is not None:
+            progress.update(entry)
+
+    options = GaussNewtonOptions(max_iter=max(run.iterations - done_before, 0))
+    try:
+        res = optimize_gait(env, task.name, gait=gait, speed_bl_per_min=run.speed, heading_deg=run.heading,
+                            turn=run.turn, options=options, warm_start=warm, n_seeds=run.seeds,
+                            eval_cycles=run.cycles, robot_spec=run.robot, callback=checkpoint, resume=resume)
+    except KeyboardInterrupt:
+        if progress is not None:
+            progress.close()
+            progress = None
+        if "result" in latest:
+            latest["result"].status = "interrupted"
+            latest["result"].save(partial)
+            print(f"\ninterrupted: iteration {len(latest['result'].history)} saved to {partial}"
+                  f"{f'; {out} is untouched' if out.is_file() else ''}; continue with the same command "
+                  "and --resume", file=sys.stderr)
+        else:
+            print("\ninterrupted before the first iteration: nothing saved", file=sys.stderr)
+        raise
+    finally:
+        if progress is not None:
+            progress.close()
+    return res, _finish_files(res, out, partial)

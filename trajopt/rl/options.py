@@ -1,0 +1,45 @@
+"""A training run from the options of ``trajopt rl train`` (the command line and a sweep's
+``rl-train`` runs, :mod:`trajopt.sweep.kinds`, call this one function)."""
+from __future__ import annotations
+
+import inspect
+import os
+import sys
+from typing import Any
+
+from ..files import RESULTS_DIR
+from .envs import TRAIN_HORIZON
+
+__all__ = ["train_with_options", "TRAIN_OPTIONS", "RUNS_DIR"]
+
+#: parent folder of RL runs by default
+RUNS_DIR = RESULTS_DIR / "runs"
+
+
+def train_with_options(robot: str, *, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
+                       out: str | os.PathLike = RUNS_DIR, name: str | None = None, n_envs: int | None = None,
+                       vec_env: str = "auto", frame_skip: int = 1, episode_steps: int = TRAIN_HORIZON,
+                       incline: float = 0.0, contact: str | None = None, heading: float = 0.0,
+                       checkpoint_every: int | None = None, hp: list[str] | tuple[str, ...] = (),
+                       overwrite: bool = False, no_progress: bool = False, verbose: bool = False) -> Any:
+    """:func:`trajopt.rl.training.train` with the command's option names: ``incline``,
+    ``contact`` and ``heading`` set up the environment, ``hp`` holds ``KEY=VALUE`` overrides of
+    the hyper-parameters, ``no_progress`` hides the progress bar (never shown when stderr is no
+    terminal), ``verbose`` prints SB3's logger. Returns the :class:`~trajopt.rl.training.TrainRun`."""
+    from .hyperparams import parse_overrides
+    from .training import train
+    env_kwargs: dict[str, Any] = {}
+    if incline:
+        env_kwargs["incline_deg"] = incline
+    if heading:
+        env_kwargs["target_heading_deg"] = heading
+    if contact:
+        env_kwargs["contact"] = contact
+    return train(robot, algo, timesteps, seed, out, name=name, n_envs=n_envs, vec_env=vec_env, frame_skip=frame_skip,
+                 max_episode_steps=episode_steps, env_kwargs=env_kwargs, hyperparams=parse_overrides(list(hp)),
+                 checkpoint_every=checkpoint_every, progress_bar=not no_progress and sys.stderr.isatty(),
+                 log_stdout=verbose, overwrite=overwrite)
+
+
+#: the options of ``trajopt rl train`` and of a sweep's ``rl-train`` runs (the keywords above)
+TRAIN_OPTIONS = tuple(p for p in inspect.signature(train_with_options).parameters if p != "robot")
