@@ -7,7 +7,7 @@ a motor's mirror motor plays the same signal half a period later. The paper: 24 
 (168 steps, 5.5 s at h = 0.033 s), 4 keyframes, symmetric walks and an asymmetric turn. A gait is
 evaluated over :data:`DEFAULT_EVAL_CYCLES` cycles after the prep phase.
 
-A task changes these defaults (:attr:`trajopt.tasks.Task.gait_defaults`): the turn has
+A task changes these defaults (``gait_defaults`` of :class:`trajopt.tasks.Task`): the turn has
 :data:`~trajopt.tasks.TURN_KEYFRAMES` keyframes per cycle instead of 4: with 4, a leg
 makes one stride per 72-step cycle, and the Puppy cannot both walk and turn a quarter circle in
 two such strides (the optimised turn reached 43-56 degrees in 10 cycles); 12 keyframes let
@@ -59,7 +59,7 @@ class GaitSpec:
 
     @classmethod
     def for_task(cls, task: str, *, symmetry: bool | None = None, **fields: Any) -> "GaitSpec":
-        """The gait of a task: the task's :attr:`~trajopt.tasks.Task.gait_defaults` over the
+        """The gait of a task: the ``gait_defaults`` of its :class:`~trajopt.tasks.Task` over the
         paper's (the turn: asymmetric, paper IV-B, with :data:`~trajopt.tasks.TURN_KEYFRAMES`
         keyframes). ``symmetry`` and the ``fields`` that are not None override them."""
         task_defaults = TASKS[task].gait_defaults if task in TASKS else {}

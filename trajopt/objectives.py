@@ -49,7 +49,7 @@ class ObjectiveWeights:
 
     @classmethod
     def for_task(cls, task: str) -> "ObjectiveWeights":
-        """The default weights of ``task``: its :attr:`~trajopt.tasks.Task.weight_defaults` over
+        """The default weights of ``task``: the ``weight_defaults`` of its :class:`~trajopt.tasks.Task` over
         these (the turn also tracks the heading)."""
         return cls(**TASKS[task].weight_defaults) if task in TASKS else cls()
 

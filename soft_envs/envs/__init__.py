@@ -20,7 +20,8 @@ from .identification import (PHYSICAL_PARAMETERS, Marker, MarkerSet, check_param
                              scale_parameters, with_parameters)
 from .measure import (BodyFrame, cable_points, heading_vector, strain_energy_density, tilt_deg_of, wrap_angle,
                       yaw_of)
-from .protocol import GradientEnv, as_gradient_env, make_gradient_env
+from .factory import as_gradient_env, make_gradient_env
+from .protocol import GradientEnv
 from .puppy import SoftPuppyEnv
 from .tripod import SoftTripodEnv
 

@@ -2,20 +2,19 @@
 
 Any object satisfying :class:`GradientEnv` (usually ``env.unwrapped`` of a Gymnasium
 environment) can be optimised by ``trajopt.optimize_gait``; the shipped ``SoftTripod-v0`` and
-``SoftPuppy-v0`` do. :func:`as_gradient_env` finds it in a (wrapped) environment, or builds a bare
-one (:func:`make_gradient_env`) for a robot, a shipped robot name or a robot.toml path.
+``SoftPuppy-v0`` do. :func:`~soft_envs.envs.factory.as_gradient_env` finds it in a (wrapped)
+environment, or builds a bare one (:func:`~soft_envs.envs.factory.make_gradient_env`) for a
+robot, a shipped robot name or a robot.toml path.
 """
 from __future__ import annotations
 
-import os
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from ..sim import Robot, Trajectory
-from .base import PAPER_TIMESTEP, SoftRobotEnv
 
-__all__ = ["GradientEnv", "GRADIENT_ENV_MEMBERS", "PARAMETER_MEMBERS", "as_gradient_env", "make_gradient_env"]
+__all__ = ["GradientEnv", "GRADIENT_ENV_MEMBERS", "PARAMETER_MEMBERS"]
 
 
 @runtime_checkable
@@ -79,43 +78,8 @@ class GradientEnv(Protocol):
                       ) -> np.ndarray: ...       # tension per tendon [N] (current state by default)
 
 
-#: The members of :class:`GradientEnv`, checked by :func:`as_gradient_env`.
+#: The members of :class:`GradientEnv`, checked by :func:`~soft_envs.envs.factory.as_gradient_env`.
 GRADIENT_ENV_MEMBERS = ("robot", "timestep", "incline_deg", "contact_model", "gravity", "rollout",
                         "reset_state", "get_state", "set_state", "com", "cable_deformation", "cable_tension")
 #: Optional members of :class:`GradientEnv` (parameter sensitivities for calibration).
 PARAMETER_MEMBERS = ("rollout_parameters",)
-
-
-def make_gradient_env(robot: str | os.PathLike | Robot = "puppy", *, incline_deg: float = 0.0,
-                      heading_deg: float = 0.0, timestep: float = PAPER_TIMESTEP,
-                      contact: str | None = None) -> SoftRobotEnv:
-    """A bare environment for trajectory optimisation, reset without noise: its rollouts start
-    at the exact rest state with the motors at ``robot.u_rest``.
-
-    ``robot``: a shipped robot name (``"tripod"``, ``"puppy"``: their registered classes), a
-    robot.toml path or a :class:`~soft_envs.sim.Robot`; the ground slopes by ``incline_deg``,
-    rising along ``heading_deg`` (degrees from +x towards +z); ``timestep`` is the simulation
-    time step [s]; ``contact`` the contact law ("paper", "coulomb"; None: the robot file's)."""
-    from .puppy import SoftPuppyEnv
-    from .tripod import SoftTripodEnv
-    shipped = {"tripod": SoftTripodEnv, "puppy": SoftPuppyEnv}
-    cls = shipped.get(robot, SoftRobotEnv) if isinstance(robot, str) else SoftRobotEnv
-    env = cls(robot, incline_deg=incline_deg, target_heading_deg=heading_deg, timestep=timestep,
-              reset_noise_scale=0.0, contact=contact)
-    env.reset(seed=0)
-    return env
-
-
-def as_gradient_env(env_or_robot: Any, *, incline_deg: float = 0.0, heading_deg: float = 0.0,
-                    contact: str | None = None) -> GradientEnv:
-    """The :class:`GradientEnv` of a (wrapped) environment, i.e. its ``unwrapped`` object, or
-    :func:`make_gradient_env` of a :class:`~soft_envs.sim.Robot`, a robot name or a robot.toml
-    path. TypeError when the environment lacks a member of the protocol."""
-    if isinstance(env_or_robot, (Robot, str, os.PathLike)):
-        return make_gradient_env(env_or_robot, incline_deg=incline_deg, heading_deg=heading_deg, contact=contact)
-    target = getattr(env_or_robot, "unwrapped", env_or_robot)
-    missing = [name for name in GRADIENT_ENV_MEMBERS if not hasattr(target, name)]
-    if missing:
-        raise TypeError(f"{type(target).__name__} does not offer the gradient hook(s) {missing} "
-                        "(see soft_envs.envs.protocol.GradientEnv)")
-    return target

@@ -15,7 +15,7 @@ from typing import Any, Iterable, Mapping
 import meshio
 import numpy as np
 
-from .contact import CONTACT_LAWS, ContactLaw, check_contact_parameters, contact_default, contact_law
+from .contact import CONTACT_LAWS, ContactParams
 from .markers import Marker, MarkerSet
 from .materials import lame_parameters
 from .mesh import TetMesh, load_mesh
@@ -26,38 +26,6 @@ __all__ = ["Robot", "Tendon", "Motor", "ContactParams", "CableData", "Marker", "
 #: The built-in contact laws' names; every law, those registered later included, is a key of
 #: :data:`soft_envs.sim.contact.CONTACT_LAWS`.
 CONTACT_MODELS = tuple(CONTACT_LAWS)
-
-
-@dataclass(frozen=True)
-class ContactParams:
-    """Ground contact, the ``[contact]`` table of ``robot.toml``: a contact law ``model`` (a name
-    of :data:`~soft_envs.sim.contact.CONTACT_LAWS`) and the parameters the laws read.
-
-    ``"paper"`` (paper II-C, :mod:`soft_envs.sim.contact.paper`: friction energy
-    ``friction * N_{k-1} |dx_t|^2`` with the weight ``friction`` [1/m]; viscous-like and
-    time-step dependent) or ``"coulomb"`` (:mod:`soft_envs.sim.contact.coulomb`: tangential
-    force bounded by ``friction_coefficient * N_{k-1}``, held by stick anchors until a node is
-    ``slip_distance`` [m] from its anchor). Both: normal penalty ``stiffness`` [N/m] per node
-    with a C2 ``blend`` [m] of the one-sided quadratic (``blend = 0``: the half-quadratic,
-    Coulomb model only). Each law reads only its own parameters, declares them (defaults,
-    units, bounds: ``contact_parameters``) and is validated by its declarations; the other
-    fields by the law that reads them (:func:`~soft_envs.sim.contact.check_contact_parameters`)."""
-
-    stiffness: float = contact_default("stiffness")
-    friction: float = contact_default("friction")
-    blend: float = contact_default("blend")
-    model: str = "paper"
-    friction_coefficient: float = contact_default("friction_coefficient")
-    slip_distance: float = contact_default("slip_distance")
-
-    def __post_init__(self):
-        check_contact_parameters(self.model, {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-                                              if f.name != "model"})
-
-    @property
-    def law(self) -> type[ContactLaw]:
-        """The contact law class of :attr:`model` (an energy term: ``law(robot)``)."""
-        return contact_law(self.model)
 
 
 @dataclass(frozen=True, eq=False)

@@ -15,7 +15,8 @@ A law is a :class:`ContactLaw` subclass that declares its name (``model``), the 
 keys it reads (``contact_parameters``: defaults, units, bounds) and its friction parameter
 (``friction_parameter``: what calibration, domain randomisation and robustness studies scale as
 "friction"; None for none). :class:`~soft_envs.sim.system.EnergySystem` builds the robot's law
-from this registry, :class:`~soft_envs.sim.robot.ContactParams` validates ``model`` and the
+from this registry, :class:`ContactParams` (the ``[contact]`` table, defined here and
+re-exported by :mod:`soft_envs.sim.robot`) validates ``model`` and the
 keys against it, and :mod:`soft_envs.sim.parameters` asks the law for its friction parameter.
 
 Adding a law: write the class (``energy`` and ``assemble`` at least, see :class:`ContactLaw`)
@@ -24,14 +25,17 @@ and register it::
     register_contact_law(MyLaw)            # then [contact] model = "mine" (MyLaw.model) works
 
 A law may read only keys that are fields of ``ContactParams`` (a new key is a new field there),
-and its friction parameter must be a name of ``parameters.PARAMETERS``.
+and its friction parameter must be one of them (and a name of ``parameters.PARAMETERS`` to be
+calibrated or randomised).
 :func:`unregister_contact_law` removes a law again (tests). Its derivatives are checked by
 ``tests/test_energy_derivatives.py`` like every other term's (``tests/test_contact_registry.py``
 shows a whole third law, frictionless contact).
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 from .coulomb import CoulombContact
 from .law import BLEND, STIFFNESS, ContactLaw, ContactParameter
@@ -39,7 +43,7 @@ from .paper import GroundContact, contact_assemble, friction_cross, friction_cro
 from .penalty import normal_penalty
 
 __all__ = ["CONTACT_LAWS", "ContactLaw", "ContactParameter", "register_contact_law", "unregister_contact_law",
-           "contact_law", "friction_parameters", "check_contact_parameters", "contact_default",
+           "contact_law", "friction_parameters", "check_contact_parameters", "contact_default", "ContactParams",
            "GroundContact", "CoulombContact", "STIFFNESS", "BLEND",
            # the old module soft_envs.sim.contact (now .paper)
            "contact_assemble", "friction_cross", "friction_cross_T", "normal_forces", "normal_penalty"]
@@ -52,12 +56,10 @@ CONTACT_LAWS: dict[str, type[ContactLaw]] = {GroundContact.model: GroundContact,
 def register_contact_law(law: type[ContactLaw]) -> type[ContactLaw]:
     """Add ``law`` to :data:`CONTACT_LAWS` under ``law.model`` and return it (so it also works as
     a class decorator). A ValueError when the name is taken or empty, when a key in
-    ``law.contact_parameters`` is not a field of ``ContactParams``, or when its friction
-    parameter is not a name of ``parameters.PARAMETERS``."""
-    import dataclasses
-
-    from ..parameters import PARAMETERS
-    from ..robot import ContactParams
+    ``law.contact_parameters`` is not a field of :class:`ContactParams`, or when its friction
+    parameter is not one of the keys it declares (to be calibrated or randomised it must also
+    be a name of ``parameters.PARAMETERS``; :func:`~soft_envs.sim.parameters.check_parameters`
+    refuses it otherwise)."""
     if not (isinstance(law, type) and issubclass(law, ContactLaw)):
         raise ValueError(f"a contact law must be a ContactLaw subclass, got {law!r}")
     if not law.model or law.model in CONTACT_LAWS:
@@ -69,9 +71,9 @@ def register_contact_law(law: type[ContactLaw]) -> type[ContactLaw]:
             raise ValueError(f"{law.__name__} reads [contact] key {p.name!r}, not a field of ContactParams "
                              f"({', '.join(sorted(fields))})")
     fp = law.friction_parameter
-    if fp is not None and (fp not in PARAMETERS or fp not in fields):
-        raise ValueError(f"{law.__name__}.friction_parameter {fp!r} must be a physical parameter "
-                         "(parameters.PARAMETERS) read from the [contact] key of that name")
+    if fp is not None and fp not in {p.name for p in law.contact_parameters}:
+        raise ValueError(f"{law.__name__}.friction_parameter {fp!r} must be one of the [contact] keys the "
+                         "law declares (contact_parameters)")
     CONTACT_LAWS[law.model] = law
     return law
 
@@ -122,3 +124,35 @@ def check_contact_parameters(model: str, values: Mapping[str, float]) -> None:
         p = own.get(key) or _declaration(key)
         if p is not None:
             p.check(value)
+
+
+@dataclass(frozen=True)
+class ContactParams:
+    """Ground contact, the ``[contact]`` table of ``robot.toml``: a contact law ``model`` (a name
+    of :data:`~soft_envs.sim.contact.CONTACT_LAWS`) and the parameters the laws read.
+
+    ``"paper"`` (paper II-C, :mod:`soft_envs.sim.contact.paper`: friction energy
+    ``friction * N_{k-1} |dx_t|^2`` with the weight ``friction`` [1/m]; viscous-like and
+    time-step dependent) or ``"coulomb"`` (:mod:`soft_envs.sim.contact.coulomb`: tangential
+    force bounded by ``friction_coefficient * N_{k-1}``, held by stick anchors until a node is
+    ``slip_distance`` [m] from its anchor). Both: normal penalty ``stiffness`` [N/m] per node
+    with a C2 ``blend`` [m] of the one-sided quadratic (``blend = 0``: the half-quadratic,
+    Coulomb model only). Each law reads only its own parameters, declares them (defaults,
+    units, bounds: ``contact_parameters``) and is validated by its declarations; the other
+    fields by the law that reads them (:func:`~soft_envs.sim.contact.check_contact_parameters`)."""
+
+    stiffness: float = contact_default("stiffness")
+    friction: float = contact_default("friction")
+    blend: float = contact_default("blend")
+    model: str = "paper"
+    friction_coefficient: float = contact_default("friction_coefficient")
+    slip_distance: float = contact_default("slip_distance")
+
+    def __post_init__(self):
+        check_contact_parameters(self.model, {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                                              if f.name != "model"})
+
+    @property
+    def law(self) -> type[ContactLaw]:
+        """The contact law class of :attr:`model` (an energy term: ``law(robot)``)."""
+        return contact_law(self.model)
