@@ -109,7 +109,7 @@ def test_coulomb_rollout_carries_the_anchors_and_slides_to_a_stop():
     ``next_history`` after it."""
     mu, v0, h = 0.6, 0.3, 0.002
     robot, sim = coulomb_block(mu, dt=h, newton=NewtonOptions(tol=1e-12))
-    x0, h0 = sim.rest_state(), sim.rest_history()
+    x0, h0 = sim.rest_positions(), sim.rest_history()
     K = 75                                                   # 0.15 s: stops after ~0.05 s
     xm1 = x0 - np.array([v0, 0.0, 0.0]) * h
     traj = sim.rollout(np.zeros((K, 0)), x0=x0, x_prev0=xm1, history0=h0)
@@ -146,7 +146,7 @@ def test_rollout_from_the_rest_state_starts_with_the_rest_anchors():
     < 1e-9 m asserted); had it re-anchored the nodes where they stand, the bar would slip by
     the bristles' deflection (measured 40 um)."""
     robot, sim = coulomb_block(gravity=incline_gravity(20.0, uphill=(-1.0, 0.0)))
-    x0, h0 = sim.rest_state(), sim.rest_history()
+    x0, h0 = sim.rest_positions(), sim.rest_history()
     i = sim.system.terms.index(sim.system.contact)
     nodes = sim.system.contact.nodes
     deflection = np.linalg.norm(x0[nodes][:, [0, 2]] - h0[i], axis=1)

@@ -48,7 +48,7 @@ def test_energy_never_increases_without_contact():
 def test_block_resting_on_ground_stays_at_rest():
     robot = small_robot(tendons=[], motors=[])
     sim = Simulator(robot)
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     assert x0[:, 1].min() < 0 < x0[:, 1].max()       # it sinks slightly into the penalty layer
     traj = sim.rollout(np.zeros((100, 0)), x0=x0)
     assert np.abs(traj.x - x0).max() < 1e-7
@@ -60,7 +60,7 @@ def test_block_resting_on_ground_stays_at_rest():
 def test_failed_step_raises_and_leaves_inputs_untouched():
     robot = small_robot()
     sim = Simulator(robot, newton=NewtonOptions(max_iter=1, tol=1e-14))
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     before = x0.copy()
     with pytest.raises(SimulationError) as err:
         sim.rollout(np.full((3, 1), 0.008), x0=x0)
@@ -79,7 +79,7 @@ def test_inverted_input_state_raises():
 
 def test_bad_controls_and_states_are_rejected():
     sim = Simulator(small_robot())
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     with pytest.raises(ValueError, match="NaN"):
         sim.rollout(np.array([[np.nan]]), x0=x0)
     with pytest.raises(ValueError, match=r"shape \(K, 1\)"):
@@ -98,7 +98,7 @@ def test_cable_contraction_bends_and_tension_control():
     robot = small_robot()
     for control, u in (("length", 0.004), ("tension", 20.0)):
         sim = Simulator(robot, control=control)
-        x0 = sim.rest_state()
+        x0 = sim.rest_positions()
         traj = sim.rollout(np.full((30, 1), u), x0=x0)
         gam = traj.cable_deformation[-1]
         tens = sim.cable_tension(traj.x[-1], np.array([u]))
@@ -121,7 +121,7 @@ def test_lu_fallback_solver_matches_cholmod_and_reports_indefinite():
     u = np.linspace(0, 0.006, 25)[:, None]
     ref = Simulator(robot, newton=NewtonOptions(solver="cholmod", tol=1e-11))
     lu = Simulator(robot, newton=NewtonOptions(solver="lu", tol=1e-11))
-    x0 = ref.rest_state()
+    x0 = ref.rest_positions()
     assert np.abs(ref.rollout(u, x0=x0).x - lu.rollout(u, x0=x0).x).max() < 1e-9
     pat = lu.system.pattern
     data = np.zeros(pat.nnz + 1)
@@ -151,7 +151,7 @@ def test_newton_error_estimate_holds_along_a_gait(name):
     robot = load_robot(name)
     sim = Simulator(robot)
     ref = Simulator(robot, newton=NewtonOptions(tol=1e-14, reuse_factor=False))
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     t = np.arange(40) * 0.033
     u = 0.5 * robot.u_bounds[:, 1] * (1 - np.cos(2 * np.pi * t[:, None] / 1.2 + np.arange(robot.n_motors)))
     traj = sim.rollout(u, x0=x0)
@@ -182,7 +182,7 @@ def test_slow_chord_settings_still_stop():
     robot = load_robot("tripod")
     sim = Simulator(robot)
     slow = Simulator(robot, newton=NewtonOptions(refactor_ratio=0.85, max_chord=16.0))
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     t = np.arange(30) * 0.033
     u = 0.5 * robot.u_bounds[:, 1] * (1 - np.cos(2 * np.pi * t[:, None] / 2.4 + np.pi * np.arange(robot.n_motors)))
     a, b = sim.rollout(u, x0=x0), slow.rollout(u, x0=x0)
@@ -194,7 +194,7 @@ def test_controls_outside_the_motor_range_are_refused_with_the_motor_named():
     opt out with check_bounds=False. NaN in dudz is refused too."""
     robot = small_robot()
     sim = Simulator(robot)
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     u = np.full((3, 1), 0.004)
     u[1, 0] = 4.0                                   # 4 "mm" given in metres
     with pytest.raises(ValueError, match=r"u\[1, 0\] = 4\.0 m lie outside motor 'm0'"):
@@ -214,7 +214,7 @@ def test_steps_depend_on_their_inputs_only():
     from soft_envs.sim import FactorCache
     robot = small_robot()
     sim = Simulator(robot)
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     ua, ub = np.full((12, 1), 0.006), np.linspace(0.0, 0.009, 12)[:, None]
     ta, tb = sim.rollout(ua, x0=x0), sim.rollout(ub, x0=x0)
     first = sim.step(ta.x[5], ta.x[4], ua[5])
