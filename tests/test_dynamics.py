@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from soft_envs.sim import NewtonOptions, SimulationError, Simulator
+from soft_envs.sim import NewtonOptions, SimulationError, Simulator, State
 
 from .conftest import small_robot
 
@@ -73,8 +73,9 @@ def test_inverted_input_state_raises():
     sim = Simulator(robot)
     x = np.array(robot.mesh.points)
     x[robot.mesh.tets[0, 3]] = x[robot.mesh.tets[0, 0]] - 0.05       # turns elements inside out
-    with pytest.raises(SimulationError, match="inverted"):
-        sim.step(x, x, np.zeros(1), k=4)
+    with pytest.raises(SimulationError, match="inverted") as err:
+        sim.step(sim.state_at_rest(x).replace(k=4), np.zeros(1))
+    assert err.value.step == 4
 
 
 def test_bad_controls_and_states_are_rejected():
@@ -157,13 +158,14 @@ def test_newton_error_estimate_holds_along_a_gait(name):
     traj = sim.rollout(u, x0=x0)
     tol = sim.newton.options.tol
     worst = 0.0
+    none = (None,) * len(sim.system.terms)           # the paper's law keeps no history
     for k in range(2, 40):
-        xr = ref.step(traj.x[k], traj.x[k - 1], u[k])
-        worst = max(worst, np.abs(sim.step(traj.x[k], traj.x[k - 1], u[k], x_prev3=traj.x[k - 2]) - xr).max(),
-                    np.abs(sim.step(traj.x[k], traj.x[k - 1], u[k]) - xr).max())
+        xr = ref.step(State(traj.x[k], traj.x[k - 1], None, none), u[k]).x
+        worst = max(worst, np.abs(sim.step(State(traj.x[k], traj.x[k - 1], traj.x[k - 2], none), u[k]).x - xr).max(),
+                    np.abs(sim.step(State(traj.x[k], traj.x[k - 1], None, none), u[k]).x - xr).max())
     assert worst <= tol, worst
-    with pytest.raises(ValueError, match="x_prev3"):
-        sim.step(traj.x[3], traj.x[2], u[3], x_prev3=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="x_prev2"):
+        sim.step(State(traj.x[3], traj.x[2], np.zeros((2, 3)), none), u[3])
 
 
 def test_newton_options_extrapolation_is_validated():
@@ -217,14 +219,18 @@ def test_steps_depend_on_their_inputs_only():
     x0 = sim.rest_positions()
     ua, ub = np.full((12, 1), 0.006), np.linspace(0.0, 0.009, 12)[:, None]
     ta, tb = sim.rollout(ua, x0=x0), sim.rollout(ub, x0=x0)
-    first = sim.step(ta.x[5], ta.x[4], ua[5])
+    mid = State(ta.x[5], ta.x[4], None, sim.initial_history(ta.x[5]))
+    first = sim.step(mid, ua[5]).x
     sim.rollout(ub, x0=x0)                            # something else in between
-    assert np.array_equal(sim.step(ta.x[5], ta.x[4], ua[5]), first)
+    assert np.array_equal(sim.step(mid, ua[5]).x, first)
     ca, cb = FactorCache(), FactorCache()
+    sa = sb = sim.state_at_rest(x0).replace(x_prev2=None)
     xa, xb = [x0, x0], [x0, x0]
     for k in range(12):
-        xa.append(sim.step(xa[-1], xa[-2], ua[k], factor_cache=ca))
-        xb.append(sim.step(xb[-1], xb[-2], ub[k], factor_cache=cb))
+        sa = sim.step(sa, ua[k], factor_cache=ca)
+        sb = sim.step(sb, ub[k], factor_cache=cb)
+        xa.append(sa.x)
+        xb.append(sb.x)
         assert cb.holds(sim.newton.solver) and not ca.holds(sim.newton.solver)
     # the caches never reuse each other's factorisations: both match a fresh-per-step run to
     # within the Newton tolerance (a reused factorisation changes results only at that level)

@@ -10,9 +10,10 @@ step, 0.033 s) and :data:`GAIT_CYCLE_STEPS` (its gait cycle, 72 steps).
 Structure: a :class:`Robot` is static data (mesh, material, payload, cables, motors, contact);
 the potential energy is a list of :class:`~.terms.EnergyTerm` objects over explicit inputs
 (positions ``x``, previous positions ``x_prev``, controls ``u``) in
-:class:`~.system.EnergySystem`; :class:`~.integrator.NewtonSolver` takes implicit-Euler steps; a :class:`~.state.State` (positions,
-previous positions, stick anchors) is what one step hands the next (:func:`~.state.advance`);
-:mod:`.sensitivity` differentiates whole rollouts; :class:`Simulator` strings them together.
+:class:`~.system.EnergySystem`; :class:`~.integrator.NewtonSolver` takes implicit-Euler steps;
+a :class:`~.state.State` (positions, previous positions, stick anchors) is what one step hands
+the next (:func:`~.state.advance`); :mod:`.rest` finds the rest state; :mod:`.sensitivity`
+differentiates whole rollouts; :class:`Simulator` strings them together.
 
 Where each equation of the paper lives (one function each):
 

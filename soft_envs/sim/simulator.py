@@ -15,58 +15,20 @@ strings them together.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 
-from .integrator import FactorCache, NewtonOptions, NewtonSolver, SimulationError
+from .integrator import FactorCache, NewtonOptions, NewtonSolver
 from .robot import Robot
+from .rest import relax
 from .sensitivity import ForwardSensitivities, adjoint_pass
 from .state import State, advance
 from .system import EnergySystem
 from .timing import DEFAULT_DT
+from .trajectory import Trajectory
 
 __all__ = ["Simulator", "Trajectory"]
-
-
-@dataclass
-class Trajectory:
-    """Result of :meth:`Simulator.rollout` (K steps, K+1 states; index 0 is the initial state).
-
-    ``x`` (K+1, n, 3) positions; ``com`` (K+1, 3); ``cable_deformation`` (K+1, T) Gamma per
-    tendon (entry 0 with the motors at ``robot.u_rest``); ``u`` (K, n_motors) the controls;
-    ``newton_iterations`` (K,). With ``dudz``: ``dcomdz`` (K+1, 3, nz), ``dgammadz``
-    (K+1, T, nz) (asked for without ``dudz``, they raise AttributeError saying so) and, when
-    requested, ``dxdz`` (K+1, 3n, nz). With physical ``params``:
-    ``dxdtheta`` (K+1, 3n, ntheta) and ``dcomdtheta`` (K+1, 3, ntheta), the parameters' names in
-    ``info["parameters"]``."""
-
-    x: np.ndarray
-    com: np.ndarray
-    cable_deformation: np.ndarray
-    u: np.ndarray
-    newton_iterations: np.ndarray
-    dxdz: np.ndarray | None = None
-    dxdtheta: np.ndarray | None = None
-    dcomdtheta: np.ndarray | None = None
-    info: dict = field(default_factory=dict)
-    _dcomdz: np.ndarray | None = field(default=None, repr=False)
-    _dgammadz: np.ndarray | None = field(default=None, repr=False)
-
-    def _sensitivity(self, name: str) -> np.ndarray:
-        value = getattr(self, "_" + name)
-        if value is None:
-            raise AttributeError(f"Trajectory.{name}: this rollout was run without dudz; pass "
-                                 f"Simulator.rollout(u, dudz=...) with dudz (K, n_motors, nz) = du/dz of your "
-                                 f"parameters z (e.g. dudz = np.eye(n_motors)[None].repeat(K, 0) for z = a "
-                                 f"constant control per motor)")
-        return value
-
-    dcomdz = property(lambda self: self._sensitivity("dcomdz"),
-                      lambda self, v: setattr(self, "_dcomdz", v), doc="(K+1, 3, nz) d COM / dz (needs dudz)")
-    dgammadz = property(lambda self: self._sensitivity("dgammadz"),
-                        lambda self, v: setattr(self, "_dgammadz", v), doc="(K+1, T, nz) d Gamma / dz (needs dudz)")
 
 
 class Simulator:
@@ -213,13 +175,11 @@ class Simulator:
         where :meth:`rollout` starts by default, so ``rollout(u, x0=sim.rest_state())`` is
         ``rollout(u)``. :meth:`rest_positions` gives a writeable copy of the positions.
 
-        Computed as proximal-point iterations ``x_{j+1} = argmin E(x; x_prev = x_j) +
-        |x - x_j|^2_M / 2`` (implicit steps of 1 s from rest), which converge to a state where
-        the friction term exerts no force, so a rollout started there stays still. With the
+        Computed by relaxation, implicit steps of 1 s from rest (:mod:`.rest`), to a state
+        where friction exerts no force, so a rollout started there stays still. With the
         paper's lagged (viscous-like) friction a robot on a slope creeps, so the rest state of
-        an inclined simulator then uses only the normal component of gravity. The Coulomb law
-        holds it: its rest state is under the full gravity, with the stick anchors carried
-        through the iterations (loaded: the nodes stand up to tens of micrometres from them).
+        an inclined simulator then uses only the normal component of gravity; the Coulomb law
+        holds it under the full gravity, with loaded stick anchors that belong to the state.
         """
         return self._rest(u, tol, max_iter)
 
@@ -244,7 +204,7 @@ class Simulator:
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
         key = (tuple(u.tolist()), tol, params)
         if key not in self._rest_sens_cache:
-            rest, dx, dh = self._relax(u, tol, max_iter, params)
+            rest, dx, dh = relax(self, u, tol, max_iter, params)
             self._rest_sens_cache[key] = rest.x, rest.history, dx, dh
         return self._rest_sens_cache[key]
 
@@ -252,53 +212,8 @@ class Simulator:
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
         key = (tuple(u.tolist()), tol)
         if key not in self._rest_cache:
-            self._rest_cache[key] = self._relax(u, tol, max_iter)
+            self._rest_cache[key] = relax(self, u, tol, max_iter)
         return self._rest_cache[key]
-
-    def _relax(self, u, tol: float, max_iter: int, params=()):
-        """The relaxation of :meth:`rest_state`: its :class:`State`, and with ``params``
-        ``(state, dx/dtheta, dhistory/dtheta)``. Every relaxation step starts at rest at the
-        last one's positions, with its anchors (:func:`~.state.advance` with a solver of
-        ``dt = 1`` s)."""
-        g = self.gravity
-        anchored = self.system.has_history
-        relax_g = g if (anchored or self.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])
-        system = EnergySystem(self.robot, gravity=relax_g, control=self.control)
-        relax = NewtonSolver(system, 1.0, NewtonOptions(tol=min(tol, 1e-10), max_iter=100,
-                                                        solver=self.newton.options.solver))
-        x = self.initial_placement()
-        history = system.initial_history(x)
-        sens = exact = None
-        if params:      # its own solver for the exact Hessians: the relaxation's path stays that of rest_state
-            exact = NewtonSolver(system, 1.0, relax.options)
-            sens = ForwardSensitivities(exact, self.robot.node_masses, np.zeros((max_iter, self.n_motors, 0)),
-                                        params=params, x0=x)
-        cache = FactorCache()
-        for j in range(max_iter):
-            start = State(x, x, None, history, j)       # at rest (no x_{k-2}: the guess is x itself)
-            try:
-                new, _ = advance(relax, start, u, cache=cache)
-                if sens is not None:
-                    sens.hold()
-                    sens.step(j, exact.factorize_exact_at(new.x, start.x, start.x, u, history=start.history),
-                              new.x, start.x, u, start.history, x_prev2=start.x)
-            except SimulationError as err:
-                raise SimulationError(f"rest_state of robot {self.robot.name!r} failed (u = {u.tolist()}, "
-                                      f"gravity = {relax_g.tolist()}): {err.reason}") from err
-            moved = np.abs(new.x - start.x).max()
-            x, history = new.x, new.history
-            if moved <= tol:
-                break
-        else:
-            hint = "; friction may not hold it on this slope (it slides)" if anchored and relax_g[[0, 2]].any() else ""
-            raise SimulationError(f"rest_state of robot {self.robot.name!r} did not settle in {max_iter} "
-                                  f"relaxation steps (last motion {moved:.2e} m; u = {u.tolist()}, "
-                                  f"gravity = {relax_g.tolist()}, tol = {tol}){hint}")
-        rest = State.at_rest(x, history)
-        if sens is None:
-            return rest
-        dh = tuple(None if p is None else p[:, sens.nz:].copy() for p in (sens.P or (None,) * len(history)))
-        return rest, sens.S1[:, sens.nz:].copy(), dh
 
     def step(self, state, *args, factor_cache: FactorCache | None = None, **kwargs):
         """One implicit-Euler step (paper eq. 4): ``step(state, u) -> State``, the state after
