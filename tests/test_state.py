@@ -186,6 +186,7 @@ def test_the_deprecated_positions_step_is_the_state_step():
         x = sim.step(rest.x, rest.x, np.zeros(0), history=rest.history, x_prev3=rest.x)
     np.testing.assert_array_equal(x, sim.step(rest, np.zeros(0)).x)
     assert x.flags.writeable
+    np.testing.assert_array_equal(sim.step(rest, u=np.zeros(0)).x, x)
     with pytest.raises(TypeError, match="takes the State"):
         sim.step(rest, np.zeros(0), 3)
 

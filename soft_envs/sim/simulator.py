@@ -234,9 +234,10 @@ class Simulator:
                           "State(x, x_prev, x_prev2, history, k)); see docs/api-changes.md",
                           DeprecationWarning, stacklevel=2)
             return self._step_positions(state, *args, factor_cache=factor_cache, **kwargs)
-        if len(args) != 1 or kwargs:
+        if len(args) + len(kwargs) != 1 or set(kwargs) - {"u"}:
             raise TypeError("Simulator.step(state, u, *, factor_cache=None) takes the State and the controls u")
-        return advance(self.newton, self._check_state(state), self._check_u(args[0]), cache=factor_cache)[0]
+        u = args[0] if args else kwargs["u"]
+        return advance(self.newton, self._check_state(state), self._check_u(u), cache=factor_cache)[0]
 
     def _step_positions(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None,
                         factor_cache: FactorCache | None = None, history: tuple | None = None) -> np.ndarray:
