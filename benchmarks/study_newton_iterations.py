@@ -116,7 +116,7 @@ def controls(robot, kind: str, K: int) -> np.ndarray:
 def counted_rollout(robot, kind: str, K: int, air: bool = False):
     sim = Simulator(robot, gravity=(0.0, 0.0, 0.0) if air else (0.0, -9.81, 0.0))
     sim.newton = CountingSolver(sim.system, sim.newton.dt, sim.newton.options)
-    x0 = sim.rest_positions() + (AIR_LIFT if air else 0.0)
+    x0 = sim.rest_state() + (AIR_LIFT if air else 0.0)
     traj = sim.rollout(controls(robot, kind, K), x0=x0)
     its, facts = np.mean(sim.newton.counts, axis=0)
     return sim, traj, its, facts
