@@ -220,13 +220,15 @@ def test_the_environment_steps_through_the_same_loop(env_id):
 def test_adjoint_from_a_state_matches_the_forward_sensitivities(moving):
     """The adjoint and the forward recurrence (whose central-difference checks are in
     tests/test_sensitivity.py) agree for a Coulomb bar from its rest state (loaded anchors) and
-    from a state that is not at rest (x_prev != x)."""
+    from a state that is not at rest (x_prev != x) with other anchors: the adjoint re-walks the
+    rollout from the State it started from (``traj.info["start"]``)."""
     sim = Simulator(small_robot(contact=ContactParams(model="coulomb", friction_coefficient=0.5)),
                     gravity=incline_gravity(20.0, uphill=(-1.0, 0.0)))
     K = 12
     start = sim.rest_state()
-    if moving:
-        start = start.replace(x_prev=start.x - np.array([1e-3, 0.0, 0.0]) * sim.dt, x_prev2=None)
+    if moving:          # and re-anchored where it stands: not the rest state's anchors
+        start = sim.state_at_rest(start.x).replace(x_prev=start.x - np.array([1e-3, 0.0, 0.0]) * sim.dt,
+                                                   x_prev2=None)
     rng = np.random.default_rng(3)
     u = np.linspace(0.0, 0.003, K)[:, None]
     dudz = rng.normal(size=(K, 1, 3)) * 1e-3
