@@ -50,7 +50,7 @@ def main() -> None:
         from soft_envs.sim import Simulator, load_robot
         for name in ("tripod", "puppy"):
             robot = load_robot(name)
-            x0 = Simulator(robot).rest_state()
+            x0 = Simulator(robot).rest_positions()
             surf = np.asarray(robot.mesh.surface)
             rows.append({"mesh": name, "triangles": len(surf), "extras": True,
                          "frames/s": frames_per_second(surf, [x0] * 20, robot.body_length, True)})

@@ -75,7 +75,7 @@ class OursCase:
     def __init__(self, name: str, law: str, steps: int, env_steps: int):
         self.robot = with_contact_law(load_robot(name), law)
         self.sim = Simulator(self.robot, dt=DT)
-        self.x0 = self.sim.rest_state()
+        self.x0 = self.sim.rest_positions()
         r = self.robot
         self.controls = {"stand": np.zeros((steps, r.n_motors)),
                          "gait": gait_controls(r, K=steps, dt=DT),
@@ -143,7 +143,7 @@ def sag_with_double_stiffness(case: "OursCase", settle: int, mu: float) -> tuple
     robot = case.robot.replace(youngs_modulus=2 * case.robot.youngs_modulus)
     sim = Simulator(robot, dt=DT)
     x_place = sim.initial_placement()
-    ours = 1e3 * (robot.com(x_place)[1] - robot.com(sim.rest_state())[1])
+    ours = 1e3 * (robot.com(x_place)[1] - robot.com(sim.rest_positions())[1])
     return ours, settle_mujoco(FlexModel(robot, DT, mu), case.x0, settle, 1)["sag_mm"]
 
 

@@ -60,11 +60,11 @@ def record(ref_points: dict | None = None, contact: str | None = None) -> dict[s
     out: dict[str, np.ndarray] = {}
     for key, robot, kw, u in cases(contact):
         sim = Simulator(robot, dt=0.033, **kw)
-        x0 = sim.rest_state()
+        x0 = sim.rest_state()              # a State since issue #27 (an array before)
         rng = np.random.default_rng(99)
         dudz = rng.standard_normal((len(u), robot.n_motors, NZ)) * 1e-3
         traj = sim.rollout(u, x0=x0, dudz=dudz, store_dxdz=True)
-        out[f"{key}/x0"] = x0
+        out[f"{key}/x0"] = np.array(getattr(x0, "x", x0))
         out[f"{key}/x"] = traj.x
         out[f"{key}/com"] = traj.com
         out[f"{key}/gamma"] = traj.cable_deformation

@@ -73,7 +73,7 @@ def timed_parts(sim: Simulator, u: np.ndarray) -> dict:
 
 def factorize_time(sim: Simulator) -> float:
     """Seconds of one numeric factorisation of the Hessian at rest (best of several)."""
-    x = sim.rest_state()
+    x = sim.rest_positions()
     u = np.zeros(sim.n_motors)
     _, _, h = sim.newton.phi_assemble(x, x, x, u)
     solver = linsolve.make_solver(sim.system.pattern)

@@ -40,7 +40,7 @@ def bar_robot() -> Robot:
 def shipped(name: str):
     robot = load_robot(name)
     sim = Simulator(robot)
-    return robot, sim, sim.rest_state()
+    return robot, sim, sim.rest_positions()
 
 
 @pytest.fixture(scope="session")

@@ -34,7 +34,7 @@ def slide_along_slope(sim: Simulator, seconds: float, released: bool = False) ->
     flat ground, released on the slope (where the body cannot rest)."""
     K = int(round(seconds / sim.dt))
     if released:
-        x0 = Simulator(sim.robot, dt=sim.dt).rest_state()
+        x0 = Simulator(sim.robot, dt=sim.dt).rest_positions()
         traj = sim.rollout(np.zeros((K, sim.n_motors)), x0=x0)
     else:
         traj = sim.rollout(np.zeros((K, sim.n_motors)))          # from the rest state and its anchors

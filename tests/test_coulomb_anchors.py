@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from soft_envs.sim import NewtonOptions, Robot, Simulator, incline_gravity
+from soft_envs.sim import NewtonOptions, Robot, Simulator, State, incline_gravity
 
 from .test_physics_magnitudes import G, block, coulomb_friction_force, documented_normal_force
 
@@ -105,20 +105,21 @@ def test_coulomb_rollout_carries_the_anchors_and_slides_to_a_stop():
     7.348 mm (measured 7.3478 mm; 1 % allowed). Then it stays where it stopped, its anchors
     having come along: the bristles unload and the bar relaxes its shear, springing back by
     less than 2 r_s (measured 1.5 r_s), and it settles (< 2 um over the last 10 steps). The
-    rollout is the documented step-by-step recurrence: ``step`` with the history,
-    ``next_history`` after it."""
+    rollout is the documented step-by-step recurrence: ``step`` of a State carrying the history
+    (``next_history`` after each step)."""
     mu, v0, h = 0.6, 0.3, 0.002
     robot, sim = coulomb_block(mu, dt=h, newton=NewtonOptions(tol=1e-12))
-    x0, h0 = sim.rest_state(), sim.rest_history()
+    x0, h0 = sim.rest_positions(), sim.rest_history()
     K = 75                                                   # 0.15 s: stops after ~0.05 s
     xm1 = x0 - np.array([v0, 0.0, 0.0]) * h
     traj = sim.rollout(np.zeros((K, 0)), x0=x0, x_prev0=xm1, history0=h0)
-    prev, prev2, hist = x0, xm1, h0
+    state = State(x0, xm1, None, h0)
     for k in range(K):
-        x = sim.step(prev, prev2, np.zeros(0), history=hist)
-        hist = sim.next_history(x, prev, hist)
-        np.testing.assert_allclose(traj.x[k + 1], x, rtol=0, atol=1e-9, err_msg=f"step {k + 1}")
-        prev2, prev = prev, x
+        prev = state
+        state = sim.step(state, np.zeros(0))
+        hist = sim.next_history(state.x, prev.x, prev.history)
+        assert all(a is b is None or np.array_equal(a, b) for a, b in zip(state.history, hist))
+        np.testing.assert_allclose(traj.x[k + 1], state.x, rtol=0, atol=1e-9, err_msg=f"step {k + 1}")
     i = sim.system.terms.index(sim.system.contact)
     np.testing.assert_allclose(traj.info["history"][i], hist[i], rtol=0, atol=1e-9)
     a = mu * G
@@ -146,7 +147,7 @@ def test_rollout_from_the_rest_state_starts_with_the_rest_anchors():
     < 1e-9 m asserted); had it re-anchored the nodes where they stand, the bar would slip by
     the bristles' deflection (measured 40 um)."""
     robot, sim = coulomb_block(gravity=incline_gravity(20.0, uphill=(-1.0, 0.0)))
-    x0, h0 = sim.rest_state(), sim.rest_history()
+    x0, h0 = sim.rest_positions(), sim.rest_history()
     i = sim.system.terms.index(sim.system.contact)
     nodes = sim.system.contact.nodes
     deflection = np.linalg.norm(x0[nodes][:, [0, 2]] - h0[i], axis=1)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from soft_envs.sim import NewtonOptions, SimulationError, Simulator
+from soft_envs.sim import NewtonOptions, SimulationError, Simulator, State
 
 from .conftest import small_robot
 
@@ -48,7 +48,7 @@ def test_energy_never_increases_without_contact():
 def test_block_resting_on_ground_stays_at_rest():
     robot = small_robot(tendons=[], motors=[])
     sim = Simulator(robot)
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     assert x0[:, 1].min() < 0 < x0[:, 1].max()       # it sinks slightly into the penalty layer
     traj = sim.rollout(np.zeros((100, 0)), x0=x0)
     assert np.abs(traj.x - x0).max() < 1e-7
@@ -60,7 +60,7 @@ def test_block_resting_on_ground_stays_at_rest():
 def test_failed_step_raises_and_leaves_inputs_untouched():
     robot = small_robot()
     sim = Simulator(robot, newton=NewtonOptions(max_iter=1, tol=1e-14))
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     before = x0.copy()
     with pytest.raises(SimulationError) as err:
         sim.rollout(np.full((3, 1), 0.008), x0=x0)
@@ -73,13 +73,14 @@ def test_inverted_input_state_raises():
     sim = Simulator(robot)
     x = np.array(robot.mesh.points)
     x[robot.mesh.tets[0, 3]] = x[robot.mesh.tets[0, 0]] - 0.05       # turns elements inside out
-    with pytest.raises(SimulationError, match="inverted"):
-        sim.step(x, x, np.zeros(1), k=4)
+    with pytest.raises(SimulationError, match="inverted") as err:
+        sim.step(sim.state_at_rest(x).replace(k=4), np.zeros(1))
+    assert err.value.step == 4
 
 
 def test_bad_controls_and_states_are_rejected():
     sim = Simulator(small_robot())
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     with pytest.raises(ValueError, match="NaN"):
         sim.rollout(np.array([[np.nan]]), x0=x0)
     with pytest.raises(ValueError, match=r"shape \(K, 1\)"):
@@ -98,7 +99,7 @@ def test_cable_contraction_bends_and_tension_control():
     robot = small_robot()
     for control, u in (("length", 0.004), ("tension", 20.0)):
         sim = Simulator(robot, control=control)
-        x0 = sim.rest_state()
+        x0 = sim.rest_positions()
         traj = sim.rollout(np.full((30, 1), u), x0=x0)
         gam = traj.cable_deformation[-1]
         tens = sim.cable_tension(traj.x[-1], np.array([u]))
@@ -121,7 +122,7 @@ def test_lu_fallback_solver_matches_cholmod_and_reports_indefinite():
     u = np.linspace(0, 0.006, 25)[:, None]
     ref = Simulator(robot, newton=NewtonOptions(solver="cholmod", tol=1e-11))
     lu = Simulator(robot, newton=NewtonOptions(solver="lu", tol=1e-11))
-    x0 = ref.rest_state()
+    x0 = ref.rest_positions()
     assert np.abs(ref.rollout(u, x0=x0).x - lu.rollout(u, x0=x0).x).max() < 1e-9
     pat = lu.system.pattern
     data = np.zeros(pat.nnz + 1)
@@ -151,19 +152,20 @@ def test_newton_error_estimate_holds_along_a_gait(name):
     robot = load_robot(name)
     sim = Simulator(robot)
     ref = Simulator(robot, newton=NewtonOptions(tol=1e-14, reuse_factor=False))
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     t = np.arange(40) * 0.033
     u = 0.5 * robot.u_bounds[:, 1] * (1 - np.cos(2 * np.pi * t[:, None] / 1.2 + np.arange(robot.n_motors)))
     traj = sim.rollout(u, x0=x0)
     tol = sim.newton.options.tol
     worst = 0.0
+    none = (None,) * len(sim.system.terms)           # the paper's law keeps no history
     for k in range(2, 40):
-        xr = ref.step(traj.x[k], traj.x[k - 1], u[k])
-        worst = max(worst, np.abs(sim.step(traj.x[k], traj.x[k - 1], u[k], x_prev3=traj.x[k - 2]) - xr).max(),
-                    np.abs(sim.step(traj.x[k], traj.x[k - 1], u[k]) - xr).max())
+        xr = ref.step(State(traj.x[k], traj.x[k - 1], None, none), u[k]).x
+        worst = max(worst, np.abs(sim.step(State(traj.x[k], traj.x[k - 1], traj.x[k - 2], none), u[k]).x - xr).max(),
+                    np.abs(sim.step(State(traj.x[k], traj.x[k - 1], None, none), u[k]).x - xr).max())
     assert worst <= tol, worst
-    with pytest.raises(ValueError, match="x_prev3"):
-        sim.step(traj.x[3], traj.x[2], u[3], x_prev3=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="x_prev2"):
+        sim.step(State(traj.x[3], traj.x[2], np.zeros((2, 3)), none), u[3])
 
 
 def test_newton_options_extrapolation_is_validated():
@@ -182,7 +184,7 @@ def test_slow_chord_settings_still_stop():
     robot = load_robot("tripod")
     sim = Simulator(robot)
     slow = Simulator(robot, newton=NewtonOptions(refactor_ratio=0.85, max_chord=16.0))
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     t = np.arange(30) * 0.033
     u = 0.5 * robot.u_bounds[:, 1] * (1 - np.cos(2 * np.pi * t[:, None] / 2.4 + np.pi * np.arange(robot.n_motors)))
     a, b = sim.rollout(u, x0=x0), slow.rollout(u, x0=x0)
@@ -194,7 +196,7 @@ def test_controls_outside_the_motor_range_are_refused_with_the_motor_named():
     opt out with check_bounds=False. NaN in dudz is refused too."""
     robot = small_robot()
     sim = Simulator(robot)
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     u = np.full((3, 1), 0.004)
     u[1, 0] = 4.0                                   # 4 "mm" given in metres
     with pytest.raises(ValueError, match=r"u\[1, 0\] = 4\.0 m lie outside motor 'm0'"):
@@ -214,17 +216,21 @@ def test_steps_depend_on_their_inputs_only():
     from soft_envs.sim import FactorCache
     robot = small_robot()
     sim = Simulator(robot)
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     ua, ub = np.full((12, 1), 0.006), np.linspace(0.0, 0.009, 12)[:, None]
     ta, tb = sim.rollout(ua, x0=x0), sim.rollout(ub, x0=x0)
-    first = sim.step(ta.x[5], ta.x[4], ua[5])
+    mid = State(ta.x[5], ta.x[4], None, sim.initial_history(ta.x[5]))
+    first = sim.step(mid, ua[5]).x
     sim.rollout(ub, x0=x0)                            # something else in between
-    assert np.array_equal(sim.step(ta.x[5], ta.x[4], ua[5]), first)
+    assert np.array_equal(sim.step(mid, ua[5]).x, first)
     ca, cb = FactorCache(), FactorCache()
+    sa = sb = sim.state_at_rest(x0).replace(x_prev2=None)
     xa, xb = [x0, x0], [x0, x0]
     for k in range(12):
-        xa.append(sim.step(xa[-1], xa[-2], ua[k], factor_cache=ca))
-        xb.append(sim.step(xb[-1], xb[-2], ub[k], factor_cache=cb))
+        sa = sim.step(sa, ua[k], factor_cache=ca)
+        sb = sim.step(sb, ub[k], factor_cache=cb)
+        xa.append(sa.x)
+        xb.append(sb.x)
         assert cb.holds(sim.newton.solver) and not ca.holds(sim.newton.solver)
     # the caches never reuse each other's factorisations: both match a fresh-per-step run to
     # within the Newton tolerance (a reused factorisation changes results only at that level)

@@ -51,7 +51,7 @@ def _step_from(env_id: str, state: str, **kw):
     env = gym.make(env_id, reset_noise_scale=0.0, **kw)
     env.reset(seed=0)
     u = env.unwrapped
-    x = u.simulator.rest_state(u.robot.u_rest)
+    x = u.simulator.rest_positions(u.robot.u_rest)
     c = u.robot.com(x)
     if state == "tilted":
         x = (x - c) @ _rot_x(25.0).T + c

@@ -151,7 +151,7 @@ def test_reset_noise_follows_the_seed():
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
     x0, xm1 = env.unwrapped.reset_state()
-    rest = env.unwrapped.simulator.rest_state()
+    rest = env.unwrapped.simulator.rest_positions()
     assert 0 < np.abs(x0 - rest).max() <= 1e-4 and 0 < np.abs(xm1 - x0).max() <= 1e-4
     quiet = gym.make("SoftPuppy-v0", reset_noise_scale=0.0)
     quiet.reset(seed=1)
@@ -265,7 +265,7 @@ def _kicked(env_id, dx=None, yaw=0.0, **kw):
     env = gym.make(env_id, reset_noise_scale=0.0, **kw)
     env.reset(seed=0)
     u = env.unwrapped
-    x = u.simulator.rest_state()
+    x = u.simulator.rest_positions()
     c = u.robot.com(x)
     rot = np.array([[np.cos(yaw), 0, -np.sin(yaw)], [0, 1, 0], [np.sin(yaw), 0, np.cos(yaw)]])  # +x -> +z
     x_now = (x - c) @ rot.T + c + (np.zeros(3) if dx is None else dx)
@@ -291,7 +291,7 @@ def test_walk_and_turn_rewards():
 def test_falling_over_terminates():
     env = _kicked("SoftTripod-v0")
     u = env.unwrapped
-    x = u.simulator.rest_state()
+    x = u.simulator.rest_positions()
     c = u.robot.com(x)
     roll = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)              # 90 deg about x
     on_side = (x - c) @ roll.T + c

@@ -36,7 +36,7 @@ def gait(robot, control: str, K: int = K) -> np.ndarray:
 def test_rollout_jacobian_matches_finite_differences(name, control, incline):
     robot = load_robot(name)
     sim = Simulator(robot, control=control, gravity=incline_gravity(incline), newton=TIGHT)
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     u0 = gait(robot, control)
     rng = np.random.default_rng(42)
     nz = 6
@@ -58,7 +58,7 @@ def test_jacobian_with_fixed_nodes():
     """A clamped bar (cable-driven finger): fixed dofs have zero sensitivity."""
     robot = small_robot(fixed_nodes=np.arange(6))
     sim = Simulator(robot, newton=TIGHT)
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     u0 = np.linspace(0, 0.004, K)[:, None]
     dudz = np.random.default_rng(1).normal(size=(K, 1, 3)) * 1e-3
     errs = rollout_jacobian_errors(sim, u0, dudz, x0=x0)
@@ -72,7 +72,7 @@ def test_jacobian_with_fixed_nodes():
 def test_adjoint_gradient_equals_forward_mode(name, control):
     robot = load_robot(name)
     sim = Simulator(robot, control=control, newton=NewtonOptions(tol=1e-12))
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     u0 = gait(robot, control, K=30)
     rng = np.random.default_rng(3)
     w = rng.normal(size=(31, robot.mesh.n_nodes, 3))           # O = sum_k w_k . x_k
@@ -108,7 +108,7 @@ def test_rollout_jacobian_with_coulomb_friction(name):
     recurrence (d grad/d anchors, d next anchors/dz). Feet both stick and slide in this gait."""
     robot = coulomb(load_robot(name))
     sim = Simulator(robot, newton=TIGHT)
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     u0 = gait(robot, "length")
     traj = sim.rollout(u0, x0=x0)
     c = sim.system.contact
@@ -131,7 +131,7 @@ def test_rollout_jacobian_with_coulomb_friction(name):
 def test_adjoint_gradient_with_coulomb_friction():
     robot = coulomb(load_robot("tripod"))
     sim = Simulator(robot, newton=NewtonOptions(tol=1e-12))
-    x0 = sim.rest_state()
+    x0 = sim.rest_positions()
     u0 = gait(robot, "length", K=30)
     rng = np.random.default_rng(5)
     w = rng.normal(size=(31, robot.mesh.n_nodes, 3))

@@ -35,7 +35,7 @@ def test_cantilever_small_load_close_to_beam_theory():
     ratios = []
     for n_len, n_side in [(10, 1), (20, 2), (40, 4)]:
         robot = cantilever(n_len, n_side, L, a, E, nu, rho)
-        x = Simulator(robot).rest_state()
+        x = Simulator(robot).rest_positions()
         ratios.append(tip_deflection(robot, x) / theory)
     assert ratios[0] < ratios[1] < ratios[2] < 1.02
     assert ratios[2] > 0.8, f"tip deflection {ratios[2]:.2f} x beam theory ({theory * 1e3:.3f} mm)"
@@ -47,7 +47,7 @@ def test_cantilever_matches_felupe():
     E, nu, rho = 2e4, 0.3, 100.0             # soft: tip deflection ~ 15 % of the length
     robot = cantilever(8, 2, E=E, nu=nu, rho=rho)
     sim = Simulator(robot, newton=NewtonOptions(tol=1e-12))
-    x = sim.rest_state(tol=1e-13)
+    x = sim.rest_positions(tol=1e-13)
     assert tip_deflection(robot, x) > 0.01
 
     mesh = fem.Mesh(np.array(robot.mesh.points), np.array(robot.mesh.tets), "tetra")
@@ -71,7 +71,7 @@ def test_cantilever_matches_felupe():
 def test_static_solution_is_an_equilibrium_and_converges():
     robot = cantilever(6, 2, E=3e4)
     sim = Simulator(robot)
-    x = sim.rest_state(tol=1e-12)
+    x = sim.rest_positions(tol=1e-12)
     g = sim.gradient(x, x, np.zeros(0)).copy()
     g[robot.fixed_nodes] = 0.0
     weight = robot.total_mass * 9.81

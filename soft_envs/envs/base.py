@@ -28,7 +28,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import logger, spaces
 
-from ..sim import FactorCache, Robot, SimulationError, Simulator, incline_gravity, load_robot
+from ..sim import (DEFAULT_DT, GAIT_CYCLE_STEPS, FactorCache, Robot, SimulationError, Simulator, State,
+                   incline_gravity, load_robot)
 from .actuation import Actuation
 from .arguments import RENDER_MODES, check_env_arguments
 from .domain import draw_standing_robot, parse_domain_randomization, randomized_robot
@@ -40,8 +41,8 @@ from .viewer import EnvViewer, RenderingMixin
 
 __all__ = ["SoftRobotEnv", "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "with_contact_law"]
 
-PAPER_TIMESTEP = 0.033              # [s] the paper's simulation time step h
-PAPER_GAIT_PERIOD = 72 * PAPER_TIMESTEP   # [s] the paper's gait cycle: 72 steps
+PAPER_TIMESTEP = DEFAULT_DT         # [s] the paper's simulation time step h (soft_envs.sim.timing)
+PAPER_GAIT_PERIOD = GAIT_CYCLE_STEPS * PAPER_TIMESTEP   # [s] the paper's gait cycle: 72 steps
 MOTOR_NO_LOAD_RPM = 100.0           # Pololu 298:1 micro metal gearmotor, no-load at 6 V
 _TRAIL_LENGTH = 3000                # COM trail points kept for rendering
 _RENDER_MODES = RENDER_MODES
@@ -106,7 +107,6 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         if self._base_robot.n_motors == 0:
             raise ValueError(f"robot {self._base_robot.name!r} has no motors")
         self.frame_skip = int(frame_skip)
-        self._timestep = float(timestep)
         self._heading = self._task.heading
         self._incline_deg = float(incline_deg)
         self._gravity = incline_gravity(incline_deg, uphill=(self._heading[0], self._heading[2]))
@@ -120,14 +120,14 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         self._camera_config = dict(camera_config or {})
         self._viewer: EnvViewer | None = None
         self._steps_beyond_terminated = 0        # steps after terminated=True (warned at the first)
+        self._init_physics(timestep)
         self._init_actuation(motor_speed_rpm)
         self._init_spaces()
-        self._init_physics()
 
     def _init_actuation(self, motor_speed_rpm: float | None) -> None:
         """The motors, and the cable-deformation scale of the observation (each tendon's Gamma
         divided by its motor's range)."""
-        self._actuation = Actuation(self._base_robot, motor_speed_rpm, self._timestep)
+        self._actuation = Actuation(self._base_robot, motor_speed_rpm, self.timestep)
         self.motor_speed = self._actuation.speed                          # (M,) [m/s]
         rng = self._actuation.range
         tm = self._base_robot.tendon_motor
@@ -144,16 +144,16 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(self._obs_size,), dtype=np.float64)
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
 
-    def _init_physics(self) -> None:
-        """The simulator of the nominal robot, and the state at rest (until the first reset)."""
+    def _init_physics(self, timestep: float) -> None:
+        """The simulator of the nominal robot with time step ``timestep`` (from then on the
+        simulator's ``dt`` is the environment's one time step), and the state at rest (until
+        the first reset)."""
         self._domain: dict[str, float] = {}
         self._sim: Simulator | None = None
-        self._set_domain({k: 1.0 for k in (self._domain_ranges or {})})
+        self._set_domain({k: 1.0 for k in (self._domain_ranges or {})}, dt=timestep)
         u_rest = self._base_robot.u_rest
-        x = self._sim.rest_state(u_rest)
-        self._x0_reset, self._xm1_reset = x, x.copy()
-        self._history_reset = self._sim.rest_history(u_rest)
-        self._restore(x, x.copy(), u_rest, 0, self._frame.com(x), history=self._history_reset)
+        self._reset_state = self._sim.rest_state(u_rest)
+        self._restore(self._reset_state, u_rest, self._frame.com(self._reset_state.x))
 
     # ------------------------------------------------------------------ properties (hooks)
     @property
@@ -171,7 +171,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
     def dt(self) -> float:
         """Duration of one environment step [s]: ``frame_skip * timestep``, as in Gymnasium's
         MuJoCo environments (rewards divide displacements by it)."""
-        return self.frame_skip * self._timestep
+        return self.frame_skip * self.timestep
 
     @property
     def timestep(self) -> float:
@@ -199,15 +199,16 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         return dict(self._domain)
 
     # ------------------------------------------------------------------ simulator management
-    def _set_domain(self, factors: Mapping[str, float]) -> None:
-        """Use the robot with these factors; rebuild the simulator only if they changed. A robot
-        that cannot stand at rest raises SimulationError and changes nothing."""
+    def _set_domain(self, factors: Mapping[str, float], dt: float | None = None) -> None:
+        """Use the robot with these factors; rebuild the simulator only if they changed (with
+        the current simulator's time step, or ``dt`` for the first). A robot that cannot stand
+        at rest raises SimulationError and changes nothing."""
         factors = {k: float(v) for k, v in sorted(factors.items())}
         if self._sim is not None and factors == self._domain:
             return
         robot = randomized_robot(self._base_robot, factors)
-        sim = Simulator(robot, dt=self._timestep, gravity=self._gravity, control="length")
-        x_rest = sim.rest_state(robot.u_rest)
+        sim = Simulator(robot, dt=self._sim.dt if dt is None else dt, gravity=self._gravity, control="length")
+        x_rest = sim.rest_state(robot.u_rest).x
         self._sim, self._domain = sim, factors
         self._frame = BodyFrame(x_rest, robot.node_masses)
         self._rest_com_height = float(self._frame.com(x_rest)[1])
@@ -241,17 +242,14 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         self._steps_beyond_terminated = 0
         domain_info = self._draw_domain() if self._domain_ranges is not None else {}
         u_rest = self.robot.u_rest
-        x_rest = self._sim.rest_state(u_rest)
+        state = self._sim.rest_state(u_rest)          # with its stick anchors (if any)
         s = self._reset_noise_scale
         if s > 0:
-            x0 = x_rest + self.np_random.uniform(-s, s, size=x_rest.shape)
-            xm1 = x0 - self.np_random.uniform(-s, s, size=x_rest.shape)
-            history = self._sim.initial_history(x0)      # stick anchors (if any) where the feet are
-        else:
-            x0, xm1 = x_rest, x_rest.copy()
-            history = self._sim.rest_history(u_rest)
-        self._x0_reset, self._xm1_reset, self._history_reset = x0.copy(), xm1.copy(), history
-        self._restore(x0, xm1, u_rest, 0, self._frame.com(x0), None if s > 0 else x0.copy(), history)
+            x0 = state.x + self.np_random.uniform(-s, s, size=state.x.shape)
+            xm1 = x0 - self.np_random.uniform(-s, s, size=state.x.shape)
+            state = State(x0, xm1, None, self._sim.initial_history(x0))   # anchors where the feet are
+        self._reset_state = state
+        self._restore(state, u_rest, self._frame.com(state.x))
         if self.render_mode == "human":
             self.render()
         return self._get_obs(), {**self._get_info(), **domain_info}
@@ -273,25 +271,22 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         self._warn_if_stepping_after_termination()
         a = self._actuation.check_action(action)
         u_cmd = self._actuation.command(a)
-        x, xp, xp2, u, history = self._x, self._x_prev, self._x_prev2, self._u, self._history
+        state, u = self._state, self._u
         u_sub = np.empty((self.frame_skip, len(u)))
         cache = FactorCache()         # the sub-steps of this step share factorisations, no others
         try:
             for i in range(self.frame_skip):
                 u = self._actuation.follow(u, u_cmd)
-                xp2, xp, x = xp, x, self._sim.step(x, xp, u, k=self._n_sub + i, x_prev3=xp2,
-                                                   factor_cache=cache, history=history)
-                if self._sim.has_history:
-                    history = self._sim.next_history(x, xp, history)
+                state = self._sim.step(state, u, factor_cache=cache)
                 u_sub[i] = u
         except SimulationError as err:     # keep the state of before the step
-            self._failed_state = self._x
+            self._failed_state = self._state
             info = self._get_info()
             info.update(reward_forward=0.0, reward_ctrl=0.0, reward_survive=0.0,
                         sim_failure=str(err))
             return self._get_obs(), 0.0, True, False, info
         com_before, yaw_before = self._com, self._yaw
-        self._restore(x, xp, u, self._n_sub + self.frame_skip, self._com_start, xp2, history)
+        self._restore(state, u, self._com_start)
         forward_velocity = float((self._com - com_before) @ self._heading) / self.dt / self._body_length
         yaw_rate = wrap_angle(self._yaw - yaw_before) / self.dt
         reward, reward_info = self._task.reward(forward_velocity, yaw_rate, a, self.is_healthy, self._body_length)
@@ -306,7 +301,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
     def _warn_if_stepping_after_termination(self) -> None:
         """Warn (once per episode, as Gymnasium's own environments do) when :meth:`step` follows
         a step that returned ``terminated=True`` (unhealthy, or a failed simulation step)."""
-        terminated = (getattr(self, "_failed_state", None) is self._x
+        terminated = (getattr(self, "_failed_state", None) is self._state
                       or (self._n_sub > 0 and self._task.terminate_when_unhealthy and not self._healthy))
         if not terminated:
             return
@@ -321,24 +316,27 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
     def _body_length(self) -> float:
         return float(self._base_robot.body_length)
 
-    def _restore(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray, n_sub: int,
-                 com_start: np.ndarray, x_prev2: np.ndarray | None = None, history: tuple | None = None) -> None:
-        """Set the dynamic state and recompute the quantities derived from it. ``x_prev2``
-        (the state before ``x_prev``, or None) only improves the Newton solver's first guess;
-        ``history`` is the contact law's lagged state (stick anchors; default: at rest at x)."""
-        self._x, self._x_prev, self._u, self._n_sub = x, x_prev, u, int(n_sub)
-        self._x_prev2 = x_prev2
-        self._history = self._sim.initial_history(x) if history is None else history
+    def _restore(self, state: State, u: np.ndarray, com_start: np.ndarray) -> None:
+        """Set the dynamic state (the simulator's :class:`~soft_envs.sim.State`: positions,
+        previous positions, stick anchors, simulation steps since reset) and the applied
+        contractions ``u``, and recompute the quantities derived from them."""
+        x = state.x
+        self._state, self._u = state, u
         self._com_start = np.array(com_start, dtype=np.float64)
         self._com = self._frame.com(x)
         self._rot = self._frame.rotation(x)
         self._yaw = yaw_of(self._rot)
         self._tilt = tilt_deg_of(self._rot)
         self._healthy = self._task.is_healthy(self._tilt, self._com, self._rest_com_height)
-        if n_sub == 0 or not hasattr(self, "_trail"):
+        if state.k == 0 or not hasattr(self, "_trail"):
             self._trail: deque[np.ndarray] = deque(maxlen=_TRAIL_LENGTH)
         if self.render_mode is not None:     # the COM path drawn on the ground
             self._trail.append(self._com)
+
+    # the state's fields under the names the mixins (hooks, viewer) and tests read
+    _x = property(lambda self: self._state.x, doc="positions now (n, 3) [m]")
+    _x_prev = property(lambda self: self._state.x_prev, doc="positions one simulation step ago (n, 3) [m]")
+    _n_sub = property(lambda self: self._state.k, doc="simulation steps since reset")
 
     @property
     def is_healthy(self) -> bool:
@@ -351,14 +349,14 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         obs = np.empty(self._obs_size)
         obs[0:3] = self._com - self._com_start
         obs[1] = self._com[1]
-        obs[3:6] = (self._com - self._frame.com(self._x_prev)) / self._timestep
+        obs[3:6] = (self._com - self._frame.com(self._x_prev)) / self.timestep
         obs[6:9] = self._rot[:, 0]
         obs[9:12] = self._rot[:, 1]
         i = 12 + s["cable_deformation"]
         obs[12:i] = self._sim.cable_deformation(self._x, self._u) * self._gamma_scale
         j = i + s["contraction"]
         obs[i:j] = self._actuation.to_action(self._u)
-        phase = 2.0 * math.pi * self._n_sub * self._timestep / self._gait_period
+        phase = 2.0 * math.pi * self._n_sub * self.timestep / self._gait_period
         obs[j] = math.sin(phase)
         obs[j + 1] = math.cos(phase)
         if self._observe_nodes:
@@ -368,7 +366,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
     def _get_info(self) -> dict[str, Any]:
         return {"x_position": float(self._com[0]), "z_position": float(self._com[2]),
                 "com": self._com.copy(), "displacement": self._com - self._com_start,
-                "yaw": self._yaw, "tilt_deg": self._tilt, "time": self._n_sub * self._timestep,
+                "yaw": self._yaw, "tilt_deg": self._tilt, "time": self._n_sub * self.timestep,
                 "u": self._u.copy(), "is_healthy": self.is_healthy}
 
     def __getstate__(self) -> dict[str, Any]:

@@ -5,9 +5,10 @@ properties: rollouts from the reset state with exact sensitivities (and paramete
 sensitivities for calibration), the state as a dict (``get_state``/``set_state``, stick anchors
 included), and measurements of the current or any state (COM, cable deformation and tension).
 The mixin reads the environment's ``_sim`` (the :class:`~soft_envs.sim.Simulator`), the reset
-state (``_x0_reset``, ``_xm1_reset``, ``_history_reset``) and the current state (``_x``,
-``_x_prev``, ``_x_prev2``, ``_u``, ``_history``, ``_n_sub``, ``_com``, ``_com_start``,
-``_domain``), and restores states through the environment's ``_set_domain`` and ``_restore``.
+state ``_reset_state`` and the current state ``_state`` (both :class:`~soft_envs.sim.State`:
+positions, previous positions, stick anchors, steps since reset), ``_u``, ``_com``,
+``_com_start`` and ``_domain``, and restores states through the environment's ``_set_domain``
+and ``_restore``.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..sim import Trajectory
+from ..sim import State, Trajectory
 
 __all__ = ["GradientHooksMixin"]
 
@@ -26,15 +27,14 @@ class GradientHooksMixin:
 
     def reset_state(self) -> tuple[np.ndarray, np.ndarray]:
         """``(x_0, x_{-1})`` of the last reset (copies): where :meth:`rollout` starts."""
-        return self._x0_reset.copy(), self._xm1_reset.copy()
+        return self._reset_state.x.copy(), self._reset_state.x_prev.copy()
 
     def rollout(self, u: np.ndarray, dudz: np.ndarray | None = None, *,
                 store_dxdz: bool = False) -> Trajectory:
         """Simulate contractions ``u`` (K, M) [m] from the reset state, with sensitivities when
         ``dudz`` (K, M, nz) is given (see :meth:`Simulator.rollout`). ``u`` is applied as given:
         no action clipping and no motor speed limit. The environment's state is not touched."""
-        return self._sim.rollout(u, x0=self._x0_reset, dudz=dudz, x_prev0=self._xm1_reset,
-                                 store_dxdz=store_dxdz, history0=self._history_reset)
+        return self._sim.rollout(u, x0=self._reset_state, dudz=dudz, store_dxdz=store_dxdz)
 
     def rollout_parameters(self, u: np.ndarray, parameters) -> Trajectory:
         """:meth:`rollout` from the rest state with sensitivities to physical ``parameters``
@@ -50,10 +50,11 @@ class GradientHooksMixin:
         state is the same to within the Newton tolerance without it); and ``history``, the
         contact law's lagged state (the Coulomb law's stick anchors: a list with one (c, 2)
         array; None entries for terms without history)."""
-        return {"x": self._x.copy(), "x_prev": self._x_prev.copy(), "u": self._u.copy(),
-                "sim_steps": self._n_sub, "com_start": self._com_start.copy(), "domain": dict(self._domain),
-                "x_prev2": None if self._x_prev2 is None else self._x_prev2.copy(),
-                "history": [None if h is None else np.array(h) for h in self._history]}
+        st = self._state
+        return {"x": st.x.copy(), "x_prev": st.x_prev.copy(), "u": self._u.copy(),
+                "sim_steps": st.k, "com_start": self._com_start.copy(), "domain": dict(self._domain),
+                "x_prev2": None if st.x_prev2 is None else st.x_prev2.copy(),
+                "history": [None if h is None else np.array(h) for h in st.history]}
 
     def set_state(self, state: Mapping[str, Any]) -> None:
         """Restore a state from :meth:`get_state` (``x`` required; ``x_prev`` defaults to ``x``,
@@ -73,30 +74,10 @@ class GradientHooksMixin:
         for name, v, shape in checks:
             if v.shape != shape or not np.isfinite(v).all():
                 raise ValueError(f"state[{name!r}] must be a finite array of shape {shape}, got {v.shape}")
-        history = self._check_history(state.get("history"), x)
+        history = self._sim.check_history(state.get("history"), x, "state['history']")
+        new = State(x, xp, xp2, history, int(state.get("sim_steps", self._state.k)))
         self._trail.clear()
-        self._restore(x, xp, u, int(state.get("sim_steps", self._n_sub)),
-                      state.get("com_start", self._com_start), xp2, history)
-
-    def _check_history(self, history, x: np.ndarray) -> tuple:
-        """A state's ``history`` as the simulator's tuple (default: at rest at x)."""
-        expected = self._sim.initial_history(x)
-        if history is None:
-            return expected
-        if len(history) != len(expected):
-            raise ValueError(f"state['history'] must have {len(expected)} entries, got {len(history)}")
-        out = []
-        for i, (h, e) in enumerate(zip(history, expected)):
-            if e is None or h is None:
-                if (e is None) != (h is None):
-                    raise ValueError(f"state['history'][{i}] must be {'None' if e is None else 'an array'}")
-                out.append(None)
-                continue
-            h = np.array(h, dtype=np.float64)
-            if h.shape != e.shape or not np.isfinite(h).all():
-                raise ValueError(f"state['history'][{i}] must be a finite array of shape {e.shape}, got {h.shape}")
-            out.append(h)
-        return tuple(out)
+        self._restore(new, u, state.get("com_start", self._com_start))
 
     def com(self) -> np.ndarray:
         """Current centre of mass (3,) [m]."""

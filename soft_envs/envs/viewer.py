@@ -86,7 +86,7 @@ class RenderingMixin:
     Uses the environment's ``render_mode``, ``metadata``, ``robot``, ``_viewer`` (None until
     the first frame), ``_base_robot``, ``_width``, ``_height``, ``_body_length``,
     ``_camera_config``, ``_sim``, ``_x``, ``_u``, ``_trail``, ``_gravity``, ``_n_sub`` and
-    ``_timestep``."""
+    ``timestep``."""
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -107,7 +107,7 @@ class RenderingMixin:
         cables = cable_polylines(self.robot, self._x, self._sim.cable_tension(self._x, self._u))
         return self._viewer.frame(self._x, cables=cables, com_trail=np.array(self._trail),
                                   gravity=self._gravity,
-                                  title=f"{self.robot.name}  t = {self._n_sub * self._timestep:.2f} s")
+                                  title=f"{self.robot.name}  t = {self._n_sub * self.timestep:.2f} s")
 
     def close(self) -> None:
         if self._viewer is not None:

@@ -3,14 +3,17 @@
 This layer imports numpy, scipy, numba, meshio and cvxopt only: no Gymnasium, nothing from
 ``soft_envs.envs`` or ``trajopt`` (``tests/`` check it at import time). Public names:
 :class:`Robot`, :func:`load_robot`, :class:`Simulator`, :class:`Trajectory`,
-:class:`SimulationError`, :class:`NewtonOptions`, :class:`FactorCache`, :class:`TetMesh`,
-:func:`load_mesh`, :func:`incline_gravity`.
+:class:`State`, :class:`SimulationError`, :class:`NewtonOptions`, :class:`FactorCache`,
+:class:`TetMesh`, :func:`load_mesh`, :func:`incline_gravity`, :data:`DEFAULT_DT` (the paper's time
+step, 0.033 s) and :data:`GAIT_CYCLE_STEPS` (its gait cycle, 72 steps).
 
 Structure: a :class:`Robot` is static data (mesh, material, payload, cables, motors, contact);
 the potential energy is a list of :class:`~.terms.EnergyTerm` objects over explicit inputs
 (positions ``x``, previous positions ``x_prev``, controls ``u``) in
 :class:`~.system.EnergySystem`; :class:`~.integrator.NewtonSolver` takes implicit-Euler steps;
-:mod:`.sensitivity` differentiates whole rollouts; :class:`Simulator` strings them together.
+a :class:`~.state.State` (positions, previous positions, stick anchors) is what one step hands
+the next (:func:`~.state.advance`); :mod:`.rest` finds the rest state; :mod:`.sensitivity`
+differentiates whole rollouts; :class:`Simulator` strings them together.
 
 Where each equation of the paper lives (one function each):
 
@@ -31,7 +34,9 @@ II-C, contact energy (lagged friction) :func:`.contact.paper.contact_assemble`; 
                                        laws: :data:`.contact.CONTACT_LAWS`)
 II-D, gravity; IV-B, incline           :class:`.gravity.Gravity`, :func:`.gravity.incline_gravity`
 eq. 4, implicit Euler by Newton        :meth:`.integrator.NewtonSolver.step` (minimises Phi,
-                                       :meth:`.integrator.NewtonSolver.phi_assemble`)
+                                       :meth:`.integrator.NewtonSolver.phi_assemble`); what a
+                                       step needs, :class:`.state.State`; one step from a state
+                                       to the next, :func:`.state.advance`
 eqs. 6-9, the whole-rollout system     :mod:`.sensitivity` (module docstring)
 eqs. 10-11, forward recurrence         :meth:`.sensitivity.ForwardSensitivities.step`
 adjoint of eq. 10                      :func:`.sensitivity.adjoint_pass`
@@ -52,9 +57,12 @@ from .mesh import TetMesh, load_mesh
 from .markers import Marker, MarkerSet
 from .robot import ContactParams, Motor, Robot, Tendon
 from .simulator import Simulator, Trajectory
+from .state import State
+from .timing import DEFAULT_DT, GAIT_CYCLE_STEPS
 
-__all__ = ["Robot", "Tendon", "Motor", "ContactParams", "Marker", "MarkerSet", "Simulator", "Trajectory", "SimulationError",
-           "NewtonOptions", "FactorCache", "TetMesh", "load_mesh", "incline_gravity", "load_robot"]
+__all__ = ["Robot", "Tendon", "Motor", "ContactParams", "Marker", "MarkerSet", "Simulator", "Trajectory", "State",
+           "SimulationError", "NewtonOptions", "FactorCache", "TetMesh", "load_mesh", "incline_gravity", "load_robot",
+           "DEFAULT_DT", "GAIT_CYCLE_STEPS"]
 
 
 def load_robot(name_or_path, **overrides):

@@ -72,20 +72,26 @@ class _Iterate:
 
 
 class NewtonSolver:
-    """Solves steps of one :class:`EnergySystem` with time step ``dt``."""
+    """Solves steps of one :class:`EnergySystem` with time step ``dt`` [s], the one home of a
+    simulation's h at run time (:attr:`dt`; the simulator and environments read it)."""
 
     def __init__(self, system: EnergySystem, dt: float, options: NewtonOptions = NewtonOptions()):
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be positive, got {dt!r}")
         self.system = system
-        self.dt = float(dt)
+        self._dt = float(dt)
         self.options = options
-        self.inertia = system.mass / self.dt**2           # (3n,) diagonal M / h^2
+        self.inertia = system.mass / self._dt**2          # (3n,) diagonal M / h^2
         self._diag_inertia = self.inertia[system.free]
         self.solver = make_solver(system.pattern, options.solver)
         self._fallback = None
         ls = options.line_search
         self._exact_line_search = ls == "exact" or (ls == "auto" and system.has_history)
+
+    @property
+    def dt(self) -> float:
+        """The time step h [s] (read-only: :attr:`inertia`, ``M / h^2``, is built from it)."""
+        return self._dt
 
     # ------------------------------------------------------------------ Phi and its derivatives
     def phi(self, x, xt, x_prev, u, history=None) -> float:

@@ -33,6 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .state import State, next_state
+
 __all__ = ["ForwardSensitivities", "adjoint_pass"]
 
 
@@ -156,33 +158,40 @@ class ForwardSensitivities:
         self.S2, self.S1 = self.S1, S
 
 
-def adjoint_pass(newton, xs: np.ndarray, us: np.ndarray, dobj_dx: np.ndarray, history0=None) -> np.ndarray:
+def adjoint_pass(newton, xs: np.ndarray, us: np.ndarray, dobj_dx: np.ndarray, history0=None, *,
+                 start: State | None = None) -> np.ndarray:
     """``dO/du`` (K, n_motors) for states ``xs`` (K+1, n, 3) of a rollout with controls ``us``
     (K, n_motors) and ``dobj_dx`` (K+1, n, 3) (the entry for x_0 is ignored: x_0 is given).
-    The rollout must have started at rest (``x_{-1} = x_0``) with the terms' history
-    ``history0`` (default: at rest at x_0)."""
+    ``start`` is the :class:`~.state.State` the rollout started from (``traj.info["start"]``);
+    without it, the rollout must have started at rest (``x_{-1} = x_0``) with the terms' history
+    ``history0`` (default: at rest at x_0). The states each step started from are re-walked
+    from ``start`` with the rollout's own bookkeeping (:func:`~.state.next_state`)."""
     system = newton.system
     K = len(us)
     n_dof = system.n_dof
     free = system.free
     inertia = newton.inertia
-    hists = [system.resolve_history(history0, xs[0])]        # the history each step starts with
+    if start is None:
+        start = State.at_rest(xs[0], system.resolve_history(history0, xs[0]))
+    positions = xs.view()
+    positions.flags.writeable = False               # rows become the states' x without copies
+    states = [start]                                # the state each step starts from
     for j in range(1, K):
-        hists.append(system.next_history(xs[j], xs[j - 1], hists[-1]))
+        states.append(next_state(system, states[-1], positions[j]))
     lam_next = np.zeros(n_dof)      # lambda_{j+1}
     lam_next2 = np.zeros(n_dof)     # lambda_{j+2}
-    mu = tuple(None if h is None else np.zeros(h.size) for h in hists[0])     # mu_K = 0
+    mu = tuple(None if h is None else np.zeros(h.size) for h in start.history)     # mu_K = 0
     out = np.zeros_like(us, dtype=np.float64)
     for j in range(K, 0, -1):
         xj = xs[j]
         xjm1 = xs[j - 1]
-        xjm2 = xs[j - 2] if j >= 2 else xs[0]
-        h = hists[j - 1]
+        xjm2 = states[j - 1].x_prev
+        h = states[j - 1].history
         rhs = dobj_dx[j].reshape(-1).copy()
         if j < K:
             # A_{j+1}^T lambda_{j+1} with A = -2M/h^2 + the lagged terms' cross derivative
             rhs += -2.0 * inertia * lam_next
-            system.prev_product_T(xs[j + 1], xj, us[j], lam_next, rhs, hists[j])
+            system.prev_product_T(xs[j + 1], xj, us[j], lam_next, rhs, states[j].history)
         if j + 1 < K:
             rhs += inertia * lam_next2
         if system.has_history:

@@ -1,65 +1,34 @@
 """Simulator: implicit-Euler rollouts of a :class:`Robot`, with exact sensitivities.
 
 >>> robot = load_robot("puppy")
->>> sim = Simulator(robot, dt=0.033)
->>> x0 = sim.rest_state()
->>> traj = sim.rollout(np.zeros((168, robot.n_motors)), x0=x0)
+>>> sim = Simulator(robot)                      # dt = DEFAULT_DT, the paper's h = 0.033 s
+>>> rest = sim.rest_state()                     # a State: positions, velocity 0, stick anchors
+>>> traj = sim.rollout(np.zeros((168, robot.n_motors)), x0=rest)   # the same as x0=None
+>>> state = sim.step(rest, np.zeros(robot.n_motors))               # one step: the next State
 
 Physics lives in :mod:`.system` (energies), :mod:`.integrator` (Newton per step) and
-:mod:`.sensitivity` (derivatives of whole rollouts); this module only strings them together.
+:mod:`.sensitivity` (derivatives of whole rollouts); what a step carries to the next is a
+:class:`~.state.State`, advanced by :func:`~.state.advance` (the one loop body of steps,
+rollouts, the rest-state relaxation, the environments and the adjoint). This module only
+strings them together.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import warnings
 
 import numpy as np
 import scipy.sparse as sp
 
-from .integrator import FactorCache, NewtonOptions, NewtonSolver, SimulationError
+from .integrator import FactorCache, NewtonOptions, NewtonSolver
 from .robot import Robot
+from .rest import relax
 from .sensitivity import ForwardSensitivities, adjoint_pass
+from .state import State, advance
 from .system import EnergySystem
+from .timing import DEFAULT_DT
+from .trajectory import Trajectory
 
 __all__ = ["Simulator", "Trajectory"]
-
-
-@dataclass
-class Trajectory:
-    """Result of :meth:`Simulator.rollout` (K steps, K+1 states; index 0 is the initial state).
-
-    ``x`` (K+1, n, 3) positions; ``com`` (K+1, 3); ``cable_deformation`` (K+1, T) Gamma per
-    tendon (entry 0 with the motors at ``robot.u_rest``); ``u`` (K, n_motors) the controls;
-    ``newton_iterations`` (K,). With ``dudz``: ``dcomdz`` (K+1, 3, nz), ``dgammadz``
-    (K+1, T, nz) (asked for without ``dudz``, they raise AttributeError saying so) and, when
-    requested, ``dxdz`` (K+1, 3n, nz). With physical ``params``:
-    ``dxdtheta`` (K+1, 3n, ntheta) and ``dcomdtheta`` (K+1, 3, ntheta), the parameters' names in
-    ``info["parameters"]``."""
-
-    x: np.ndarray
-    com: np.ndarray
-    cable_deformation: np.ndarray
-    u: np.ndarray
-    newton_iterations: np.ndarray
-    dxdz: np.ndarray | None = None
-    dxdtheta: np.ndarray | None = None
-    dcomdtheta: np.ndarray | None = None
-    info: dict = field(default_factory=dict)
-    _dcomdz: np.ndarray | None = field(default=None, repr=False)
-    _dgammadz: np.ndarray | None = field(default=None, repr=False)
-
-    def _sensitivity(self, name: str) -> np.ndarray:
-        value = getattr(self, "_" + name)
-        if value is None:
-            raise AttributeError(f"Trajectory.{name}: this rollout was run without dudz; pass "
-                                 f"Simulator.rollout(u, dudz=...) with dudz (K, n_motors, nz) = du/dz of your "
-                                 f"parameters z (e.g. dudz = np.eye(n_motors)[None].repeat(K, 0) for z = a "
-                                 f"constant control per motor)")
-        return value
-
-    dcomdz = property(lambda self: self._sensitivity("dcomdz"),
-                      lambda self, v: setattr(self, "_dcomdz", v), doc="(K+1, 3, nz) d COM / dz (needs dudz)")
-    dgammadz = property(lambda self: self._sensitivity("dgammadz"),
-                        lambda self, v: setattr(self, "_dgammadz", v), doc="(K+1, T, nz) d Gamma / dz (needs dudz)")
 
 
 class Simulator:
@@ -68,22 +37,28 @@ class Simulator:
     Parameters
     ----------
     robot : Robot
-    dt : time step h [s] (paper: 0.033).
+    dt : time step h [s] (default :data:`~soft_envs.sim.timing.DEFAULT_DT`, the paper's 0.033 s).
+        Fixed for the simulator's life: :attr:`dt` reads it from the Newton solver, its one
+        home at run time.
     gravity : gravity vector [m/s^2]; rotate it for an incline (:func:`incline_gravity`).
     control : ``"length"`` (u = contracted cable length [m]) or ``"tension"`` (u = tension [N]).
     newton : :class:`NewtonOptions` (tolerance, iterations, linear solver).
     """
 
-    def __init__(self, robot: Robot, dt: float = 0.033, gravity=(0.0, -9.81, 0.0),
+    def __init__(self, robot: Robot, dt: float = DEFAULT_DT, gravity=(0.0, -9.81, 0.0),
                  control: str = "length", newton: NewtonOptions | None = None):
         self.robot = robot
         self.system = EnergySystem(robot, gravity=gravity, control=control)
         self.newton = NewtonSolver(self.system, dt, newton or NewtonOptions())
-        self.dt = float(dt)
         self.gravity = self.system.gravity
         self.control = control
         self._rest_cache: dict = {}
         self._rest_sens_cache: dict = {}
+
+    @property
+    def dt(self) -> float:
+        """The time step h [s] (the Newton solver's, which builds ``M / h^2`` from it)."""
+        return self.newton.dt
 
     # ------------------------------------------------------------------ pickling
     def __getstate__(self) -> dict:
@@ -98,7 +73,8 @@ class Simulator:
     def __setstate__(self, state: dict) -> None:
         self.__init__(state["robot"], dt=state["dt"], gravity=state["gravity"],
                       control=state["control"], newton=state["newton"])
-        self._rest_cache.update(state["rest_cache"])
+        self._rest_cache.update({k: v if isinstance(v, State) else State.at_rest(*v)     # (x, history): older pickles
+                                 for k, v in state["rest_cache"].items()})
 
     @property
     def n_motors(self) -> int:
@@ -139,12 +115,43 @@ class Simulator:
                              "to simulate them anyway)")
 
     def _check_x(self, x, name: str) -> np.ndarray:
+        if isinstance(x, State):
+            raise ValueError(f"{name} must be an array of node positions, got a State (its positions are "
+                             f"{name}.x; functions that start from a state, step and rollout, take the State)")
         arr = np.asarray(x, dtype=np.float64)
         if arr.shape != (self.n_nodes, 3):
             raise ValueError(f"{name} must have shape ({self.n_nodes}, 3), got {arr.shape}")
         if not np.isfinite(arr).all():
             raise ValueError(f"{name} contains NaN or inf")
         return arr
+
+    def check_history(self, history, x: np.ndarray, name: str = "history") -> tuple:
+        """``history`` as the energy terms' tuple (None: at rest at ``x``, :meth:`initial_history`),
+        checked against the terms (ValueError naming ``name`` and the entry otherwise)."""
+        expected = self.system.initial_history(x)
+        if history is None:
+            return expected
+        if not isinstance(history, (tuple, list)) or len(history) != len(expected):
+            raise ValueError(f"{name} must be a tuple of {len(expected)} entries (one per energy term), "
+                             f"got {type(history).__name__} of length {len(history) if hasattr(history, '__len__') else '?'}")
+        for i, (h, e) in enumerate(zip(history, expected)):
+            if (h is None) != (e is None):
+                raise ValueError(f"{name}[{i}] must be {'None' if e is None else 'an array'} for this contact law")
+            if h is not None and (np.shape(h) != e.shape or not np.isfinite(h).all()):
+                raise ValueError(f"{name}[{i}] must be a finite array of shape {e.shape}, got shape {np.shape(h)}")
+        return tuple(history)
+
+    def _check_state(self, state: State, name: str = "state") -> State:
+        """A :class:`State` of this simulator (node count, finite positions, the terms' history)."""
+        if not isinstance(state, State):
+            raise ValueError(f"{name} must be a soft_envs.sim.State (e.g. sim.rest_state() or "
+                             f"sim.state_at_rest(x)), got {type(state).__name__}")
+        for field_name in ("x", "x_prev", "x_prev2"):
+            a = getattr(state, field_name)
+            if a is not None:
+                self._check_x(a, f"{name}.{field_name}")
+        self.check_history(state.history, state.x, f"{name}.history")
+        return state
 
     # ------------------------------------------------------------------ states
     def initial_placement(self) -> np.ndarray:
@@ -154,25 +161,38 @@ class Simulator:
             x[:, 1] -= x[:, 1].min()
         return x
 
-    def rest_state(self, u=None, tol: float = 1e-9, max_iter: int = 200) -> np.ndarray:
-        """Static equilibrium under gravity with controls ``u`` (default 0): the robot standing
-        on the ground, or the static solution of a clamped body.
+    def state_at_rest(self, x, history: tuple | None = None) -> State:
+        """The :class:`State` of the body standing still at positions ``x`` (n, 3): ``x_prev =
+        x_prev2 = x``, ``k = 0``, and the terms' ``history`` (default :meth:`initial_history`:
+        the stick anchors where the nodes stand, unloaded)."""
+        x = self._check_x(x, "x")
+        return State.at_rest(x, self.check_history(history, x, "history"))
 
-        Computed as proximal-point iterations ``x_{j+1} = argmin E(x; x_prev = x_j) +
-        |x - x_j|^2_M / 2`` (implicit steps of 1 s from rest), which converge to a state where
-        the friction term exerts no force, so a rollout started there stays still. With the
+    def rest_state(self, u=None, tol: float = 1e-9, max_iter: int = 200) -> State:
+        """Static equilibrium under gravity with controls ``u`` (default 0), as a :class:`State`
+        (positions ``.x``, ``x_prev = x_prev2 = x``, its stick anchors ``.history``, ``k = 0``):
+        the robot standing on the ground, or the static solution of a clamped body. It is
+        where :meth:`rollout` starts by default, so ``rollout(u, x0=sim.rest_state())`` is
+        ``rollout(u)``. :meth:`rest_positions` gives a writeable copy of the positions.
+
+        Computed by relaxation, implicit steps of 1 s from rest (:mod:`.rest`), to a state
+        where friction exerts no force, so a rollout started there stays still. With the
         paper's lagged (viscous-like) friction a robot on a slope creeps, so the rest state of
-        an inclined simulator then uses only the normal component of gravity. The Coulomb law
-        holds it: its rest state is under the full gravity, with the stick anchors carried
-        through the iterations (:meth:`rest_history` gives them, and rollouts from the rest
-        state start with them).
+        an inclined simulator then uses only the normal component of gravity; the Coulomb law
+        holds it under the full gravity, with loaded stick anchors that belong to the state.
         """
-        return self._rest(u, tol, max_iter)[0].copy()
+        return self._rest(u, tol, max_iter)
+
+    def rest_positions(self, u=None, tol: float = 1e-9, max_iter: int = 200) -> np.ndarray:
+        """The node positions (n, 3) of :meth:`rest_state` (a writeable copy). Starting a
+        rollout from them (a bare array) re-anchors the nodes where they stand: pass the
+        :meth:`rest_state` itself to start from the rest state."""
+        return self._rest(u, tol, max_iter).x.copy()
 
     def rest_history(self, u=None, tol: float = 1e-9, max_iter: int = 200) -> tuple:
-        """The energy terms' history (stick anchors) of :meth:`rest_state` (all None when the
-        contact law keeps none)."""
-        return self._rest(u, tol, max_iter)[1]
+        """The energy terms' history (stick anchors) of :meth:`rest_state`, i.e.
+        ``rest_state(...).history`` (all None when the contact law keeps none)."""
+        return self._rest(u, tol, max_iter).history
 
     def rest_sensitivity(self, params, u=None, tol: float = 1e-9, max_iter: int = 200) -> tuple:
         """``(x0, history0, dx0/dtheta (3n, ntheta), dhistory0/dtheta)`` of :meth:`rest_state`
@@ -184,82 +204,55 @@ class Simulator:
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
         key = (tuple(u.tolist()), tol, params)
         if key not in self._rest_sens_cache:
-            self._rest_sens_cache[key] = self._relax(u, tol, max_iter, params)
+            rest, dx, dh = relax(self, u, tol, max_iter, params)
+            self._rest_sens_cache[key] = rest.x, rest.history, dx, dh
         return self._rest_sens_cache[key]
 
-    def _rest(self, u, tol: float, max_iter: int) -> tuple[np.ndarray, tuple]:
+    def _rest(self, u, tol: float, max_iter: int) -> State:
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
         key = (tuple(u.tolist()), tol)
         if key not in self._rest_cache:
-            self._rest_cache[key] = self._relax(u, tol, max_iter)[:2]
+            self._rest_cache[key] = relax(self, u, tol, max_iter)
         return self._rest_cache[key]
 
-    def _relax(self, u, tol: float, max_iter: int, params=()) -> tuple:
-        """The relaxation of :meth:`rest_state`: ``(x, history)``, and with ``params`` their
-        derivatives."""
-        g = self.gravity
-        anchored = self.system.has_history
-        relax_g = g if (anchored or self.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])
-        system = EnergySystem(self.robot, gravity=relax_g, control=self.control)
-        relax = NewtonSolver(system, 1.0, NewtonOptions(tol=min(tol, 1e-10), max_iter=100,
-                                                        solver=self.newton.options.solver))
-        x = self.initial_placement()
-        history = system.initial_history(x)
-        sens = exact = None
-        if params:      # its own solver for the exact Hessians: the relaxation's path stays that of rest_state
-            exact = NewtonSolver(system, 1.0, relax.options)
-            sens = ForwardSensitivities(exact, self.robot.node_masses, np.zeros((max_iter, self.n_motors, 0)),
-                                        params=params, x0=x)
-        cache = FactorCache()
-        for j in range(max_iter):
-            try:
-                xn, _ = relax.step(x, x, u, cache=cache, history=history)
-                if sens is not None:
-                    sens.hold()
-                    sens.step(j, exact.factorize_exact_at(xn, x, x, u, history=history), xn, x, u, history,
-                              x_prev2=x)
-            except SimulationError as err:
-                raise SimulationError(f"rest_state of robot {self.robot.name!r} failed (u = {u.tolist()}, "
-                                      f"gravity = {relax_g.tolist()}): {err.reason}") from err
-            if anchored:
-                history = system.next_history(xn, x, history)
-            moved = np.abs(xn - x).max()
-            x = xn
-            if moved <= tol:
-                break
-        else:
-            hint = "; friction may not hold it on this slope (it slides)" if anchored and relax_g[[0, 2]].any() else ""
-            raise SimulationError(f"rest_state of robot {self.robot.name!r} did not settle in {max_iter} "
-                                  f"relaxation steps (last motion {moved:.2e} m; u = {u.tolist()}, "
-                                  f"gravity = {relax_g.tolist()}, tol = {tol}){hint}")
-        for a in (x, *[h for h in history if h is not None]):
-            a.setflags(write=False)
-        if sens is None:
-            return x, history
-        dh = tuple(None if p is None else p[:, sens.nz:].copy() for p in (sens.P or (None,) * len(history)))
-        return x, history, sens.S1[:, sens.nz:].copy(), dh
+    def step(self, state, *args, factor_cache: FactorCache | None = None, **kwargs):
+        """One implicit-Euler step (paper eq. 4): ``step(state, u) -> State``, the state after
+        the step from :class:`State` ``state`` under controls ``u`` (n_motors,) (positions
+        ``x_{k+1}``, ``x_prev = state.x``, the anchors updated, ``k + 1``). The same loop body
+        as :meth:`rollout`: K chained steps from a state give the rollout from it bit for bit
+        when they share one ``factor_cache`` (a :class:`FactorCache`, which lets a step reuse
+        the factorisation of the step before, as a rollout does); without it a step starts
+        afresh and its result depends on its inputs only. Raises :class:`SimulationError` on
+        failure; the inputs are never modified.
 
-    def step(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None,
-             factor_cache: FactorCache | None = None, history: tuple | None = None) -> np.ndarray:
-        """One implicit-Euler step: ``x_k`` from ``x_{k-1}``, ``x_{k-2}`` and ``u_k``. ``x_{k-3}``
-        (optional) gives the Newton solver a better initial guess; the result is the same to
-        within the Newton tolerance. ``factor_cache`` (a :class:`FactorCache` shared by
-        consecutive steps) lets a step reuse the factorisation of the step before; without
-        it the step starts afresh and its result depends on its inputs only. ``history`` is
-        the energy terms' lagged state (the Coulomb law's stick anchors): pass what
-        :meth:`next_history` returned after the previous step (default: at rest at
-        ``x_prev``, i.e. :meth:`initial_history`). Raises :class:`SimulationError` on failure;
-        the inputs are never modified."""
+        Deprecated form (kept working, with a DeprecationWarning): ``step(x_prev, x_prev2, u,
+        k=None, x_prev3=None, factor_cache=None, history=None) -> x`` (positions (n, 3)), the
+        state given loose (``history`` default: at rest at ``x_prev``)."""
+        if not isinstance(state, State):
+            warnings.warn("Simulator.step(x_prev, x_prev2, u, ...) is deprecated: pass a State, "
+                          "step(state, u) -> State (sim.rest_state(), sim.state_at_rest(x) or "
+                          "State(x, x_prev, x_prev2, history, k)); see docs/api-changes.md",
+                          DeprecationWarning, stacklevel=2)
+            return self._step_positions(state, *args, factor_cache=factor_cache, **kwargs)
+        if len(args) + len(kwargs) != 1 or set(kwargs) - {"u"}:
+            raise TypeError("Simulator.step(state, u, *, factor_cache=None) takes the State and the controls u")
+        u = args[0] if args else kwargs["u"]
+        return advance(self.newton, self._check_state(state), self._check_u(u), cache=factor_cache)[0]
+
+    def _step_positions(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None,
+                        factor_cache: FactorCache | None = None, history: tuple | None = None) -> np.ndarray:
+        """The deprecated form of :meth:`step`: the state given loose, the new positions returned."""
         u = self._check_u(u)
+        x_prev = self._check_x(x_prev, "x_prev")
         x3 = None if x_prev3 is None else self._check_x(x_prev3, "x_prev3")
-        x, _ = self.newton.step(self._check_x(x_prev, "x_prev"), self._check_x(x_prev2, "x_prev2"), u, k,
-                                x_prev3=x3, cache=factor_cache, history=history)
-        return x
+        state = State(x_prev, self._check_x(x_prev2, "x_prev2"), x3, self.system.resolve_history(history, x_prev),
+                      0 if k is None else k)
+        return np.array(advance(self.newton, state, u, cache=factor_cache)[0].x)
 
     @property
     def has_history(self) -> bool:
         """Whether the energy keeps lagged state beyond x_prev (``contact.model = "coulomb"``:
-        stick anchors); steps then take a ``history``."""
+        stick anchors); a :class:`State` then carries it in ``history``."""
         return self.system.has_history
 
     def initial_history(self, x0) -> tuple:
@@ -267,23 +260,56 @@ class Simulator:
         return self.system.initial_history(self._check_x(x0, "x0"))
 
     def next_history(self, x, x_prev, history: tuple) -> tuple:
-        """The history after the step from ``x_prev`` to ``x`` that started with ``history``."""
+        """The history after the step from ``x_prev`` to ``x`` that started with ``history``
+        (what :meth:`step` does to ``State.history``)."""
         return self.system.next_history(self._check_x(x, "x"), self._check_x(x_prev, "x_prev"), history)
 
     # ------------------------------------------------------------------ rollouts
+    def _start_state(self, x0, x_prev0, history0) -> State:
+        """The :class:`State` a rollout starts from (:meth:`rollout`'s ``x0``, ``x_prev0``,
+        ``history0``)."""
+        if isinstance(x0, State):
+            if x_prev0 is not None or history0 is not None:
+                raise ValueError("x0 is a State, which carries its own x_prev and history: pass x_prev0 and "
+                                 "history0 only with x0 as an array (or x0=state.replace(x_prev=..., history=...))")
+            return self._check_state(x0, "x0")
+        if x0 is None:
+            rest = self.rest_state()
+            if x_prev0 is None and history0 is None:
+                return rest
+            x0, history0 = rest.x, rest.history if history0 is None else history0
+        x0 = self._check_x(x0, "x0")
+        at_rest = x_prev0 is None
+        xm1 = x0 if at_rest else self._check_x(x_prev0, "x_prev0")
+        return State(x0, xm1, x0 if at_rest else None, self.check_history(history0, x0, "history0"))
+
     def rollout(self, u, x0=None, dudz=None, *, x_prev0=None, store_dxdz: bool = False,
                 check_bounds: bool = True, history0: tuple | None = None, params=None,
                 dx0dtheta: np.ndarray | None = None, dhistory0dtheta: tuple | None = None) -> Trajectory:
-        """Simulate controls ``u`` (K, n_motors) from ``x0`` (default :meth:`rest_state`) with
-        zero initial velocity (or ``x_{-1} = x_prev0``).
+        """Simulate controls ``u`` (K, n_motors) from the state ``x0``: K chained
+        :meth:`step`\\ s sharing one factorisation cache.
+
+        ``x0`` is one of
+
+        * None (default): :meth:`rest_state`, anchors included;
+        * a :class:`State` (``sim.rest_state()``, a state of an earlier rollout,
+          ``traj.info["state"]``, ...): started as it is (its ``x_prev``, ``x_prev2`` and
+          ``history``); ``rollout(u, x0=sim.rest_state())`` is ``rollout(u)`` bit for bit;
+        * an array (n, 3) of positions: the body at rest there (``x_{-1} = x_prev0``, default
+          ``x0``), its anchors ``history0``, default where the nodes stand
+          (:meth:`state_at_rest`). Unloaded anchors are not the rest state's, so for a Coulomb
+          robot an array equal to the rest positions is not the rest state: pass the State.
+
+        ``x_prev0`` and ``history0`` go with an array (or None) ``x0`` only.
 
         With ``dudz`` (K, n_motors, nz) the forward sensitivities of paper eqs. 10-11 are
         computed alongside (:class:`~.sensitivity.ForwardSensitivities`): ``dcomdz`` and
         ``dgammadz`` always, ``dxdz`` if ``store_dxdz``. In length control, contractions
         outside a motor's range raise a ValueError unless ``check_bounds=False`` (finite
         differences at a bound). The rollout owns the factorisation its steps reuse, so its
-        result depends on its inputs only. ``history0``: the energy terms' history at the start
-        (default: at rest at ``x0``); ``traj.info["history"]`` is the history at the end.
+        result depends on its inputs only. ``traj.info["state"]`` is the :class:`State` at the
+        end (continue with ``rollout(u2, x0=traj.info["state"])``), ``traj.info["history"]``
+        its history, ``traj.info["start"]`` the State it started from.
 
         With ``params`` (names of physical parameters, :mod:`.parameters`) the parameter block
         of the recurrence runs too: ``traj.dxdtheta`` (K+1, 3n, ntheta) and ``traj.dcomdtheta``
@@ -295,13 +321,10 @@ class Simulator:
         K = len(u)
         params = self.system.check_parameters(params) if params else ()
         if params and x0 is None:
-            x0, rest_h, dx0dtheta, dhistory0dtheta = self.rest_sensitivity(params)
-            history0 = rest_h if history0 is None else history0
-        elif x0 is None:
-            x0 = self.rest_state()
-            history0 = self.rest_history() if history0 is None else history0
-        x0 = self._check_x(x0, "x0")
-        xm1 = x0 if x_prev0 is None else self._check_x(x_prev0, "x_prev0")
+            x_rest, rest_h, dx0dtheta, dhistory0dtheta = self.rest_sensitivity(params)
+            start = self._start_state(x_rest, x_prev0, rest_h if history0 is None else history0)
+        else:
+            start = self._start_state(x0, x_prev0, history0)
         sens = None
         if dudz is not None:
             dudz = np.asarray(dudz, dtype=np.float64)
@@ -313,32 +336,27 @@ class Simulator:
         if want_z or params:
             dudz = np.zeros((K, self.n_motors, 0)) if dudz is None else dudz
             sens = ForwardSensitivities(self.newton, self.robot.node_masses, dudz, store_dxdz, params=params,
-                                        dx0dtheta=dx0dtheta, dhistory0dtheta=dhistory0dtheta, x0=x0)
+                                        dx0dtheta=dx0dtheta, dhistory0dtheta=dhistory0dtheta, x0=start.x)
         cables = self.system.cables
         xs = np.empty((K + 1, self.n_nodes, 3))
-        xs[0] = x0
+        xs[0] = start.x
         gam = np.empty((K + 1, cables.n_tendons))
-        gam[0] = cables.deformation(x0, self.robot.u_rest)      # before the first control
+        gam[0] = cables.deformation(start.x, self.robot.u_rest)      # before the first control
         iters = np.zeros(K, dtype=np.int64)
         cache = FactorCache()
-        history = self.system.resolve_history(history0, x0)
-        prev, prev2 = x0, xm1
-        prev3 = x0 if x_prev0 is None else None      # at rest: x_{-2} = x_{-1} = x_0
+        state = start
         for k in range(K):
-            x, info = self.newton.step(prev, prev2, u[k], k, need_exact=sens is not None, x_prev3=prev3,
-                                       cache=cache, history=history)
-            xs[k + 1] = x
+            new, info = advance(self.newton, state, u[k], cache=cache, need_exact=sens is not None)
+            xs[k + 1] = new.x
             iters[k] = info.iterations
-            gam[k + 1] = cables.deformation(x, u[k])
+            gam[k + 1] = cables.deformation(new.x, u[k])
             if sens is not None:
-                sens.step(k, info.solver, x, prev, u[k], history, x_prev2=prev2)
-            if self.system.has_history:
-                history = self.system.next_history(x, prev, history)
-            prev3, prev2, prev = prev2, prev, x
+                sens.step(k, info.solver, new.x, state.x, u[k], state.history, x_prev2=state.x_prev)
+            state = new
         masses = self.robot.node_masses
         com = np.einsum("kni,n->ki", xs, masses) / masses.sum()
         traj = Trajectory(x=xs, com=com, cable_deformation=gam, u=u, newton_iterations=iters,
-                          info={"history": history})
+                          info={"history": state.history, "state": state, "start": start})
         if want_z:
             traj.dcomdz, traj.dgammadz, traj.dxdz = sens.dcomdz, sens.dgammadz, sens.dxdz
         if params:
@@ -351,15 +369,18 @@ class Simulator:
         """Adjoint gradient of a scalar objective ``O = sum_k o_k(x_k)`` of a rollout.
 
         ``dobj_dx`` (K+1, n, 3) holds ``do/dx_k`` (entry 0 ignored). Returns ``dO/du`` (K,
-        n_motors), or ``dO/dz`` (nz,) when ``dudz`` is given. Pass the ``traj`` of the same
-        rollout to skip re-simulating it."""
+        n_motors), or ``dO/dz`` (nz,) when ``dudz`` is given. ``x0`` and ``history0`` as in
+        :meth:`rollout`. Pass the ``traj`` of the same rollout to skip re-simulating it (with
+        ``x0`` and ``history0`` None, the gradient is of the rollout ``traj`` came from)."""
         u = self._check_u(u, K=len(np.asarray(u)))
         if traj is None:
             traj = self.rollout(u, x0=x0, check_bounds=False, history0=history0)
         dobj_dx = np.asarray(dobj_dx, dtype=np.float64)
         if dobj_dx.shape != traj.x.shape:
             raise ValueError(f"dobj_dx must have shape {traj.x.shape}, got {dobj_dx.shape}")
-        dOdu = adjoint_pass(self.newton, traj.x, u, dobj_dx, history0)
+        start = traj.info.get("start") if x0 is None and history0 is None else None
+        start = self._start_state(x0, None, history0) if start is None else start
+        dOdu = adjoint_pass(self.newton, traj.x, u, dobj_dx, start=start)
         if dudz is None:
             return dOdu
         return np.einsum("km,kmz->z", dOdu, np.asarray(dudz, dtype=np.float64))

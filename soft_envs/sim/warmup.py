@@ -29,6 +29,8 @@ from typing import Iterator, TextIO
 
 import numpy as np
 
+from .timing import DEFAULT_DT
+
 __all__ = ["compile_kernels", "kernels_cached", "compile_ahead", "idle_core"]
 
 #: kernels whose cache entries tell whether the simulator has been compiled on this machine
@@ -69,7 +71,7 @@ def kernels_cached() -> bool:
     return True
 
 
-def compile_kernels(robot, *, dt: float = 0.033, gravity=(0.0, -9.81, 0.0), control: str = "length",
+def compile_kernels(robot, *, dt: float = DEFAULT_DT, gravity=(0.0, -9.81, 0.0), control: str = "length",
                     everything: bool = True) -> None:
     """Compile (or load from numba's cache) the kernels a simulation of ``robot`` needs, with
     the argument types a real run passes. First the elastic term's projected Hessian (the
@@ -89,9 +91,10 @@ def compile_kernels(robot, *, dt: float = 0.033, gravity=(0.0, -9.81, 0.0), cont
     if not everything:
         return
     dudz = np.full((3, robot.n_motors, 1), 1e-3)
-    traj = sim.rollout(u, x0=x, dudz=dudz)
-    system.assemble(x, x, u[0], True, True, sim.initial_history(x))
-    sim.rollout_gradient(u, np.zeros_like(traj.x), x0=x, dudz=dudz, traj=traj)
+    start = sim.state_at_rest(x)          # read-only arrays, as every step passes them
+    traj = sim.rollout(u, x0=start, dudz=dudz)
+    system.assemble(x, start.x, u[0], True, True, start.history)
+    sim.rollout_gradient(u, np.zeros_like(traj.x), dudz=dudz, traj=traj)
     sim.cable_tension(traj.x[-1], u[-1])
     BodyFrame(x, robot.node_masses).rotation(traj.x[-1])
 

@@ -1,0 +1,68 @@
+"""The rest state: the static equilibrium a simulation starts from (``Simulator.rest_state``).
+
+Computed as proximal-point iterations ``x_{j+1} = argmin E(x; x_prev = x_j) + |x - x_j|^2_M / 2``
+(implicit steps of 1 s from rest, each the one loop body :func:`~.state.advance`), which converge
+to a state where the friction term exerts no force, so a rollout started there stays still. With
+the paper's lagged (viscous-like) friction a robot on a slope creeps, so the relaxation of an
+inclined simulator then uses only the normal component of gravity. The Coulomb law holds it: its
+relaxation is under the full gravity, with the stick anchors carried through the steps (the rest
+state's anchors are loaded, and belong to it). With physical parameters the relaxation is
+differentiated through the same recurrence as rollouts (:class:`~.sensitivity.ForwardSensitivities`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .integrator import FactorCache, NewtonOptions, NewtonSolver, SimulationError
+from .sensitivity import ForwardSensitivities
+from .state import State, advance
+from .system import EnergySystem
+
+__all__ = ["relax"]
+
+
+def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
+    """The rest state of simulator ``sim`` under controls ``u`` (module docstring): its
+    :class:`~.state.State`, and with ``params`` ``(state, dx/dtheta, dhistory/dtheta)``. Every
+    relaxation step starts at rest at the last one's positions, with its anchors
+    (:func:`~.state.advance` with a solver of ``dt = 1`` s). SimulationError, naming the robot,
+    the controls and gravity, when a step fails or the body does not settle in ``max_iter``."""
+    g = sim.gravity
+    anchored = sim.system.has_history
+    relax_g = g if (anchored or sim.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])
+    system = EnergySystem(sim.robot, gravity=relax_g, control=sim.control)
+    solver = NewtonSolver(system, 1.0, NewtonOptions(tol=min(tol, 1e-10), max_iter=100,
+                                                     solver=sim.newton.options.solver))
+    x = sim.initial_placement()
+    history = system.initial_history(x)
+    sens = exact = None
+    if params:      # its own solver for the exact Hessians: the relaxation's path stays that of rest_state
+        exact = NewtonSolver(system, 1.0, solver.options)
+        sens = ForwardSensitivities(exact, sim.robot.node_masses, np.zeros((max_iter, sim.n_motors, 0)),
+                                    params=params, x0=x)
+    cache = FactorCache()
+    for j in range(max_iter):
+        start = State(x, x, None, history, j)       # at rest (no x_{k-2}: the guess is x itself)
+        try:
+            new, _ = advance(solver, start, u, cache=cache)
+            if sens is not None:
+                sens.hold()
+                sens.step(j, exact.factorize_exact_at(new.x, start.x, start.x, u, history=start.history),
+                          new.x, start.x, u, start.history, x_prev2=start.x)
+        except SimulationError as err:
+            raise SimulationError(f"rest_state of robot {sim.robot.name!r} failed (u = {u.tolist()}, "
+                                  f"gravity = {relax_g.tolist()}): {err.reason}") from err
+        moved = np.abs(new.x - start.x).max()
+        x, history = new.x, new.history
+        if moved <= tol:
+            break
+    else:
+        hint = "; friction may not hold it on this slope (it slides)" if anchored and relax_g[[0, 2]].any() else ""
+        raise SimulationError(f"rest_state of robot {sim.robot.name!r} did not settle in {max_iter} "
+                              f"relaxation steps (last motion {moved:.2e} m; u = {u.tolist()}, "
+                              f"gravity = {relax_g.tolist()}, tol = {tol}){hint}")
+    rest = State.at_rest(x, history)
+    if sens is None:
+        return rest
+    dh = tuple(None if p is None else p[:, sens.nz:].copy() for p in (sens.P or (None,) * len(history)))
+    return rest, sens.S1[:, sens.nz:].copy(), dh
