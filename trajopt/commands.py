@@ -184,7 +184,8 @@ def _optimize_reserved(args, task: str, out: Path, partial: Path, incline: float
     try:
         res = optimize_gait(env, task, gait=gait, speed_bl_per_min=args.speed, heading_deg=args.heading,
                             turn=args.turn, options=options, warm_start=warm, n_seeds=args.seeds,
-                            eval_cycles=args.cycles, robot_spec=args.robot, callback=checkpoint, resume=resume)
+                            eval_cycles=args.cycles, robot_spec=args.robot, callback=checkpoint, resume=resume,
+                            motor_limit=not getattr(args, "no_motor_limit", False))
     except KeyboardInterrupt:
         if progress is not None:
             progress.close()
