@@ -283,7 +283,7 @@ def test_an_infeasible_warm_start_is_projected_and_reported(unlimited_result, tm
                  "--cycles", "1", "--speed", "20", "--quiet", "--warm-start", str(unlimited_result),
                  "--out", str(tmp_path), "--name", "warm"]) == 0
     out = capsys.readouterr().out
-    assert f"{unlimited_result}: breaks the motors' speed limit (1.728, 1.728 mm per step) by up to " \
+    assert f"{unlimited_result}: breaks the motors' speed limit (1.728 mm per step) by up to " \
            f"{1e3 * excess:.3f} mm in a step; projected onto it: keyframes moved by up to" in out
     res = Result.load(tmp_path / "warm.npz")
     report = res.settings["start_projection"]

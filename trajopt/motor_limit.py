@@ -139,7 +139,7 @@ def project_start(z: np.ndarray, param: GaitParameterization, constraints: Linea
 
 def describe_projection(report: dict[str, Any], source: str, max_step: np.ndarray) -> str:
     """One line saying how far a start was moved into the limit (:func:`project_start`)."""
-    limit = ", ".join(f"{1e3 * s:.3f}" for s in np.asarray(max_step, dtype=np.float64))
+    limit = "/".join(dict.fromkeys(f"{1e3 * s:.3f}" for s in np.asarray(max_step, dtype=np.float64)))
     return (f"{source}: breaks the motors' speed limit ({limit} mm per step) by up to "
             f"{1e3 * report['violation_before_m']:.3f} mm in a step; projected onto it: keyframes moved by up to "
             f"{1e3 * report['moved_max_m']:.3f} mm ({1e3 * report['moved_rms_m']:.3f} mm RMS)")
