@@ -318,3 +318,14 @@ def test_play_dry_run_accepts_what_optimize_writes(tmp_path, capsys, args):
     assert code == 0, err
     assert "largest step of each motor against its robot's limit (robot.toml max_speed_rpm 100 rpm: 1.728 mm" in err
     assert "warning" not in err
+
+
+def test_an_environment_without_a_limit_gives_no_inequalities():
+    """``motor_speed_rpm=None`` (no limit): the optimiser's limit is the environment's, so none."""
+    from trajopt.motor_limit import max_step_of_env
+    env = gym.make("SoftTripod-v0", motor_speed_rpm=None).unwrapped
+    max_step = max_step_of_env(env)
+    assert np.isinf(max_step).all()
+    c = speed_limit_constraints(GaitParameterization.for_robot(env.robot, QUICK), max_step)
+    assert c.G.shape == (0, 8) and c.feasible(np.zeros(8))
+    assert max_step_of_env(gym.make("SoftTripod-v0", motor_speed_rpm=50).unwrapped) == pytest.approx([STEP / 2] * 2)
