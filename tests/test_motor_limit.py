@@ -299,20 +299,20 @@ def test_a_result_that_breaks_the_limit_it_records_is_refused(unlimited_result, 
         res.save(tmp_path / "edited")
 
 
-@pytest.mark.parametrize("args", [["--prep-steps", "24", "--cycle-steps", "36", "--keyframes", "2"],
-                                  ["--prep-steps", "6", "--cycle-steps", "24"]])
-def test_play_dry_run_accepts_what_optimize_writes(tmp_path, capsys, args):
+@pytest.mark.parametrize("robot, args", [
+    ("tripod", ["--prep-steps", "24", "--cycle-steps", "36", "--keyframes", "2"]),
+    ("tripod", ["--prep-steps", "6", "--cycle-steps", "24"]), ("tripod", ["--prep-steps", "4", "--cycle-steps", "12"]),
+    ("puppy", ["--prep-steps", "6", "--cycle-steps", "24"])])
+def test_play_dry_run_accepts_what_optimize_writes(tmp_path, capsys, robot, args):
     """``trajopt play --dry-run`` of a result ``optimize`` wrote (under the limit) with the
-    example Tripod hardware file: accepted, and each motor's largest step reported against the
-    robot's limit. The 24-step gait reverses at full speed within a step, faster than the
-    example's RoboClaw acceleration setting (80000 counts/s^2) allows: that file's copy raises it."""
-    from trajopt.hardware import EXAMPLE_TRIPOD
-    assert main(["optimize", "tripod", *args, "--seeds", "1", "--cycles", "1", "--iterations", "2", "--speed", "20",
+    shipped robot's example hardware file: accepted (its max_speed is the robot's 100 rpm, its
+    max_accel a full-speed reversal within a step), and each motor's largest step reported
+    against the robot's limit."""
+    from trajopt.hardware import EXAMPLE_PUPPY, EXAMPLE_TRIPOD
+    assert main(["optimize", robot, *args, "--seeds", "1", "--cycles", "1", "--iterations", "2", "--speed", "20",
                  "--quiet", "--out", str(tmp_path), "--name", "gait"]) == 0
-    hw = tmp_path / "hw.toml"
-    hw.write_text(EXAMPLE_TRIPOD.read_text().replace("max_accel = 80000", "max_accel = 1000000")
-                  .replace('robot = "tripod"', f'robot = "{asset_path("tripod")}"'))
     capsys.readouterr()
+    hw = EXAMPLE_TRIPOD if robot == "tripod" else EXAMPLE_PUPPY
     code = main(["play", str(tmp_path / "gait.npz"), "--hardware", str(hw), "--dry-run"])
     err = capsys.readouterr().err
     assert code == 0, err
