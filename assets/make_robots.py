@@ -21,6 +21,7 @@ import meshio
 import numpy as np
 
 from soft_envs.sim.meshgen import box_occupancy, voxel_tet_mesh
+from soft_envs.sim.robot import DEFAULT_MAX_SPEED_RPM
 
 HERE = Path(__file__).resolve().parent
 
@@ -109,7 +110,8 @@ def write(name: str, description: str, body_length: float, xs, ys, zs, boxes, bo
                       "tendons = [" + ", ".join(f'"{t}"' for t, _ in m["tendons"]) + "]"]
             if m.get("mirror"):
                 lines.append(f'mirror = "{m["mirror"]}"')
-            lines += ["u_min = 0.0", f"u_max = {u_max}", "spool_radius = 0.005", ""]
+            lines += ["u_min = 0.0", f"u_max = {u_max}", "spool_radius = 0.005",
+                      f"max_speed_rpm = {DEFAULT_MAX_SPEED_RPM}   # [rpm] Pololu 298:1, no load at 6 V", ""]
         (folder / ("robot_fine.toml" if fine else "robot.toml")).write_text("\n".join(lines))
         print(f"{name}{' (fine)' if fine else ''}: {len(points)} nodes, {len(tets)} tets, density {density:.1f}")
 

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import platform
 import re
@@ -39,7 +38,7 @@ import numpy as np
 import soft_envs  # noqa: F401  (registers the environment ids)
 from common import gait_controls, random_controls, report
 from mujoco_flex import FlexModel
-from soft_envs.envs import MOTOR_NO_LOAD_RPM, with_contact_law
+from soft_envs.envs import with_contact_law
 from soft_envs.sim import Simulator, load_robot
 from soft_envs.sim.kinematics import BodyFrame, tilt_deg_of
 
@@ -59,7 +58,7 @@ STILL_TOL = 1e-4          # [m] largest node motion over the timed standing run 
 def motor_rate(robot, dt: float) -> np.ndarray:
     """Per-step change of each motor's contraction at its no-load speed, as a fraction of its
     range (the environments' speed limit, ``soft_envs.envs.base``)."""
-    v = np.array([MOTOR_NO_LOAD_RPM * 2 * math.pi / 60 * m.spool_radius for m in robot.motors])
+    v = robot.max_contraction_speed
     return v * dt / np.diff(robot.u_bounds, axis=1)[:, 0]
 
 

@@ -17,6 +17,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from .sim.mesh import TetMesh
+from .sim.robot import DEFAULT_MAX_SPEED_RPM
 
 __all__ = ["Leg", "find_legs", "leg_motors", "example_motors", "write_robot_toml", "skeleton_text", "make_robot"]
 
@@ -186,7 +187,8 @@ def skeleton_text(name: str, mesh_file: str, points: np.ndarray, tets: np.ndarra
         "# [[motors]]", '# name = "fore_left_front"', '# tendons = ["fore_left_front_a", "fore_left_front_b"]',
         '# mirror = "fore_right_front"', "# u_min = 0.0",
         "# u_max = 0.016          # [m] about a third of the tendon length",
-        "# spool_radius = 0.005   # [m] u = radius * motor angle", "",
+        "# spool_radius = 0.005   # [m] u = radius * motor angle",
+        "# max_speed_rpm = 100.0  # [rpm] motor output speed limit (default: Pololu 298:1, no load at 6 V)", "",
     ]
     for m in motors:
         for tname, pts in m["tendons"]:
@@ -196,7 +198,8 @@ def skeleton_text(name: str, mesh_file: str, points: np.ndarray, tets: np.ndarra
         lines += ["[[motors]]", f'name = "{m["name"]}"', f"tendons = [{names}]"]
         if m.get("mirror"):
             lines.append(f'mirror = "{m["mirror"]}"')
-        lines += ["u_min = 0.0", f"u_max = {m['u_max']:.4g}", "spool_radius = 0.005", ""]
+        lines += ["u_min = 0.0", f"u_max = {m['u_max']:.4g}", "spool_radius = 0.005",
+                  f"max_speed_rpm = {DEFAULT_MAX_SPEED_RPM}", ""]
     return "\n".join(lines)
 
 

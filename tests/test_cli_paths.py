@@ -141,8 +141,8 @@ def test_play_a_real_result_on_the_emulator(tmp_path, capsys):
     exit 0, every step sent, and the commanded encoder counts are
     ``direction * round(u_post / r / 2 pi * counts_per_rev)`` with the TOML's numbers
     (r = 5 mm, 3575.04 counts per output revolution, direction +1). Keyframes 18 steps apart
-    and a 24-step prep keep any gait within the motors' 5900 counts/s (shorter phases can
-    exceed it: trajopt does not know the hardware's speed limit, and play refuses them)."""
+    and a 24-step prep keep any gait within the example's 5960 counts/s and its acceleration
+    setting (optimised gaits obey the robot's 100 rpm, 5958 counts/s, whatever the phases)."""
     pytest.importorskip("serial")
     from trajopt.hardware import EXAMPLE_TRIPOD, RoboClawEmulator
     assert main(["optimize", "tripod", "--prep-steps", "24", "--cycle-steps", "36", "--keyframes", "2",

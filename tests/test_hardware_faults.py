@@ -460,6 +460,8 @@ def test_fast_trajectory_near_the_limits_does_not_trip_the_abort() -> None:
     from tests.test_hardware_playback import VirtualTime
 
     cfg, time_ = tripod_config(), VirtualTime()
+    cfg = dataclasses.replace(cfg, motors={name: dataclasses.replace(m, max_accel=80000.0)      # a gentle ramp:
+                                           for name, m in cfg.motors.items()})              # a lag to explain
     u = 0.0155 * np.sin(np.pi * np.linspace(0, 1, 30))[:, None] ** 2 * np.ones((1, 2))
     with RoboClawEmulator(clock=time_.clock) as emu:
         summary = play_trajectory(u, DT, NAMES, cfg, port_override=emu.port, clock=time_.clock, sleep=time_.sleep)

@@ -192,9 +192,10 @@ def test_speed_limit_refused_before_any_command(emu: RoboClawEmulator) -> None:
 def test_accel_limit_and_bounds_refused(emu: RoboClawEmulator) -> None:
     u = smooth_u()
     zigzag = np.zeros((10, 2))
-    zigzag[1::2, 0] = 0.0005  # 57 counts up and down: slow (~1700 counts/s) but ~100 000 counts/s^2
+    zigzag[1::2, 0] = 0.0005  # 57 counts up and down every 10 ms: within max_speed (~5700 counts/s), but
+    # ~1 100 000 counts/s^2 (at 0.033 s steps no trajectory within max_speed exceeds the example's max_accel)
     with pytest.raises(TrajectoryLimitError, match=r"'front'.*acceleration \d+ counts/s\^2 at step 1 exceeds"):
-        play_trajectory(zigzag, DT, ["front", "back"], tripod_config(), port_override=emu.port)
+        play_trajectory(zigzag, 0.010, ["front", "back"], tripod_config(), port_override=emu.port)
     with pytest.raises(TrajectoryLimitError, match=r"'front'.*u = 0.05 m at step 3 outside"):
         bad = np.zeros((6, 2))
         bad[3:, 0] = 0.05

@@ -168,13 +168,15 @@ def test_optimize_gait_short_horizon_accepts_a_step_and_strictly_decreases(tripo
 
 def test_custom_target_is_used_as_given(tripod_env):
     """task="custom": the target array is the objective's target, unchanged, and one accepted
-    step brings the COM path closer to it (the COM term drops)."""
+    step brings the COM path closer to it (the COM term drops). Without the motors' limit: 3
+    steps per keyframe bind it hard, and the constrained step lowers the objective, not
+    necessarily its COM term (tests/test_motor_limit.py tests the limit)."""
     K = SHORT.n_steps()
     x0, _ = tripod_env.reset_state()
     start = tripod_env.robot.com(x0)[[0, 2]]
     t = np.arange(K + 1) * tripod_env.timestep
     target = start + np.outer(t, [0.0, 0.01])                 # 1 cm/s to the right (+z)
-    res = optimize_gait(tripod_env, "custom", target=target, gait=SHORT, n_seeds=1,
+    res = optimize_gait(tripod_env, "custom", target=target, gait=SHORT, n_seeds=1, motor_limit=False,
                         eval_cycles=1, options=GaussNewtonOptions(max_iter=2, ftol=0.0), robot_spec="tripod")
     assert res.task == "custom"
     np.testing.assert_array_equal(res.target, target)

@@ -18,11 +18,11 @@ from soft_envs.envs.domain import randomized_robot
 
 #: the perturbation that changes nothing: factors 1, no lag, no speed limit, no jitter, no slope
 IDENTITY = {"friction": 1.0, "youngs_modulus": 1.0, "density": 1.0, "payload_mass": 1.0, "contact_stiffness": 1.0,
-            "cable_stiffness": 1.0, "motor_lag_s": 0.0, "motor_speed_rpm": 1e12, "timing_jitter_s": 0.0,
+            "cable_stiffness": 1.0, "motor_lag_s": 0.0, "motor_speed": 1e10, "timing_jitter_s": 0.0,
             "slope_deg": 0.0, "slope_direction_deg": 0.0}
 #: one perturbed value per quantity (inside the documented ranges)
 ONE = {"friction": 1.4, "youngs_modulus": 0.75, "density": 1.08, "payload_mass": 1.12, "contact_stiffness": 1.8,
-       "cable_stiffness": 0.6, "motor_lag_s": 0.08, "motor_speed_rpm": 60.0, "timing_jitter_s": 0.01, "slope_deg": 8.0}
+       "cable_stiffness": 0.6, "motor_lag_s": 0.08, "motor_speed": 0.6, "timing_jitter_s": 0.01, "slope_deg": 8.0}
 _REAL_MAKE_ENV = rb.make_gradient_env
 FACTORS = ("friction", "youngs_modulus", "density", "payload_mass", "contact_stiffness", "cable_stiffness")
 
@@ -85,7 +85,7 @@ def test_each_factor_reaches_the_replayed_robot(nominal_replays, monkeypatch, na
     assert np.abs(seen["x"] - nominal["x"]).max() > 1e-7, f"perturbing {name} alone did not change the replay"
 
 
-@pytest.mark.parametrize("name", ["motor_lag_s", "motor_speed_rpm", "timing_jitter_s"])
+@pytest.mark.parametrize("name", ["motor_lag_s", "motor_speed", "timing_jitter_s"])
 def test_each_motor_perturbation_reaches_the_applied_controls(nominal_replays, monkeypatch, name):
     nominal = nominal_replays["paper"]
     seen = replay(monkeypatch, {**IDENTITY, name: ONE[name]})

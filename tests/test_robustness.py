@@ -47,20 +47,23 @@ def test_perturbations_are_seeded_per_sample_and_within_their_ranges():
         assert lo <= x.min() and x.max() <= hi and np.ptp(x) > 0.3 * (hi - lo) * (0.5 if kind == "log" else 1)
 
 
+V_100RPM = 100 * 2 * math.pi / 60 * 0.005       # [m/s] a 100 rpm motor on a 5 mm spool
+
+
 def test_applied_controls_model_lag_speed_limit_and_jitter():
     u = np.zeros((20, 2))
     u[5:] = [0.01, 0.0]                         # a step of 10 mm
     bounds = np.array([[0.0, 0.02], [0.0, 0.02]])
-    none = {"timing_jitter_s": 0.0, "motor_lag_s": 0.0, "motor_speed_rpm": 1e9}
+    none = {"timing_jitter_s": 0.0, "motor_lag_s": 0.0, "motor_speed": 1e9}
     rng = np.random.default_rng(0)
-    assert np.array_equal(applied_controls(u, 0.033, np.zeros(2), bounds, [0.005] * 2, none, rng), u)
-    slow = applied_controls(u, 0.033, np.zeros(2), bounds, [0.005] * 2, {**none, "motor_speed_rpm": 60.0}, rng)
+    assert np.array_equal(applied_controls(u, 0.033, np.zeros(2), bounds, [V_100RPM] * 2, none, rng), u)
+    slow = applied_controls(u, 0.033, np.zeros(2), bounds, [V_100RPM] * 2, {**none, "motor_speed": 0.6}, rng)
     per_step = 60.0 * 2 * math.pi / 60 * 0.005 * 0.033          # 1.04 mm per step
     assert np.isclose(slow[5, 0], per_step) and np.isclose(slow[-1, 0], 0.01)
-    lag = applied_controls(u, 0.033, np.zeros(2), bounds, [0.005] * 2, {**none, "motor_lag_s": 0.1}, rng)
+    lag = applied_controls(u, 0.033, np.zeros(2), bounds, [V_100RPM] * 2, {**none, "motor_lag_s": 0.1}, rng)
     assert np.isclose(lag[5, 0], 0.01 * (1 - math.exp(-0.33)))
     ramp = np.stack([np.linspace(0.0, 0.0095, 20), np.zeros(20)], axis=1)      # 0.5 mm per step
-    jit = applied_controls(ramp, 0.033, np.zeros(2), bounds, [0.005] * 2, {**none, "timing_jitter_s": 0.01}, rng)
+    jit = applied_controls(ramp, 0.033, np.zeros(2), bounds, [V_100RPM] * 2, {**none, "timing_jitter_s": 0.01}, rng)
     err = np.abs(jit - ramp)[1:-1, 0] / (0.0005 * 0.01 / 0.033)                  # in units of the largest shift
     assert 0.05 < err.max() <= 1.0 + 1e-9 and len(np.unique(np.round(err, 6))) > 10
 

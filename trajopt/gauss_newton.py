@@ -17,6 +17,16 @@ Each iteration
      the Puppy turn (heading +42 instead of +56 deg over 10 cycles);
   5. decreases lambda after a full step, increases it after a backtracked or rejected one.
 
+With ``constraints`` (linear inequalities ``G z <= h``, :class:`~trajopt.qp.LinearConstraints`:
+the motors' speed limit, :mod:`trajopt.motor_limit`) the iterates stay feasible. Step 3's
+direction is kept when every trial point of step 4 obeys them (so a run the constraints never
+bind is the unconstrained run, bit for bit). Otherwise the step is the solution of the
+Gauss-Newton subproblem as a QP, ``min 0.5 dz'(J'J + lambda (diag(J'J) + mu I)) dz + g'dz``
+subject to ``G (z + dz) <= h`` and the bounds (cvxopt's interior-point solver,
+:func:`trajopt.qp.solve_qp`, shortened until it is exactly feasible), and step 4 backtracks
+along ``z + alpha dz``: convex combinations of two feasible points, so every trial is feasible.
+The start must be feasible (:func:`trajopt.motor_limit.project_start`).
+
 Stopping criteria (the first that holds; ``status`` in the result names it):
   * ``"max_iter"``: ``max_iter`` iterations done;
   * ``"ftol"``: an accepted step decreased O by less than ``ftol * O``;
@@ -34,6 +44,8 @@ from typing import Callable
 import numpy as np
 
 from soft_envs.envs import SimulationError
+
+from .qp import LinearConstraints, feasible_fraction, solve_qp
 
 __all__ = ["GaussNewtonOptions", "GaussNewtonResult", "gauss_newton"]
 
@@ -91,6 +103,23 @@ def _direction(J: np.ndarray, g: np.ndarray, free: np.ndarray, lam: float) -> np
     return dz
 
 
+def _trial_alphas(opt: GaussNewtonOptions) -> np.ndarray:
+    return 0.5 ** np.arange(opt.max_backtracks + 1)
+
+
+def _constrained_direction(J: np.ndarray, g: np.ndarray, z: np.ndarray, lam: float, lower: np.ndarray,
+                           upper: np.ndarray, constraints: LinearConstraints) -> np.ndarray:
+    """The Levenberg-Marquardt step as a QP over the constraints and the bounds, exactly feasible."""
+    A = J.T @ J
+    d = np.diag(A).copy()
+    A[np.diag_indices_from(A)] += lam * (d + (d.mean() if d.size else 1.0))
+    box = LinearConstraints.box(lower, upper)
+    feasible = constraints & box
+    shifted = LinearConstraints(feasible.G, feasible.h - feasible.G @ z)     # in dz
+    dz = solve_qp(A, g, shifted, scale=np.where(upper > lower, upper - lower, 1.0))
+    return feasible_fraction(feasible, z, dz) * dz
+
+
 def _line_search(fun: Callable, z: np.ndarray, dz: np.ndarray, g: np.ndarray, f: float, lower: np.ndarray,
                  upper: np.ndarray, opt: GaussNewtonOptions) -> tuple[bool, float, np.ndarray, int, dict]:
     """Step 4: ``(accepted, alpha, z_try, trials, info)``: backtrack along the clipped step
@@ -110,15 +139,20 @@ def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.nda
                  options: GaussNewtonOptions = GaussNewtonOptions(), *,
                  callback: Callable[[dict], bool | None] | None = None,
                  lam: float | None = None, first_iteration: int = 1,
-                 rejections: int = 0) -> GaussNewtonResult:
+                 rejections: int = 0, constraints: LinearConstraints | None = None) -> GaussNewtonResult:
     """Run the solver from ``z0`` (projected onto the bounds). ``callback(entry)`` is called
     after every iteration with its history entry (plus ``"z"``); returning True stops.
     ``lam``, ``first_iteration`` and ``rejections`` (consecutive rejected steps so far) let an
-    interrupted run resume where it stopped."""
+    interrupted run resume where it stopped. ``constraints``: linear inequalities the iterates
+    keep (module docstring); ``z0`` must obey them (ValueError otherwise). History entries then
+    say whether the step was the QP's (``"qp_step"``)."""
     opt = options
     lower = np.asarray(lower, dtype=np.float64)
     upper = np.asarray(upper, dtype=np.float64)
     z = np.clip(np.asarray(z0, dtype=np.float64), lower, upper)
+    if constraints is not None and not constraints.feasible(z):
+        raise ValueError(f"the start breaks the constraints (worst G z - h = {constraints.violation(z):.3g}); "
+                         "project it first (trajopt.motor_limit.project_start)")
     scale = np.where(upper > lower, upper - lower, 1.0)
     lam = opt.lambda0 if lam is None else float(lam)
     f, r, J, info = _evaluate(fun, z, True)
@@ -136,10 +170,16 @@ def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.nda
             status = "gtol"
             break
         dz = _direction(J, g, free, lam)
+        qp_step = constraints is not None and not all(
+            constraints.feasible(np.clip(z + a * dz, lower, upper)) for a in _trial_alphas(opt))
+        if qp_step:                  # the unconstrained trials would leave the feasible set
+            dz = _constrained_direction(J, g, z, lam, lower, upper, constraints)
         accepted, alpha, z_try, trials, info_try = _line_search(fun, z, dz, g, f, lower, upper, opt)
         entry = {"iteration": it, "objective": f, "accepted": accepted, "alpha": alpha if accepted else 0.0,
                  "step": float(np.abs(z_try - z).max()) if accepted else 0.0, "lambda": lam,
                  "trials": trials, "terms": info.get("terms", {})}
+        if constraints is not None:
+            entry["qp_step"] = bool(qp_step)
         if accepted:                        # step 5: less damping after a full step
             step = z_try - z
             f_old = f

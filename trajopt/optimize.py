@@ -30,6 +30,8 @@ from .evaluation import DEFAULT_EVAL_CYCLES, evaluate_controls, zero_slack_contr
 from .gait import GaitSpec
 from .gauss_newton import GaussNewtonOptions, GaussNewtonResult, gauss_newton
 from .heading import HeadingMeasure
+from .motor_limit import (describe_projection, gait_constraints, max_step_of_env, project_start, settings_entry,
+                          speed_limit_constraints)
 from .objectives import HeadingTarget, ObjectiveWeights, gait_residuals
 from .parameterization import GaitParameterization
 from .results import Result
@@ -47,7 +49,7 @@ TASK_CONTACT = {name: t.contact for name, t in TASKS.items() if t.contact is not
 DEFAULT_SPEED = {"tripod": 8.0, "puppy": 10.0}
 #: the settings a resumed run must share with the interrupted one (besides the task)
 RESUME_KEYS = ("n_prep", "n_cycle", "n_cycles", "n_keyframes", "symmetry", "speed_bl_per_min", "heading_deg",
-               "turn", "incline_deg", "contact")
+               "turn", "incline_deg", "contact", "motor_limit")
 
 
 class GaitProblem:
@@ -56,11 +58,16 @@ class GaitProblem:
     Counts the simulation steps it spends (``sim_steps``; a rollout with sensitivities counts
     its steps once, like the paper's forward sensitivity recurrence alongside the steps).
     ``heading``: target headings of the body for the heading term (used when
-    ``weights.heading > 0``; the rollouts then keep ``dxdz``)."""
+    ``weights.heading > 0``; the rollouts then keep ``dxdz``). ``max_step`` (M,): the motors'
+    speed limit as the largest change of a control in a step [m] (None: no limit); its
+    inequalities on z are ``speed_limit`` (:mod:`trajopt.motor_limit`)."""
 
     def __init__(self, env: GradientEnv, param: GaitParameterization, target: np.ndarray,
-                 weights: ObjectiveWeights, heading: HeadingTarget | None = None):
+                 weights: ObjectiveWeights, heading: HeadingTarget | None = None,
+                 max_step: np.ndarray | None = None):
         self.env = env
+        self.max_step = max_step
+        self.speed_limit = None if max_step is None else speed_limit_constraints(param, max_step)
         self.param = param
         self.target = target
         self.weights = weights
@@ -98,6 +105,9 @@ class Start:
     lam: float | None = None
     first_iteration: int = 1
     rejections: int = 0
+    #: how far the start was moved into the motors' speed limit (None: it obeyed it), see
+    #: :func:`trajopt.motor_limit.project_start`
+    projection: dict[str, Any] | None = None
 
 
 # ---------------------------------------------------------------------- 1. the problem
@@ -112,10 +122,11 @@ def _target_path(task: Task, env: GradientEnv, n_steps: int, speed: float, headi
 
 
 def build_problem(env: GradientEnv, task: str, gait: GaitSpec, *, speed_bl_per_min: float, heading_deg: float,
-                  turn: str, target: np.ndarray | None, weights: ObjectiveWeights) -> GaitProblem:
+                  turn: str, target: np.ndarray | None, weights: ObjectiveWeights,
+                  max_step: np.ndarray | None = None) -> GaitProblem:
     """The shooting problem of ``task`` on ``env``: keyframe parameterisation of ``gait``, the
     target COM path at ``speed_bl_per_min`` along ``heading_deg`` (or ``target``), the
-    objective's ``weights``."""
+    objective's ``weights``, the motors' limit ``max_step`` (None: none)."""
     param = GaitParameterization.for_robot(env.robot, gait)
     the_task = get_task(task)
     path = _target_path(the_task, env, param.n_steps(), speed_bl_per_min, heading_deg, turn, target)
@@ -125,7 +136,7 @@ def build_problem(env: GradientEnv, task: str, gait: GaitSpec, *, speed_bl_per_m
     if yaw is not None:                  # e.g. the turn: the body turns as the arc does, from where it faces
         measure = HeadingMeasure(env.reset_state()[0], env.robot.node_masses)
         heading = HeadingTarget(measure, yaw)
-    return GaitProblem(env, param, path, weights, heading)
+    return GaitProblem(env, param, path, weights, heading, max_step)
 
 
 # ---------------------------------------------------------------------- 2. the start
@@ -186,6 +197,8 @@ def choose_start(problem: GaitProblem, *, resume: Result | None = None, z0: np.n
         start = _resumed(resume)
     elif z0 is not None:
         start = Start(z=np.asarray(z0, dtype=np.float64))
+        if start.z.shape == (param.nz,):
+            start.z, start.projection = _within_limit(problem, start.z)
     else:
         candidates = []
         if warm_start is not None:
@@ -199,11 +212,24 @@ def choose_start(problem: GaitProblem, *, resume: Result | None = None, z0: np.n
             if problem.heading is not None and not param.symmetry:      # a turn: tank turns too
                 candidates += [np.clip(param.z_from_keyframes(param.one_side_reversed(kf, side)), *param.bounds())
                                for side in (0, 1)]
+        n_warm = len(candidates)
         candidates += param.seeds(n_seeds) if (n_seeds > 0 or not candidates) else []
+        moved = [_within_limit(problem, z) for z in candidates]       # every candidate obeys the motors
+        candidates = [z for z, _ in moved]
         start = Start(z=candidates[0] if len(candidates) == 1 else _best_seed(problem, candidates))
+        if n_warm:       # report the warm start's projection
+            start.projection = moved[0][1]
     if start.z.shape != (param.nz,):
         raise ValueError(f"starting parameters must have shape ({param.nz},), got {start.z.shape}")
     return start
+
+
+def _within_limit(problem: GaitProblem, z: np.ndarray) -> tuple[np.ndarray, dict[str, Any] | None]:
+    """``z`` projected into the motors' speed limit (and report), unchanged without one."""
+    if problem.speed_limit is None:
+        return z, None
+    param = problem.param
+    return project_start(np.clip(z, *param.bounds()), param, gait_constraints(param, problem.max_step))
 
 
 # ---------------------------------------------------------------------- 3. the solve
@@ -265,7 +291,7 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
                   z0: np.ndarray | None = None, n_seeds: int = 8, eval_cycles: int = DEFAULT_EVAL_CYCLES,
                   robot_spec: str | None = None,
                   callback: Callable[[dict, Result], bool | None] | None = None,
-                  resume: Result | None = None) -> Result:
+                  resume: Result | None = None, motor_limit: bool = True) -> Result:
     """Optimise a gait and return a :class:`Result` (evaluated over ``eval_cycles`` cycles).
 
     ``env``: a Gymnasium env offering :class:`~soft_envs.envs.GradientEnv` (its contact law is
@@ -282,7 +308,13 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
     ``n_seeds=0`` with a warm start starts from the warm start alone. ``resume``: continue an
     interrupted result (same settings; its z, history and damping are picked up).
     ``callback(entry, partial_result)`` runs after each Gauss-Newton iteration (checkpointing,
-    progress); returning True stops the optimisation.
+    progress); returning True stops the optimisation. ``motor_limit``: every step of the
+    controls obeys the motors' speed limit (the environment's ``motor_speed``: the robot's
+    ``max_speed_rpm`` unless overridden; :mod:`trajopt.motor_limit`); a start outside it (a
+    warm start made without it) is first projected into it, and the projection printed and
+    recorded in ``settings["start_projection"]``; the limit is recorded in
+    ``settings["motor_limit"]``. ``motor_limit=False`` optimises without (the results of
+    before the limit).
     """
     the_task = get_task(task)
     if the_task.needs_target and target is None:
@@ -299,12 +331,18 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
                 "gauss_newton": asdict(options), "eval_cycles": eval_cycles,
                 "warm_start": warm_start.settings.get("source") if warm_start is not None else None,
                 "control": "length", "contact": env.contact_model}
+    max_step = max_step_of_env(env) if motor_limit else None
+    settings["motor_limit"] = settings_entry(robot, max_step, env.timestep)
     if resume is not None:
         check_resume(resume, task, settings, fingerprint_of(robot))
     problem = build_problem(env, task, gait, speed_bl_per_min=speed, heading_deg=heading_deg, turn=turn,
-                            target=target, weights=weights)
+                            target=target, weights=weights, max_step=max_step)
     start = choose_start(problem, resume=resume, z0=z0, warm_start=warm_start, n_seeds=n_seeds)
+    if start.projection is not None:
+        settings["start_projection"] = start.projection
+        print(describe_projection(start.projection, settings.get("warm_start") or "the start", max_step))
     recorder = Recorder(problem, robot_spec or robot.name, task, settings, start.history, callback)
     gn = gauss_newton(problem, start.z, *problem.param.bounds(), options, callback=recorder.on_iteration,
-                      lam=start.lam, first_iteration=start.first_iteration, rejections=start.rejections)
+                      lam=start.lam, first_iteration=start.first_iteration, rejections=start.rejections,
+                      constraints=problem.speed_limit)
     return finish(recorder, gn, eval_cycles, heading_deg)

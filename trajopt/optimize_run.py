@@ -38,7 +38,8 @@ class OptimizeRun:
     (shipped name or robot.toml path), the task (:data:`trajopt.tasks.TASKS`), its target speed
     [BL/min] (None: the robot's default), heading [deg], turn side, slope ``angle`` [deg] (a task
     on a slope), contact law (None: the task's, else the robot file's), symmetry (None: the
-    task's), warm start result, Gauss-Newton iterations, keyframes (None: the task's), cycle and
+    task's), warm start result, whether to optimise without the motors' speed limit
+    (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes (None: the task's), cycle and
     prep steps, random seeds, evaluation cycles, output folder and result name (None:
     ``ROBOT_TASK``), resume / overwrite, and quiet (no progress)."""
 
@@ -51,6 +52,7 @@ class OptimizeRun:
     contact: str | None = None
     symmetry: bool | None = None
     warm_start: Path | None = None
+    no_motor_limit: bool = False
     iterations: int = 10
     keyframes: int | None = None
     cycle_steps: int = _PAPER.n_cycle
@@ -191,7 +193,8 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
     try:
         res = optimize_gait(env, task.name, gait=gait, speed_bl_per_min=run.speed, heading_deg=run.heading,
                             turn=run.turn, options=options, warm_start=warm, n_seeds=run.seeds,
-                            eval_cycles=run.cycles, robot_spec=run.robot, callback=checkpoint, resume=resume)
+                            eval_cycles=run.cycles, robot_spec=run.robot, callback=checkpoint, resume=resume,
+                            motor_limit=not run.no_motor_limit)
     except KeyboardInterrupt:
         if progress is not None:
             progress.close()

@@ -9,6 +9,8 @@ before every save) for results with keyframes; it needs no simulator:
   (:class:`~trajopt.parameterization.GaitParameterization`: the prep phase easing from the rest
   contraction into the cycle, then ``n_cycles`` cycles of the Hermite spline), to
   :data:`CONTROL_ATOL`; its length must be the gait's;
+* a result made under the motors' speed limit (``settings["motor_limit"]``) obeys it at every
+  step of ``u``, from rest and across the wrap-around (:mod:`trajopt.motor_limit`);
 * ``u_post`` adds slack only: ``u <= u_post``, and ``u_post <= u_max``;
 * with a robot fingerprint (which carries the robot's normalised ``robot.toml``), the motor
   names must be its motors in its order, the rest contraction is the robot's (otherwise one
@@ -26,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from .gait import GaitSpec
+from .motor_limit import STEP_ATOL, worst_step
 from .parameterization import GaitParameterization, hermite_cycle_basis, prep_ease
 
 __all__ = ["check_controls", "check_zero_slack", "motors_of_fingerprint", "CONTROL_ATOL", "ZERO_SLACK_ATOL"]
@@ -93,6 +96,7 @@ def check_controls(res: Any, src: str) -> None:
     if not np.allclose(res.u, expected, rtol=0, atol=CONTROL_ATOL):
         raise ValueError(f"{src}: field 'u' is not what its keyframes make ({_worst(res.u, expected)}): the "
                          "file was edited; evaluate would score the keyframes, play would stream something else")
+    _check_motor_limit(res, rest, spec, src)
     if (res.u_post < res.u - CONTROL_ATOL).any():
         k, m = np.argwhere(res.u_post < res.u - CONTROL_ATOL)[0]
         raise ValueError(f"{src}: field 'u_post' is below u at step {k}, motor {m} (zero-slack controls only "
@@ -100,6 +104,26 @@ def check_controls(res: Any, src: str) -> None:
     if robot is not None and (res.u_post > robot[1][:, 1] + CONTROL_ATOL).any():
         k, m = np.argwhere(res.u_post > robot[1][:, 1] + CONTROL_ATOL)[0]
         raise ValueError(f"{src}: field 'u_post' leaves the range of motor {res.motor_names[m]!r} at step {k}")
+
+
+def _check_motor_limit(res: Any, rest: np.ndarray, spec: GaitSpec, src: str) -> None:
+    """A result that records the motors' speed limit it was made under (``settings["motor_limit"]``,
+    :mod:`trajopt.motor_limit`) obeys it at every step of ``u`` as played, to :data:`STEP_ATOL`."""
+    limit = res.settings.get("motor_limit")
+    if not isinstance(limit, dict):
+        return               # made without the limit, or before it was recorded
+    try:
+        max_step = np.array([np.inf if v is None else float(v) for v in limit["max_step_m"]])
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"{src}: settings field 'motor_limit' has no list 'max_step_m'") from None
+    if max_step.shape != (len(res.motor_names),):
+        raise ValueError(f"{src}: settings field 'motor_limit' has {max_step.size} motors, the result "
+                         f"{len(res.motor_names)}")
+    excess, k, m, d = worst_step(res.u, rest, spec.n_prep, spec.n_cycle, max_step)
+    if excess > STEP_ATOL:
+        raise ValueError(f"{src}: field 'u' moves motor {res.motor_names[m]!r} by {1e3 * abs(d):.4f} mm in step {k} "
+                         f"(0: from rest; the last: the wrap-around), beyond the limit it was made under "
+                         f"({1e3 * max_step[m]:.4f} mm, settings 'motor_limit')")
 
 
 def check_zero_slack(u_post: np.ndarray, expected: np.ndarray, src: str) -> None:

@@ -20,7 +20,8 @@ perturbation                range (uniform)                 what
 ``contact_stiffness``       x 0.5 - 2 (log-uniform)         ground penalty stiffness
 ``cable_stiffness``         x 0.5 - 2 (log-uniform)         cable (fishing line, Bowden tube) stiffness
 ``motor_lag_s``             0 - 0.1 s                       first-order lag of the motors
-``motor_speed_rpm``         60 - 140 rpm                    motor speed limit (no-load ~100 rpm)
+``motor_speed``             x 0.6 - 1.4                     motor speed limit: each motor's
+                                                            ``max_speed_rpm`` (robot file)
 ``timing_jitter_s``         0 - 10 ms                       half-width of a uniform jitter of each
                                                             control's time
 ``slope_deg``               0 - 10 deg                      extra ground slope ...
@@ -29,7 +30,9 @@ perturbation                range (uniform)                 what
 
 The applied controls of a replay are the gait's controls sampled at jittered times, followed by
 the motors with the lag ``u_k = u_{k-1} + (1 - exp(-h / tau)) (u_cmd - u_{k-1})`` and at most
-``v_max h`` per step (``v_max`` = rpm x 2 pi / 60 x spool radius). Randomness is seeded per
+``v_max h`` per step (``v_max`` = the ``motor_speed`` factor x the robot's
+:attr:`~soft_envs.sim.Robot.max_contraction_speed`, i.e. its ``max_speed_rpm`` x 2 pi / 60 x
+spool radius). Randomness is seeded per
 sample (``numpy.random.default_rng([seed, i])``), so sample i is the same whatever N and
 whichever worker runs it: every sample is one picklable call of :func:`run_sample`, run in
 this process or, with ``--workers N``, as Ray tasks when Ray and ``trajopt sweep`` are installed.
@@ -58,7 +61,7 @@ PERTURBATIONS = MappingProxyType({
     "friction": ("factor", 0.5, 1.5), "youngs_modulus": ("factor", 0.7, 1.3), "density": ("factor", 0.9, 1.1),
     "payload_mass": ("factor", 0.85, 1.15), "contact_stiffness": ("log", 0.5, 2.0),
     "cable_stiffness": ("log", 0.5, 2.0), "motor_lag_s": ("value", 0.0, 0.1),
-    "motor_speed_rpm": ("value", 60.0, 140.0), "timing_jitter_s": ("value", 0.0, 0.010),
+    "motor_speed": ("factor", 0.6, 1.4), "timing_jitter_s": ("value", 0.0, 0.010),
     "slope_deg": ("value", 0.0, 10.0), "slope_direction_deg": ("value", 0.0, 360.0)})
 
 #: the perturbations that scale the robot's physical parameters (``friction``: its contact law's friction
@@ -114,15 +117,17 @@ def perturbed_slope(incline_deg: float, uphill_deg: float, slope_deg: float, dir
     return incline, uphill
 
 
-def applied_controls(u: np.ndarray, dt: float, u_start: np.ndarray, bounds: np.ndarray, spool_radius: np.ndarray,
+def applied_controls(u: np.ndarray, dt: float, u_start: np.ndarray, bounds: np.ndarray, max_speed: np.ndarray,
                      p: dict, rng: np.random.Generator) -> np.ndarray:
-    """The contractions the motors apply (module docstring) for commanded ``u`` (K, M)."""
+    """The contractions the motors apply (module docstring) for commanded ``u`` (K, M);
+    ``max_speed`` (M,) is the nominal contraction speed limit [m/s] (``robot.max_contraction_speed``),
+    scaled by ``p["motor_speed"]``."""
     K = len(u)
     t = dt * np.arange(K)
     tj = np.clip(t + rng.uniform(-p["timing_jitter_s"], p["timing_jitter_s"], size=K), 0.0, t[-1])
     cmd = np.stack([np.interp(tj, t, u[:, m]) for m in range(u.shape[1])], axis=1)
     alpha = 1.0 - math.exp(-dt / p["motor_lag_s"]) if p["motor_lag_s"] > 0 else 1.0
-    du_max = p["motor_speed_rpm"] * 2.0 * math.pi / 60.0 * np.asarray(spool_radius) * dt
+    du_max = p["motor_speed"] * np.asarray(max_speed, dtype=np.float64) * dt
     out = np.empty_like(cmd)
     prev = np.asarray(u_start, dtype=np.float64)
     for k in range(K):
@@ -142,7 +147,7 @@ def run_sample(job: SampleJob) -> dict[str, Any]:
         robot = scale_parameters(robot, {n: p[n] for n in PHYSICAL_FACTORS})   # "friction": the law's
         incline, uphill = perturbed_slope(job.incline_deg, job.heading_deg, p["slope_deg"], p["slope_direction_deg"])
         rng = np.random.default_rng([job.seed, job.index, 1])
-        u = applied_controls(u, job.dt, robot.u_rest, robot.u_bounds, [m.spool_radius for m in robot.motors], p, rng)
+        u = applied_controls(u, job.dt, robot.u_rest, robot.u_bounds, robot.max_contraction_speed, p, rng)
     out: dict[str, Any] = {"index": job.index, **(p or {})}
     if p is not None:          # the part of the extra slope that the gait climbs (> 0) or descends
         out["slope_along_heading_deg"] = p["slope_deg"] * math.cos(math.radians(p["slope_direction_deg"]

@@ -3,7 +3,9 @@ the motors' speed limit.
 
 ``u_cmd = u_min + (a + 1) / 2 (u_max - u_min)`` per motor; in every simulation step the applied
 contraction moves towards ``u_cmd`` by at most ``v_max * timestep``, with ``v_max =
-motor_speed_rpm * 2 pi / 60 * spool_radius`` (``motor_speed_rpm=None``: no limit).
+rpm * 2 pi / 60 * spool_radius``. The rpm is each motor's ``max_speed_rpm`` from the robot
+(``motor_speed_rpm="robot"``, the default: :attr:`~soft_envs.sim.Robot.max_contraction_speed`),
+or one number for every motor (an override), or ``None``: no limit.
 """
 from __future__ import annotations
 
@@ -15,7 +17,10 @@ import numpy as np
 
 from ..sim import Robot
 
-__all__ = ["Actuation"]
+__all__ = ["Actuation", "MOTOR_SPEED_FROM_ROBOT"]
+
+#: the ``motor_speed_rpm`` that means "each motor's ``max_speed_rpm`` from the robot file"
+MOTOR_SPEED_FROM_ROBOT = "robot"
 
 
 class Actuation:
@@ -24,12 +29,15 @@ class Actuation:
     ``lo``, ``hi``, ``range`` (M,) contraction bounds [m]; ``speed`` (M,) contraction speed
     limit [m/s]; ``du_max`` (M,) largest change of the contraction in one simulation step [m]."""
 
-    def __init__(self, robot: Robot, motor_speed_rpm: float | None, timestep: float):
+    def __init__(self, robot: Robot, motor_speed_rpm: float | str | None, timestep: float):
         self.lo, self.hi = robot.u_bounds[:, 0].copy(), robot.u_bounds[:, 1].copy()
         self.range = self.hi - self.lo
-        radius = np.array([m.spool_radius for m in robot.motors])
-        rpm = math.inf if motor_speed_rpm is None else float(motor_speed_rpm)
-        self.speed = rpm * 2.0 * math.pi / 60.0 * radius
+        if isinstance(motor_speed_rpm, str) and motor_speed_rpm == MOTOR_SPEED_FROM_ROBOT:
+            self.speed = robot.max_contraction_speed
+        else:
+            radius = np.array([m.spool_radius for m in robot.motors])
+            rpm = math.inf if motor_speed_rpm is None else float(motor_speed_rpm)
+            self.speed = rpm * 2.0 * math.pi / 60.0 * radius
         self.du_max = self.speed * timestep
 
     def check_action(self, action: Any) -> np.ndarray:

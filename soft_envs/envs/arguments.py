@@ -35,9 +35,10 @@ def check_env_arguments(*, frame_skip: Any, timestep: Any, gait_period: Any, res
             raise ValueError(f"{name} must be a positive number [s], got {v!r}")
     if not (is_number(reset_noise_scale) and math.isfinite(reset_noise_scale) and reset_noise_scale >= 0):
         raise ValueError(f"reset_noise_scale must be a number >= 0 [m], got {reset_noise_scale!r}")
-    if motor_speed_rpm is not None and not (is_number(motor_speed_rpm) and math.isfinite(motor_speed_rpm)
-                                            and motor_speed_rpm > 0):
-        raise ValueError(f"motor_speed_rpm must be a positive number or None (no limit), got {motor_speed_rpm!r}")
+    if not (motor_speed_rpm is None or (isinstance(motor_speed_rpm, str) and motor_speed_rpm == "robot")
+            or (is_number(motor_speed_rpm) and math.isfinite(motor_speed_rpm) and motor_speed_rpm > 0)):
+        raise ValueError(f"motor_speed_rpm must be \"robot\" (each motor's max_speed_rpm from the robot file), a "
+                         f"positive number [rpm] or None (no limit), got {motor_speed_rpm!r}")
     if not (is_number(incline_deg) and abs(incline_deg) < 90):
         raise ValueError(f"incline_deg must be a number in (-90, 90), got {incline_deg!r}")
     if not isinstance(observe_nodes, (bool, np.bool_)):

@@ -30,7 +30,8 @@ from gymnasium import logger, spaces
 
 from ..sim import (DEFAULT_DT, GAIT_CYCLE_STEPS, FactorCache, Robot, SimulationError, Simulator, State,
                    incline_gravity, load_robot)
-from .actuation import Actuation
+from ..sim.robot import DEFAULT_MAX_SPEED_RPM
+from .actuation import MOTOR_SPEED_FROM_ROBOT, Actuation
 from .arguments import RENDER_MODES, check_env_arguments
 from .domain import draw_standing_robot, parse_domain_randomization, randomized_robot
 from .measure import BodyFrame, tilt_deg_of, wrap_angle, yaw_of
@@ -43,7 +44,7 @@ __all__ = ["SoftRobotEnv", "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD
 
 PAPER_TIMESTEP = DEFAULT_DT         # [s] the paper's simulation time step h (soft_envs.sim.timing)
 PAPER_GAIT_PERIOD = GAIT_CYCLE_STEPS * PAPER_TIMESTEP   # [s] the paper's gait cycle: 72 steps
-MOTOR_NO_LOAD_RPM = 100.0           # Pololu 298:1 micro metal gearmotor, no-load at 6 V
+MOTOR_NO_LOAD_RPM = DEFAULT_MAX_SPEED_RPM   # Pololu 298:1 micro metal gearmotor, no-load at 6 V (a motor's default)
 _TRAIL_LENGTH = 3000                # COM trail points kept for rendering
 _RENDER_MODES = RENDER_MODES
 
@@ -80,7 +81,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         healthy_tilt_deg: float = 60.0,
         healthy_height_fraction: float = 0.5,
         reset_noise_scale: float = 1e-4,
-        motor_speed_rpm: float | None = MOTOR_NO_LOAD_RPM,
+        motor_speed_rpm: float | str | None = MOTOR_SPEED_FROM_ROBOT,
         gait_period: float = PAPER_GAIT_PERIOD,
         observe_nodes: bool = False,
         domain_randomization: Mapping[str, tuple[float, float]] | bool | None = None,
@@ -124,7 +125,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         self._init_actuation(motor_speed_rpm)
         self._init_spaces()
 
-    def _init_actuation(self, motor_speed_rpm: float | None) -> None:
+    def _init_actuation(self, motor_speed_rpm: float | str | None) -> None:
         """The motors, and the cable-deformation scale of the observation (each tendon's Gamma
         divided by its motor's range)."""
         self._actuation = Actuation(self._base_robot, motor_speed_rpm, self.timestep)

@@ -20,8 +20,12 @@ from .markers import Marker, MarkerSet
 from .materials import lame_parameters
 from .mesh import TetMesh, load_mesh
 
-__all__ = ["Robot", "Tendon", "Motor", "ContactParams", "CableData", "Marker", "CONTACT_MODELS"]
+__all__ = ["Robot", "Tendon", "Motor", "ContactParams", "CableData", "Marker", "CONTACT_MODELS",
+           "DEFAULT_MAX_SPEED_RPM"]
 
+#: [rpm] a motor's output speed limit when its ``[[motors]]`` entry gives none: the no-load speed
+#: of the Pololu 298:1 micro metal gearmotor at 6 V
+DEFAULT_MAX_SPEED_RPM = 100.0
 
 #: The built-in contact laws' names; every law, those registered later included, is a key of
 #: :data:`soft_envs.sim.contact.CONTACT_LAWS`.
@@ -45,7 +49,9 @@ class Motor:
     """A motor winding all its ``tendons`` by the same contraction u [m] (a tendon pair).
 
     ``mirror`` names the motor on the other side (bilateral symmetry), ``u_min``/``u_max`` bound
-    the contraction [m], ``spool_radius`` [m] converts u to motor angle (u = r theta)."""
+    the contraction [m], ``spool_radius`` [m] converts u to motor angle (u = r theta),
+    ``max_speed_rpm`` is the output shaft's speed limit [rpm] (default
+    :data:`DEFAULT_MAX_SPEED_RPM`): the contraction moves at most ``max_contraction_speed``."""
 
     name: str
     tendons: tuple[str, ...]
@@ -53,6 +59,12 @@ class Motor:
     u_min: float = 0.0
     u_max: float = 0.01
     spool_radius: float = 0.005
+    max_speed_rpm: float = DEFAULT_MAX_SPEED_RPM
+
+    @property
+    def max_contraction_speed(self) -> float:
+        """Largest speed of the contraction [m/s]: ``max_speed_rpm * 2 pi / 60 * spool_radius``."""
+        return self.max_speed_rpm * 2.0 * np.pi / 60.0 * self.spool_radius
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,6 +183,9 @@ class Robot:
                 raise ValueError(f"{where}: need finite u_min < u_max, got {m.u_min}, {m.u_max}")
             if not (np.isfinite(m.spool_radius) and m.spool_radius > 0):
                 raise ValueError(f"{where}.spool_radius must be a finite positive number, got {m.spool_radius}")
+            if isinstance(m.max_speed_rpm, bool) or not (np.isfinite(m.max_speed_rpm) and m.max_speed_rpm > 0):
+                raise ValueError(f"{where}.max_speed_rpm must be a finite positive number [rpm], "
+                                 f"got {m.max_speed_rpm!r}")
             if m.mirror is not None:
                 if m.mirror not in mnames:
                     raise ValueError(f"{where}.mirror names unknown motor {m.mirror!r}")
@@ -223,6 +238,16 @@ class Robot:
     @property
     def n_motors(self) -> int:
         return len(self.motors)
+
+    @property
+    def max_contraction_speed(self) -> np.ndarray:
+        """(M,) each motor's contraction speed limit [m/s] (:attr:`Motor.max_contraction_speed`:
+        ``max_speed_rpm * 2 pi / 60 * spool_radius``)."""
+        return np.array([m.max_contraction_speed for m in self.motors], dtype=np.float64)
+
+    def max_contraction_step(self, dt: float) -> np.ndarray:
+        """(M,) largest change of each motor's contraction in a time step of ``dt`` seconds [m]."""
+        return self.max_contraction_speed * float(dt)
 
     @property
     def forward_axis(self) -> np.ndarray:

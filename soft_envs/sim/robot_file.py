@@ -52,6 +52,8 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     u_min = 0.0                  # [m]
     u_max = 0.008                # [m]
     spool_radius = 0.005         # [m]
+    max_speed_rpm = 100.0        # [rpm] output speed limit (default 100: Pololu 298:1, no load, 6 V);
+                                 # the contraction moves at most max_speed_rpm * 2 pi / 60 * spool_radius
 
 Every error is a ``ValueError`` that names the file and the field: a file that is not UTF-8,
 not TOML, an unknown or missing key, a value of the wrong type, and any number that is not
@@ -73,7 +75,7 @@ from typing import Any
 import numpy as np
 
 from .mesh import TetMesh, load_mesh
-from .robot import ContactParams, Marker, Motor, Robot, Tendon
+from .robot import DEFAULT_MAX_SPEED_RPM, ContactParams, Marker, Motor, Robot, Tendon
 
 __all__ = ["load_robot", "asset_path", "robot_fingerprint", "robot_file_path", "SHIPPED_ROBOTS"]
 
@@ -98,7 +100,7 @@ _TENDON = {"name": (str, True), "points": (list, True), "stiffness": ((int, floa
 _MARKER = {"name": (str, True), "point": (list, True)}
 _MOTOR = {"name": (str, True), "tendons": (list, True), "mirror": (str, False),
           "u_min": ((int, float), False), "u_max": ((int, float), True),
-          "spool_radius": ((int, float), False)}
+          "spool_radius": ((int, float), False), "max_speed_rpm": ((int, float), False)}
 _AXES = {"+x": (0, 1.0), "-x": (0, -1.0), "+y": (1, 1.0), "-y": (1, -1.0), "+z": (2, 1.0), "-z": (2, -1.0)}
 
 
@@ -214,7 +216,8 @@ def robot_fingerprint(source: str | Path | Robot) -> dict[str, Any] | None:
     file; None for a robot built in Python). Returns ``{"name", "source", "sha256",
     "toml_sha256", "mesh_sha256", "toml"}``: the ``[robot].name``, the file, and SHA-256 hashes
     of the whole, of the ``robot.toml`` as parsed (comments, layout, key order, ``1`` vs ``1.0``,
-    ``[robot].mesh`` and ``description`` do not count; ``toml`` is that normalised document, so a
+    ``[robot].mesh`` and ``description`` do not count, nor a motor's ``max_speed_rpm`` written
+    out at its default; ``toml`` is that normalised document, so a
     mismatch can name the fields that changed) and of the mesh as read (node positions rounded to
     1e-9 of the mesh's size, and tets; the file format does not count)."""
     if isinstance(source, Robot):
@@ -232,6 +235,9 @@ def robot_fingerprint(source: str | Path | Robot) -> dict[str, Any] | None:
     norm = _normalised(doc)
     norm.get("robot", {}).pop("mesh", None)
     norm.get("robot", {}).pop("description", None)
+    for motor in norm.get("motors", []) if isinstance(norm.get("motors"), list) else []:
+        if isinstance(motor, dict) and motor.get("max_speed_rpm") == DEFAULT_MAX_SPEED_RPM:
+            del motor["max_speed_rpm"]      # the default written out is the same robot (older files)
     toml_text = json.dumps(norm, sort_keys=True, separators=(",", ":"), default=str)
     size = float(np.ptp(mesh.points, axis=0).max()) or 1.0
     h = hashlib.sha256()
@@ -355,7 +361,8 @@ def _motors(raw_m: Any, src: str) -> list[Motor]:
         if not all(isinstance(s, str) for s in m["tendons"]):
             raise ValueError(f"{src}: motors[{i}].tendons must be a list of tendon names")
         motors.append(Motor(m["name"], tuple(m["tendons"]), m.get("mirror"), float(m.get("u_min", 0.0)),
-                            float(m["u_max"]), float(m.get("spool_radius", 0.005))))
+                            float(m["u_max"]), float(m.get("spool_radius", 0.005)),
+                            float(m.get("max_speed_rpm", DEFAULT_MAX_SPEED_RPM))))
     return motors
 
 

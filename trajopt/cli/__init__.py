@@ -58,7 +58,11 @@ def _add_optimize(sub) -> None:
     sym.add_argument("--symmetry", dest="symmetry", action="store_true", default=None,
                      help="bilateral symmetry on (default for walk and incline)")
     sym.add_argument("--no-symmetry", dest="symmetry", action="store_false", help="symmetry off (default for turn)")
-    p.add_argument("--warm-start", type=Path, default=None, help="start from this result's keyframes")
+    p.add_argument("--warm-start", type=Path, default=None,
+                   help="start from this result's keyframes (moved into the motors' speed limit when outside it)")
+    p.add_argument("--no-motor-limit", action="store_true",
+                   help="optimise without the motors' speed limit (robot.toml max_speed_rpm; the results of "
+                        "before the limit); default: every step of the controls obeys it")
     p.add_argument("--iterations", type=integer(0, 100_000), default=10,
                    help="Gauss-Newton iterations at most (0: evaluate the starting gait)")
     paper = GaitSpec()

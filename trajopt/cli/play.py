@@ -119,6 +119,10 @@ def run_play(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"trajopt play: refused: {exc}", file=sys.stderr)
         return EXIT_INPUT
+    from trajopt.motor_limit import playback_note
+    note = playback_note(res, args.loops)      # the robot's motor limit (robot.toml max_speed_rpm)
+    if note:
+        print(f"trajopt play: {note}", file=sys.stderr)
     log_path = args.log
     if log_path is None and not args.dry_run:
         log_path = f"play_{Path(args.result).stem}_{time.strftime('%Y%m%d-%H%M%S')}.csv"

@@ -27,7 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from soft_envs.envs import MOTOR_NO_LOAD_RPM, heading_vector
+from soft_envs.envs import heading_vector
+from soft_envs.envs.actuation import MOTOR_SPEED_FROM_ROBOT
 
 from ..evaluation import evaluate_controls, evaluate_result, measure_gait, zero_slack_controls
 from ..gait import GaitSpec
@@ -232,6 +233,7 @@ def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLik
     env.close()
     cfg = policy.config
     env_kwargs = cfg["env"].get("env_kwargs", {})
+    motor_rpm = env_kwargs.get("motor_speed_rpm", MOTOR_SPEED_FROM_ROBOT)      # the override, or the robot's
     settings = {
         "n_prep": GAIT.n_prep, "n_cycle": GAIT.n_cycle, "eval_cycles": int(n_cycles), "algo": cfg["algo"],
         "timesteps": int(cfg.get("timesteps_done", cfg.get("timesteps", 0))),
@@ -242,7 +244,7 @@ def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLik
         "env_kwargs": env_kwargs, "reset_noise_scale": float(reset_noise_scale),
         "heading_deg": float(env_kwargs.get("target_heading_deg", 0.0)),
         "incline_deg": float(env_kwargs.get("incline_deg", 0.0)), "contact": base.contact_model,
-        "motor_speed_rpm": env_kwargs.get("motor_speed_rpm", MOTOR_NO_LOAD_RPM),
+        "motor_speed_rpm": motor_rpm if motor_rpm != MOTOR_SPEED_FROM_ROBOT else [m.max_speed_rpm for m in robot.motors],
         "control": "length", "source": str(policy.path),
     }
     evaluation = dict(ev)

@@ -112,7 +112,7 @@ _SEED = Option(integer(0, 2**32 - 1))           # what NumPy's legacy seeding ac
 _OPTIMIZE = {
     "task": Option(_task), "speed": Option(positive_float), "heading": Option(number()),
     "turn": Option(_choice("right", "left")), "angle": Option(slope_deg), "contact": Option(_choice(*CONTACT_LAWS)),
-    "symmetry": _BOOL, "warm_start": Option(), "iterations": Option(integer(0, 100_000)),
+    "symmetry": _BOOL, "warm_start": Option(), "no_motor_limit": _BOOL, "iterations": Option(integer(0, 100_000)),
     "keyframes": Option(steps), "cycle_steps": Option(steps), "prep_steps": Option(integer(0, 100_000)),
     "seeds": Option(integer(0, 10_000)), "cycles": Option(cycles), "out": Option(), "name": Option(),
     "resume": _BOOL, "overwrite": _BOOL, "quiet": _BOOL,
