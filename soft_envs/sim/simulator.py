@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .parameter_block import ParameterBlock
 from .integrator import FactorCache, NewtonOptions, NewtonSolver, SimulationError
 from .robot import Robot
 from .sensitivity import ForwardSensitivities, adjoint_pass
@@ -180,12 +181,19 @@ class Simulator:
         :data:`~soft_envs.sim.parameters.PARAMETERS`): the rest state is the end of the
         relaxation's implicit steps, differentiated through the same recurrence as rollouts
         (:class:`~.sensitivity.ForwardSensitivities`, each step starting at rest)."""
-        params = self.system.check_parameters(params)
+        params = self._parameters(params)
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
         key = (tuple(u.tolist()), tol, params)
         if key not in self._rest_sens_cache:
             self._rest_sens_cache[key] = self._relax(u, tol, max_iter, params)
         return self._rest_sens_cache[key]
+
+    def _parameters(self, params):
+        """Names of physical parameters checked against this robot, or a
+        :class:`~.parameter_block.ParameterBlock` (design parameters) checked by the block."""
+        if isinstance(params, ParameterBlock):
+            return params.check(self.system)
+        return self.system.check_parameters(params)
 
     def _rest(self, u, tol: float, max_iter: int) -> tuple[np.ndarray, tuple]:
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
@@ -285,15 +293,16 @@ class Simulator:
         result depends on its inputs only. ``history0``: the energy terms' history at the start
         (default: at rest at ``x0``); ``traj.info["history"]`` is the history at the end.
 
-        With ``params`` (names of physical parameters, :mod:`.parameters`) the parameter block
-        of the recurrence runs too: ``traj.dxdtheta`` (K+1, 3n, ntheta) and ``traj.dcomdtheta``
+        With ``params`` (names of physical parameters, :mod:`.parameters`, or a
+        :class:`~.parameter_block.ParameterBlock` such as the design parameters of
+        :mod:`soft_envs.sim.design`) the parameter block of the recurrence runs too: ``traj.dxdtheta`` (K+1, 3n, ntheta) and ``traj.dcomdtheta``
         (K+1, 3, ntheta). From the rest state (``x0=None``) the derivative of the rest state
         itself is included (:meth:`rest_sensitivity`); from a given ``x0`` pass its derivative
         ``dx0dtheta`` (default 0) and that of the history, ``dhistory0dtheta``.
         """
         u = self._check_u(u, K=len(np.asarray(u)), check_bounds=check_bounds)
         K = len(u)
-        params = self.system.check_parameters(params) if params else ()
+        params = self._parameters(params) if params else ()
         if params and x0 is None:
             x0, rest_h, dx0dtheta, dhistory0dtheta = self.rest_sensitivity(params)
             history0 = rest_h if history0 is None else history0
@@ -343,7 +352,7 @@ class Simulator:
             traj.dcomdz, traj.dgammadz, traj.dxdz = sens.dcomdz, sens.dgammadz, sens.dxdz
         if params:
             traj.dxdtheta, traj.dcomdtheta = sens.dxdtheta, sens.dcomdtheta
-            traj.info["parameters"] = params
+            traj.info["parameters"] = params.names if isinstance(params, ParameterBlock) else params
         return traj
 
     def rollout_gradient(self, u, dobj_dx, x0=None, dudz=None, traj: Trajectory | None = None,
