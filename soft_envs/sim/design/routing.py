@@ -47,7 +47,8 @@ import numpy as np
 from ..cables import one_sided_quadratic
 from .clearance import signed_distance
 
-__all__ = ["embedding_jacobian", "cable_gradient_point_jacobian", "rest_length_gradient", "TendonRouting"]
+__all__ = ["embedding_jacobian", "cable_gradient_point_jacobian", "cable_rest_length_jacobian", "rest_length_gradient",
+           "TendonRouting"]
 
 AXES = "xyz"
 
@@ -97,30 +98,46 @@ def _d2L(h: np.ndarray, s: int, r: int) -> np.ndarray:
     return out
 
 
-def cable_gradient_point_jacobian(system, x: np.ndarray, u: np.ndarray, t: int, r: int) -> np.ndarray:
-    """``d(dE_cables/dx)/dq_r`` (3n, 3): derivative of the cable term's gradient at x with
-    respect to the rest position of point r of tendon t (module docstring), at fixed binding
-    tets."""
-    robot, cables = system.robot, system.cables
-    mesh = robot.mesh
+def _tendon_state(system, x, u, t):
+    """Points, polyline data and ``(Q'(Gamma), Q''(Gamma))`` of tendon t at x (tension control:
+    ``(tau, 0)``)."""
+    cables = system.cables
     p0, p1 = cables.ptr[t], cables.ptr[t + 1]
     nodes, w = cables.pt_nodes[p0:p1], cables.pt_w[p0:p1]
-    tets = robot._binding[t][0]
     p = np.einsum("sa,sai->si", w, x[nodes])
     lengths, dLp, h = _polyline(p)
-    if cables.mode == 0:          # length control: Q'(Gamma), Q''(Gamma)
+    if cables.mode == 0:          # length control
         gam = lengths.sum() - cables.rest_lengths(u)[t]
         _, c1, c2 = one_sided_quadratic(gam, cables.stiffness[t], cables.blend)
-        c1, c2 = float(c1), float(c2)
-    else:
-        c1, c2 = float(cables.tension(x, u)[t]), 0.0
-    out = np.zeros((mesh.n_nodes, 3, 3))
-    F = embedding_jacobian(mesh, tets[r], x)
+        return nodes, w, p, dLp, h, float(c1), float(c2)
+    return nodes, w, p, dLp, h, float(cables.tension(x, u)[t]), 0.0
+
+
+def cable_rest_length_jacobian(system, x: np.ndarray, u: np.ndarray, t: int) -> np.ndarray:
+    """``-d(dE_cables/dx)/d alpha0_t`` (3n,) = ``Q''(Gamma) dL_t/dx`` (zero in tension control)."""
+    nodes, w, _, dLp, _, _, c2 = _tendon_state(system, x, u, t)
+    out = np.zeros((system.n_nodes, 3))
     if c2:
-        gdir = np.zeros((mesh.n_nodes, 3))
-        np.add.at(gdir, nodes.ravel(), (w[:, :, None] * dLp[:, None, :]).reshape(-1, 3))
-        dgam = F.T @ dLp[r] - rest_length_gradient(np.asarray(robot.tendons[t].points), r)
-        out += c2 * gdir[:, :, None] * dgam[None, None, :]
+        np.add.at(out, nodes.ravel(), c2 * (w[:, :, None] * dLp[:, None, :]).reshape(-1, 3))
+    return out.ravel()
+
+
+def cable_gradient_point_jacobian(system, x: np.ndarray, u: np.ndarray, t: int, r: int,
+                                  rest_length: bool = True) -> np.ndarray:
+    """``d(dE_cables/dx)/dq_r`` (3n, 3): derivative of the cable term's gradient at x with
+    respect to the rest position of point r of tendon t (module docstring), at fixed binding
+    tets. ``rest_length=False`` leaves out the assembly length's part (the rest-shape
+    derivatives, :mod:`.rest_shape`, add it for the whole polyline)."""
+    mesh = system.robot.mesh
+    nodes, w, p, dLp, h, c1, c2 = _tendon_state(system, x, u, t)
+    tets = system.robot._binding[t][0]
+    F = embedding_jacobian(mesh, tets[r], x)
+    out = np.zeros((mesh.n_nodes, 3, 3))
+    if c2:
+        gdir = cable_rest_length_jacobian(system, x, u, t).reshape(-1, 3)
+        out += gdir[:, :, None] * (F.T @ dLp[r])[None, None, :]
+        if rest_length:
+            out -= gdir[:, :, None] * rest_length_gradient(np.asarray(system.robot.tendons[t].points), r)[None, None, :]
     if c1:
         dN = mesh.dN[tets[r]]
         np.add.at(out, nodes[r], c1 * dLp[r][None, :, None] * dN[:, None, :])

@@ -1,0 +1,105 @@
+r"""Derivatives with respect to the rest shape: moving the rest node positions ``X`` by ``dX``
+(n, 3) and the tendons' rest points ``q`` by ``dq`` (issue #29, the geometry morphs).
+
+Per tet, with ``Dm = [X_1 - X_0, X_2 - X_0, X_3 - X_0]``, ``B = Dm^{-1}`` (the rows of which are
+the shape-function gradients ``N_1..N_3``, ``N_0 = -sum``), ``V = det(Dm)/6`` and ``F = Ds B``:
+
+.. math::
+    dB = -B\,dDm\,B, \qquad dV = V \operatorname{tr}(B\,dDm) = V \sum_a N_a \cdot dX_a, \qquad
+    dF = -F\,dDm\,B .
+
+* Elastic energy (eq. 1) ``E_e = V Psi(F)``: ``dE_e = dV Psi + V P : dF``.
+* Elastic gradient ``[g_1 g_2 g_3] = V P B^T`` (``g_0 = -g_1 - g_2 - g_3``): ``d g = dV P B^T +
+  V P dB^T + V (dP/dF : dF) B^T``; the last part is the element Hessian applied to the
+  displacement ``dx_a = -F dX_a`` (that displacement changes ``Ds`` by ``-F dDm``, i.e. ``F`` by
+  ``dF``), so no new kernel is needed: :func:`~soft_envs.sim.materials.element_gradient_hessian`.
+* Lumped masses ``m_i = rho sum_{e ni i} V_e / 4``: ``dm_i = rho sum_e dV_e / 4``.
+* Cable embedding: the barycentric coordinates of ``q`` in its tet satisfy ``sum_a w_a X_a = q``
+  and ``sum_a w_a = 1``, so ``dw_a = N_a . (dq - sum_b w_b dX_b)`` and the cable point
+  ``p = sum_a w_a x_a`` moves by ``dp = F (dq - sum_b w_b dX_b)``: a rest-shape change acts on
+  a cable point like moving its rest position by ``dq - sum_b w_b dX_b``
+  (:func:`~.routing.cable_gradient_point_jacobian` without its rest-length part), while the
+  assembly length alpha0 follows the rest polyline ``q`` itself.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..materials import element_gradient_hessian, psi
+from .routing import cable_gradient_point_jacobian, cable_rest_length_jacobian, rest_length_gradient
+
+__all__ = ["elastic_rest_derivative", "lumped_mass_rest_derivative", "embedding_rest_derivative",
+           "cable_rest_derivative", "touched_elements"]
+
+
+def touched_elements(tets: np.ndarray, dX: np.ndarray) -> np.ndarray:
+    """Indices of the tets with a moving rest node."""
+    moving = np.abs(dX).max(axis=1) > 0
+    return np.flatnonzero(moving[tets].any(axis=1))
+
+
+def elastic_rest_derivative(elastic, mesh, x: np.ndarray, dX: np.ndarray) -> tuple[float, np.ndarray]:
+    """Directional derivatives ``(dE, d(dE/dx))`` (float, (3n,)) of the elastic term at fixed x
+    for the rest-node move ``dX`` (n, 3) (module docstring)."""
+    grad = np.zeros(x.size)
+    dE = 0.0
+    g12, H = np.empty(12), np.empty((12, 12))
+    for e in touched_elements(mesh.tets, dX):
+        tet, dN, V = mesh.tets[e], mesh.dN[e], mesh.volumes[e]
+        mu, lam = elastic.mu[e], elastic.lam[e]
+        B = dN[1:]
+        dXe = dX[tet]
+        dDm = (dXe[1:] - dXe[0]).T
+        F = x[tet].T @ dN
+        if element_gradient_hessian(x, tet, dN, V, mu, lam, g12, H) == np.inf:
+            raise ValueError("an element is inverted: the elastic energy has no rest-shape derivative")
+        J = np.linalg.det(F)
+        P = mu * F + (lam * np.log(J) - mu) * np.linalg.inv(F).T
+        dB = -B @ dDm @ B
+        dV = V * np.trace(B @ dDm)
+        dF = -F @ dDm @ B
+        dE += dV * psi(F, mu, lam) + V * np.sum(P * dF)
+        dG = dV * P @ B.T + V * P @ dB.T                     # columns: nodes 1..3
+        local = np.empty((4, 3))
+        local[1:] = dG.T
+        local[0] = -dG.sum(axis=1)
+        local = local.ravel() + H @ (-(dXe @ F.T)).ravel()   # dx_a = -F dX_a
+        idx = (3 * tet[:, None] + np.arange(3)).ravel()
+        grad[idx] += local
+    return dE, grad
+
+
+def lumped_mass_rest_derivative(mesh, density: float, dX: np.ndarray) -> np.ndarray:
+    """``dm`` (n,) of the lumped body masses for the rest-node move ``dX`` (the payload is fixed)."""
+    dV = mesh.volumes * np.einsum("eai,eai->e", mesh.dN, dX[mesh.tets])
+    dm = np.zeros(mesh.n_nodes)
+    np.add.at(dm, mesh.tets.ravel(), np.repeat(density * dV / 4.0, 4))
+    return dm
+
+
+def embedding_rest_derivative(mesh, tet: int, w: np.ndarray, x: np.ndarray, dX: np.ndarray,
+                              dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(dw, dp)`` of a cable point with weights ``w`` in tet ``tet`` for the moves ``dX`` of
+    the rest nodes and ``dq`` of its rest position: ``dw_a = N_a . delta`` and ``dp = F delta``
+    with ``delta = dq - sum_b w_b dX_b``."""
+    delta = dq - w @ dX[mesh.tets[tet]]
+    return mesh.dN[tet] @ delta, x[mesh.tets[tet]].T @ mesh.dN[tet] @ delta
+
+
+def cable_rest_derivative(system, x: np.ndarray, u: np.ndarray, dX: np.ndarray, dq: list) -> np.ndarray:
+    """``d(dE_cables/dx)`` (3n,) at fixed x for the rest-node move ``dX`` and the moves ``dq``
+    (one (P_t, 3) array per tendon) of the tendons' rest points."""
+    robot = system.robot
+    out = np.zeros(x.size)
+    for t, tendon in enumerate(robot.tendons):
+        tets, ws = robot._binding[t]
+        pts = np.asarray(tendon.points)
+        dalpha = 0.0
+        for r in range(len(pts)):
+            delta = dq[t][r] - ws[r] @ dX[robot.mesh.tets[tets[r]]]
+            if np.any(delta):
+                out += cable_gradient_point_jacobian(system, x, u, t, r, rest_length=False) @ delta
+            dalpha += rest_length_gradient(pts, r) @ dq[t][r]
+        if dalpha:
+            out -= cable_rest_length_jacobian(system, x, u, t) * dalpha
+    return out
