@@ -1,12 +1,14 @@
 """Derivatives of the design parameters (issue #29 items 1-2) against central finite differences:
-regional moduli and via-point rest positions (the embedding, the cable force, the clearance),
-per energy system in several regimes, and whole-rollout Jacobian columns of each kind under the
-Coulomb law. Each check states its relative error in the assertion message.
+regional moduli, via-point rest positions (the embedding, the cable force, the clearance) and
+leg lengths (the morph: force and masses), per energy system in several regimes, and each
+kind's whole-rollout Jacobian column under both contact laws. Each check states its relative
+error in the assertion message.
 
-Per term: relative step 1e-6 of a modulus, 1e-7 m of a point, relative error <= 1e-6. Whole
-rollouts (24 steps of the Tripod from its rest state, both contact laws): Newton tolerance
-1e-12 m, rest state to 1e-13 m, relative error of the COM's Jacobian column (a random direction
-per kind) <= 1e-6 (measured with the Coulomb law: 2e-8 for the moduli, 9e-8 for the routing).
+Per term: relative step 1e-6 of a modulus, 1e-7 m of a point or leg, relative error <= 1e-6.
+Whole rollouts (24 steps of the Tripod from its rest state): Newton tolerance 1e-12 m, rest
+state to 1e-13 m, relative error of the COM's Jacobian column (a random direction per kind)
+<= 1e-6. Measured (Coulomb / paper law): moduli 2.2e-8 / 8.9e-9, routing 9.5e-8 / 2.0e-8, leg
+lengths 2.6e-8 / 8.3e-8 (step 3e-7 m; the error grows as the step squared: truncation).
 """
 from __future__ import annotations
 
@@ -14,8 +16,8 @@ import numpy as np
 import pytest
 
 from soft_envs.sim import NewtonOptions, Simulator, load_robot
-from soft_envs.sim.design import (DesignParameters, RegionalModuli, TendonRouting, embedding_jacobian,
-                                  region_from_boxes, region_from_cell_tags, signed_distance)
+from soft_envs.sim.design import (DesignParameters, LegMorph, RegionalModuli, TendonRouting, embedding_jacobian,
+                                  legs_below, region_from_boxes, region_from_cell_tags, signed_distance)
 from soft_envs.sim.system import EnergySystem
 
 from .conftest import small_robot
@@ -144,6 +146,31 @@ def test_routing_force_jacobian(case):
     check_columns(J, fd, f"{case}: d grad / d q")
 
 
+@pytest.mark.parametrize("case", ["taut_cable_contact_friction", "coulomb_stick_and_slip", "fixed_nodes",
+                                  "tension_control"])
+def test_leg_morph_force_and_mass_jacobians(case):
+    """The bar's lower half as a "leg" (hip at 12 mm) with a routed tendon through it: the
+    morph's force Jacobian (elastic, cables, gravity) and mass Jacobian, next to routing
+    columns (the morph carries the routed points)."""
+    sim0, x, x_prev, u, _ = perturbed_state(case)
+    robot = mirrored_robot(contact=sim0.robot.contact, fixed_nodes=sim0.robot.fixed_nodes)
+    sim = Simulator(robot, control=sim0.control, gravity=sim0.gravity)
+    legs = legs_below(robot, 0.012)
+    assert [leg.name for leg in legs] == ["leg0"]
+    design = DesignParameters(robot, [LegMorph(robot, legs, 0.012), TendonRouting(robot)])
+    history = sim.system.initial_history(x_prev)
+    J = design.force_jacobian(sim.system, x, x_prev, u, history)
+    fd = fd_columns(design, sim, x, x_prev, u, history, [1e-7] * len(design))
+    check_columns(J, fd, f"{case}: d grad / d (leg length, routing)")
+    h = 1e-7
+    dm = [design.robot_at(design.values + s * h * np.eye(len(design))[0]).node_masses for s in (1, -1)]
+    fdm = (dm[0] - dm[1]) / (2 * h)
+    err = relative_error(design.node_mass_jacobian()[:, 0], fdm)
+    assert err <= RTOL_TERM, f"d masses / d leg length: relative error {err:.2e}"
+    assert abs(design.total_mass_jacobian()[0] - fdm.sum()) <= RTOL_TERM * abs(fdm.sum())
+    assert design.total_mass_jacobian()[0] > 0          # a longer leg is heavier
+
+
 def test_routing_keeps_rest_length_offsets_and_fixes_the_motor_end():
     robot = mirrored_robot()
     routing = TendonRouting(robot)
@@ -196,7 +223,7 @@ def tripod_off_faces(model="coulomb"):
 
 
 @pytest.mark.parametrize("model", ["coulomb", "paper"])
-@pytest.mark.parametrize("kind", ["stiffness", "routing"])
+@pytest.mark.parametrize("kind", ["stiffness", "routing", "legs"])
 def test_rollout_design_column_matches_finite_differences(kind, model):
     robot = tripod_off_faces(model)
     if kind == "stiffness":
@@ -204,8 +231,11 @@ def test_rollout_design_column_matches_finite_differences(kind, model):
                 region_from_boxes(robot, "body", [[-1, 0.03, -1, 1, 1, 1]])]
         design = DesignParameters(robot, [RegionalModuli(robot, legs)])
         scale = design.values
-    else:
+    elif kind == "routing":
         design = DesignParameters(robot, [TendonRouting(robot, tendons=["front_a", "back_a"])])
+        scale = np.ones(len(design))
+    else:
+        design = DesignParameters(robot, [LegMorph(robot, legs_below(robot, 0.03), 0.03)])
         scale = np.ones(len(design))
     tight = NewtonOptions(tol=1e-12)
     K = 24
@@ -216,7 +246,7 @@ def test_rollout_design_column_matches_finite_differences(kind, model):
     assert traj.info["parameters"] == design.names
     d = np.random.default_rng(3).normal(size=len(design)) * scale
     d /= np.linalg.norm(d / scale)
-    h = 1e-5 if kind == "stiffness" else 1e-7
+    h = {"stiffness": 1e-5, "routing": 1e-7, "legs": 3e-7}[kind]
     runs = []
     for s in (1.0, -1.0):
         moved = Simulator(design.robot_at(design.values + s * h * d), newton=tight)

@@ -10,7 +10,9 @@ these three partial derivatives at fixed states:
 * :meth:`ParameterBlock.force_jacobian`: ``d(dE/dx)/dtheta`` (3n, ntheta) of an energy system
   (the system is passed in: the rest relaxation runs its own, with its own gravity);
 * :meth:`ParameterBlock.mass_jacobian`: ``dm/dtheta`` per dof (3n, ntheta);
-* :meth:`ParameterBlock.history_jacobian`: per term ``d next_history/dtheta`` (or None).
+* :meth:`ParameterBlock.history_jacobian`: per term ``d next_history/dtheta`` (or None);
+* :meth:`ParameterBlock.rest_position_jacobian`: ``dX/dtheta`` of the rest mesh (or None), where
+  the rest relaxation starts.
 
 :class:`PhysicalParameters` is the block of the named physical parameters
 (:data:`~.parameters.PARAMETERS`, ``trajopt calibrate``); design parameters
@@ -43,6 +45,11 @@ class ParameterBlock:
     def mass_jacobian(self, system) -> np.ndarray:
         """``dm/dtheta`` per dof (3n, ntheta) of the diagonal mass matrix."""
         return np.zeros((system.n_dof, len(self)))
+
+    def rest_position_jacobian(self, robot) -> np.ndarray | None:
+        """``dX/dtheta`` (n, 3, ntheta) of the rest mesh's nodes, where the rest relaxation
+        starts (None: the parameters do not move them)."""
+        return None
 
     def history_jacobian(self, system, x, x_prev, history) -> tuple:
         """Per term ``d next_history/dtheta`` (flattened history, ntheta), None: no dependence."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .parameter_block import ParameterBlock
+from .parameter_block import ParameterBlock, parameter_block
 from .integrator import FactorCache, NewtonOptions, NewtonSolver, SimulationError
 from .robot import Robot
 from .sensitivity import ForwardSensitivities, adjoint_pass
@@ -216,8 +216,9 @@ class Simulator:
         sens = exact = None
         if params:      # its own solver for the exact Hessians: the relaxation's path stays that of rest_state
             exact = NewtonSolver(system, 1.0, relax.options)
+            dx0, dh0 = self._placement_sensitivity(system, params)
             sens = ForwardSensitivities(exact, self.robot.node_masses, np.zeros((max_iter, self.n_motors, 0)),
-                                        params=params, x0=x)
+                                        params=params, x0=x, dx0dtheta=dx0, dhistory0dtheta=dh0)
         cache = FactorCache()
         for j in range(max_iter):
             try:
@@ -246,6 +247,23 @@ class Simulator:
             return x, history
         dh = tuple(None if p is None else p[:, sens.nz:].copy() for p in (sens.P or (None,) * len(history)))
         return x, history, sens.S1[:, sens.nz:].copy(), dh
+
+    def _placement_sensitivity(self, system, params) -> tuple:
+        """``(d initial_placement/dtheta (3n, nt), d initial_history/dtheta)`` for parameters
+        that move the rest mesh (a :class:`~.parameter_block.ParameterBlock` with a
+        ``rest_position_jacobian``; ``(None, None)`` otherwise). The placement's shift to the
+        ground follows the lowest node; the initial histories (anchors at the nodes) are linear
+        in the positions."""
+        dX = parameter_block(params).rest_position_jacobian(self.robot)
+        if dX is None:
+            return None, None
+        dX = np.array(dX, dtype=np.float64)
+        if self.robot.fixed_nodes.size == 0:
+            dX[:, 1, :] -= dX[int(np.argmin(self.robot.mesh.points[:, 1])), 1, :]
+        cols = [system.initial_history(dX[:, :, j]) for j in range(dX.shape[2])]
+        dh = tuple(None if h is None else np.stack([c[i].ravel() for c in cols], axis=1)
+                   for i, h in enumerate(cols[0])) if cols else None
+        return dX.reshape(-1, dX.shape[2]), dh
 
     def step(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None,
              factor_cache: FactorCache | None = None, history: tuple | None = None) -> np.ndarray:

@@ -2,7 +2,7 @@ r"""A robot's design parameters as one vector theta, and as the parameter block 
 sensitivity recurrence (issue #29 items 1-2).
 
 :class:`DesignParameters` strings the kinds together (:class:`~.regions.RegionalModuli`,
-:class:`~.routing.TendonRouting`): ``theta`` is their values side by side, :meth:`robot_at`
+:class:`~.routing.TendonRouting`, :class:`~.morph.LegMorph`): ``theta`` is their values side by side, :meth:`robot_at`
 maps a vector to the modified :class:`~soft_envs.sim.robot.Robot` (to simulate it, to take
 finite differences, to write it), and as a :class:`~soft_envs.sim.parameter_block.ParameterBlock`
 it gives the recurrence ``d(dE/dx)/dtheta`` (each kind its columns), ``dm/dtheta`` and the
@@ -16,9 +16,9 @@ derivative included (:meth:`~soft_envs.sim.Simulator.rest_sensitivity`), under e
 law. The derivatives hold at the robot the block was built for; build a new block at
 ``robot_at(theta)`` to differentiate there.
 
-Total mass: the kinds here do not change the masses (``dm/dtheta = 0``); :meth:`total_mass`
-and :meth:`total_mass_jacobian` are the constraint's value and gradient (the design may not
-lose more than 2 % of the shipped robot's mass).
+Total mass: moduli and routing do not change the masses, leg morphs do (the masses follow the
+volumes); :meth:`total_mass` and :meth:`total_mass_jacobian` are the constraint's value and
+gradient (the design may not lose more than 2 % of the shipped robot's mass).
 """
 from __future__ import annotations
 
@@ -66,10 +66,11 @@ class DesignParameters(ParameterBlock):
         bad = ~np.isfinite(theta)
         if bad.any():
             raise ValueError(f"design parameter {self.names[int(np.argmax(bad))]!r} is not finite")
-        changes = {}
-        for k, sl in zip(self.kinds, self._slices):
-            changes.update(k.apply(self.robot, theta[sl]))
-        return self.robot.replace(**changes)
+        robot = self.robot
+        # morphs last: they carry the (routed) tendon points with the mesh
+        for i in sorted(range(len(self.kinds)), key=lambda i: self.kinds[i].kind == "legs"):
+            robot = robot.replace(**self.kinds[i].apply(robot, theta[self._slices[i]]))
+        return robot
 
     # ------------------------------------------------------------------ parameter block
     def check(self, system) -> "DesignParameters":
@@ -89,8 +90,23 @@ class DesignParameters(ParameterBlock):
         return np.repeat(self.node_mass_jacobian(), 3, axis=0)
 
     def node_mass_jacobian(self) -> np.ndarray:
-        """``dm_i/dtheta`` (n_nodes, len): zero for moduli and routing."""
-        return np.zeros((self.robot.mesh.n_nodes, len(self)))
+        """``dm_i/dtheta`` (n_nodes, len): zero for moduli and routing, the volumes' change for
+        leg morphs."""
+        out = np.zeros((self.robot.mesh.n_nodes, len(self)))
+        for k, sl in zip(self.kinds, self._slices):
+            if hasattr(k, "node_mass_jacobian"):
+                out[:, sl] = k.node_mass_jacobian(self.robot)
+        return out
+
+    def rest_position_jacobian(self, robot) -> np.ndarray | None:
+        """``dX/dtheta`` (n, 3, len) of the rest nodes (None: no kind moves them)."""
+        if not any(hasattr(k, "rest_position_jacobian") for k in self.kinds):
+            return None
+        out = np.zeros((robot.mesh.n_nodes, 3, len(self)))
+        for k, sl in zip(self.kinds, self._slices):
+            if hasattr(k, "rest_position_jacobian"):
+                out[:, :, sl] = k.rest_position_jacobian(robot)
+        return out
 
     # ------------------------------------------------------------------ constraints
     def total_mass(self, theta=None) -> float:
