@@ -52,6 +52,13 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     u_max = 0.008                # [m]
     spool_radius = 0.005         # [m]
 
+    [design]                     # optional: what co-design may change (soft_envs.sim.design;
+    routing = ["fore_left_front_a"]   # absent: the robot is fixed); see docs/codesign.md
+    hip_height = 0.03            # legs: connected parts below it (above the lowest node) vary in length
+    [[design.regions]]           # Young's modulus per region: boxes or a mesh cell tag
+    name = "legs"
+    boxes = [[0.0, 0.0, 0.0, 0.13, 0.03, 0.08]]   # [x0, y0, z0, x1, y1, z1], mesh frame
+
 Every error is a ``ValueError`` that names the file and the field: a file that is not UTF-8,
 not TOML, an unknown or missing key, a value of the wrong type, and any number that is not
 finite (TOML's ``inf`` and ``nan``).
@@ -73,7 +80,7 @@ import numpy as np
 from .mesh import TetMesh, load_mesh
 from .robot import ContactParams, Marker, Motor, Robot, Tendon
 
-__all__ = ["load_robot", "asset_path", "robot_fingerprint", "robot_file_path", "SHIPPED_ROBOTS"]
+__all__ = ["load_robot", "asset_path", "robot_fingerprint", "robot_file_path", "robot_document", "SHIPPED_ROBOTS"]
 
 SHIPPED_ROBOTS = ("tripod", "puppy")
 
@@ -145,6 +152,24 @@ def _frame(robot_tbl: dict, src: str) -> np.ndarray:
     if abs(f @ u) > 0:
         raise ValueError(f"{src}: [robot].forward_axis and up_axis must be different axes")
     return np.stack([f, u, np.cross(f, u)])     # rows: sim x, y, z in mesh coordinates
+
+
+def _to_sim(robot_tbl: dict, src: str):
+    """``(to_sim, R)``: the map of file coordinates (scaled by [robot].scale) to the simulation
+    frame, and the frame's rotation."""
+    scale = float(robot_tbl.get("scale", 1.0))
+    if not scale > 0:
+        raise ValueError(f"{src}: [robot].scale must be positive")
+    R = _frame(robot_tbl, src)
+    return (lambda q: scale * np.asarray(q, dtype=np.float64) @ R.T), R
+
+
+def robot_document(name_or_path: str | Path) -> tuple[dict[str, Any], Any]:
+    """The parsed robot.toml of ``name_or_path`` and its map from file coordinates to the
+    simulation frame (for tables read outside :func:`load_robot`, e.g. ``[design]``)."""
+    path = robot_file_path(name_or_path)
+    doc = _read_toml(path)
+    return doc, _to_sim(doc.get("robot", {}), str(path))[0]
 
 
 def robot_file_path(name_or_path: str | Path) -> Path:
@@ -248,7 +273,7 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
     path = robot_file_path(name_or_path)
     src = str(path)
     doc = _read_toml(path)
-    allowed = set(_SCHEMA) | {"tendons", "motors", "markers"}
+    allowed = set(_SCHEMA) | {"tendons", "motors", "markers", "design"}   # [design]: soft_envs.sim.design
     for key in doc:
         if key not in allowed:
             raise ValueError(f"{src}: unknown table [{key}] (allowed: {', '.join(sorted(allowed))})")
@@ -257,15 +282,11 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
             raise ValueError(f"{src}: table [{key}] is missing")
     tables = {k: _check_table(doc.get(k, {}), s, f"[{k}]", src) for k, s in _SCHEMA.items()}
     rt = tables["robot"]
-    scale = float(rt.get("scale", 1.0))
-    if not scale > 0:
-        raise ValueError(f"{src}: [robot].scale must be positive")
-    R = _frame(rt, src)
+    to_sim, R = _to_sim(rt, src)
     mesh_file = path.parent / rt["mesh"]
     if not mesh_file.is_file():
         raise ValueError(f"{src}: [robot].mesh file {str(mesh_file)!r} not found")
     raw = load_mesh(mesh_file)
-    to_sim = lambda q: scale * np.asarray(q, dtype=np.float64) @ R.T   # noqa: E731
     pts = to_sim(raw.points)
     tets = np.array(raw.tets)
     if np.linalg.det(R) < 0:   # cannot happen for a right-handed frame built by cross; keep safe

@@ -1,0 +1,76 @@
+"""The ``[design]`` table of robot.toml (issue #29 item 1): what it declares, in the simulation
+frame, and the errors that name the file and the field."""
+from __future__ import annotations
+
+import meshio
+import numpy as np
+import pytest
+
+from soft_envs.sim import load_robot
+from soft_envs.sim.design import load_design, region_from_boxes
+
+DESIGN = """
+[design]
+routing = "all"
+hip_height = 0.03
+modulus_bounds = [0.5, 2.0]
+
+[[design.regions]]
+name = "middle_leg"
+boxes = [[0.055, 0.0, 0.0, 0.085, 0.03, 0.04]]
+
+[[design.regions]]
+name = "tagged"
+cell_tag = 7
+cell_data = "region"
+"""
+
+
+def with_design(robot_dir, text=DESIGN):
+    path = robot_dir / "robot.toml"
+    path.write_text(path.read_text() + text)
+    mesh = meshio.read(robot_dir / "tripod.vtu")
+    centroid = mesh.points[mesh.cells_dict["tetra"]].mean(axis=1)
+    tags = np.where(centroid[:, 1] > 0.046, 7, 0)             # the top layer of the body
+    mesh.cell_data["region"] = [tags]
+    meshio.write(robot_dir / "tripod.vtu", mesh)
+    return load_robot(path)
+
+
+def test_the_design_table_declares_every_kind(robot_dir):
+    robot = with_design(robot_dir)
+    design = load_design(robot)
+    assert design.names[:2] == ("stiffness:middle_leg", "stiffness:tagged")
+    assert np.allclose(design.bounds[:2], [[5e4, 2e5]] * 2)
+    routing = design.kinds[1]
+    assert [robot.tendon_names[t] for t in routing.leaders] == ["front_a", "back_a"]   # the b's mirror them
+    assert len(routing.free) == 6 and design.names[-3:] == ("legs:leg0", "legs:leg1", "legs:leg2")
+    tagged = design.kinds[0].regions[1].elements
+    assert np.array_equal(tagged, region_from_boxes(robot, "top", [[-1, 0.046, -1, 1, 1, 1]]).elements)
+    only = load_design(robot, vary=["routing"])
+    assert only.names == routing.names
+    moved = design.robot_at(design.values)
+    assert np.allclose(moved.mesh.points, robot.mesh.points) and np.allclose(moved.element_lame()[0],
+                                                                             robot.element_lame()[0])
+
+
+@pytest.mark.parametrize("text, match", [
+    ("\n[design]\nrouting = \"all\"\ncolour = 1\n", r"unknown key \[design\]\.colour"),
+    ("\n[design]\nrouting = [\"front_z\"]\n", "unknown tendon 'front_z'"),
+    ("\n[design]\nrouting = \"all\"\n", r"\[design\]\.hip_height is missing"),
+    ("\n[design]\nhip_height = 0.03\n[[design.regions]]\nname = \"r\"\n", "needs either boxes or cell_tag"),
+    ("\n[design]\nhip_height = 0.03\n[[design.regions]]\nname = \"r\"\ncell_tag = 1\ncell_data = \"mat\"\n",
+     "has no cell data 'mat'"),
+])
+def test_design_table_errors_name_the_file_and_field(robot_dir, text, match):
+    robot = with_design(robot_dir, text)
+    vary = ["routing"] if "front_z" in text else ["stiffness", "routing", "legs"] if "colour" in text else \
+        ["legs"] if "hip_height" not in text else ["stiffness"]
+    with pytest.raises(ValueError, match=match) as err:
+        load_design(robot, vary)
+    assert str(robot_dir / "robot.toml") in str(err.value)
+
+
+def test_a_robot_without_design_table_is_fixed():
+    with pytest.raises(ValueError, match=r"no \[design\] table"):
+        load_design(load_robot("tripod"))
