@@ -94,10 +94,12 @@ def test_regional_moduli_set_the_elements_and_check_their_input():
         design.robot_at([np.nan, 1e5])
 
 
-def mirrored_robot(**kw):
-    """The bar with two tendons mirrored in its mid-plane z = 0.01 on one motor (a tendon pair)."""
+def mirrored_robot(relation="mirror", **kw):
+    """The bar with two tendons on one motor (a tendon pair), the second the mirror image of the
+    first in the bar's mid-plane z = 0.01 (``relation="mirror"``) or its translate by 9 mm in z
+    (``"pair"``)."""
     a = [[0.055, 0.016, 0.0042], [0.031, 0.0123, 0.0061], [0.0052, 0.0155, 0.0043]]
-    b = [[p[0], p[1], 0.02 - p[2]] for p in a]
+    b = [[p[0], p[1], 0.02 - p[2] if relation == "mirror" else p[2] + 0.009] for p in a]
     return small_robot(tendons=[dict(name="a", points=a), dict(name="b", points=b)],
                        motors=[dict(name="m0", tendons=["a", "b"], u_max=0.01)], **kw)
 
@@ -128,18 +130,20 @@ def test_embedding_jacobian_is_the_deformation_gradient():
         assert err <= RTOL_TERM, f"mirror dp/dq[:, {i}]: relative error {err:.2e}"
 
 
-@pytest.mark.parametrize("case", ["taut_cable_contact_friction", "cable_in_blend", "tension_control",
-                                  "coulomb_stick_and_slip"])
-def test_routing_force_jacobian(case):
+@pytest.mark.parametrize("case, relation", [("taut_cable_contact_friction", "mirror"), ("cable_in_blend", "mirror"),
+                                            ("tension_control", "mirror"), ("coulomb_stick_and_slip", "mirror"),
+                                            ("taut_cable_contact_friction", "pair")])
+def test_routing_force_jacobian(case, relation):
     sim0, x, x_prev, u, _ = perturbed_state(case)
-    robot = mirrored_robot(contact=sim0.robot.contact)
+    robot = mirrored_robot(relation, contact=sim0.robot.contact)
     sim = Simulator(robot, control=sim0.control, gravity=sim0.gravity)
     if sim.control == "length":      # Gamma as in the case: the pair's first tendon as taut as the bar's
         u = u + (robot.cable_data.rest_length[0] - sim0.system.cables.alpha0[0]) \
             - (sim.system.cables.lengths(x)[0] - sim0.system.cables.lengths(x)[0])
     routing = TendonRouting(robot, fixed=())
     design = DesignParameters(robot, [routing])
-    assert len(routing.leaders) == 1 and routing.followers == {1: 0} and len(design) == 9
+    assert routing.leaders == [0] and list(routing.followers) == [1] and routing.followers[1][0] == 0
+    assert len(design) == 9
     history = sim.system.initial_history(x_prev)
     J = design.force_jacobian(sim.system, x, x_prev, u, history)
     fd = fd_columns(design, sim, x, x_prev, u, history, [1e-7] * len(design))
@@ -169,6 +173,24 @@ def test_leg_morph_force_and_mass_jacobians(case):
     assert err <= RTOL_TERM, f"d masses / d leg length: relative error {err:.2e}"
     assert abs(design.total_mass_jacobian()[0] - fdm.sum()) <= RTOL_TERM * abs(fdm.sum())
     assert design.total_mass_jacobian()[0] > 0          # a longer leg is heavier
+
+
+def test_routing_ties_mirrors_and_pairs_of_the_puppy():
+    """The Puppy's 16 tendons: the "_a" tendon of each left motor leads; its pair "_b" (same
+    motor, 1 cm apart) and the right side's mirror images follow."""
+    robot = load_robot("puppy")
+    routing = TendonRouting(robot)
+    names = robot.tendon_names
+    assert [names[t] for t in routing.leaders] == ["hind_left_front_a", "hind_left_back_a", "fore_left_front_a",
+                                                   "fore_left_back_a"]
+    assert len(routing.followers) == 12 and len(routing.names) == 4 * 3 * 3
+    theta = routing.values + np.random.default_rng(4).uniform(-1e-3, 1e-3, len(routing.names))
+    pts = routing.points(robot, theta)
+    for t, (lead, R, c) in routing.followers.items():
+        assert np.allclose(pts[t], pts[lead] @ R.T + c)
+    la, lb, rb = (names.index(f"fore_{n}") for n in ("left_front_a", "left_front_b", "right_front_b"))
+    assert np.allclose(pts[lb][:, 2] - pts[la][:, 2], 0.01)           # the pair keeps its spacing
+    assert np.allclose(pts[rb][:, 2], 0.08 - pts[la][:, 2])           # the outer ones mirror in z = 0.04
 
 
 def test_routing_keeps_rest_length_offsets_and_fixes_the_motor_end():

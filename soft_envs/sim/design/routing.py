@@ -29,13 +29,17 @@ so its derivative is the same):
 
 In tension control ``Q'`` is the tension ``u`` and the first term vanishes.
 
-Relations kept (not free): a tendon whose rest points are the mirror image of an earlier
-tendon's in the body's mid-plane (normal to the lateral axis, forward x up) follows it:
-its points are the mirrored points (``q' = R q + c``), so its columns add ``dg/dq' R``. On the
-shipped robots this ties the two tendons of each motor (a tendon pair, one on each side of
-a leg's mid-plane... of the body) and the left/right motors of the Puppy. The point where a
-tendon leaves the body to its motor (the last point) is fixed by default: the motors do not
-move.
+Relations kept (not free): a routed tendon follows an earlier one (its points are an affine
+image ``q' = R q + c`` of the leader's, so its columns add ``dg/dq' R``) when its rest points are
+
+* the mirror image of the earlier tendon's in the body's mid-plane (normal to the lateral axis,
+  forward x up): bilateral symmetry, e.g. the Puppy's left and right motors;
+* a translate of the earlier tendon's and both hang on the same motor: a tendon pair keeps its
+  spacing (the Puppy's ``_a`` and ``_b``; on the Tripod the pair is also a mirror pair).
+
+Maps compose: the mirror of a pair's second tendon follows the first tendon's leader. The point
+where a tendon leaves the body to its motor (the last point) is fixed by default: the motors do
+not move.
 """
 from __future__ import annotations
 
@@ -151,7 +155,7 @@ class TendonRouting:
     """Rest positions of via points as design parameters (3 columns per free point, metres).
 
     ``tendons``: the names of the tendons to route (default: all); a tendon that mirrors an
-    earlier routed one follows it (module docstring). ``fixed``: indices of each tendon's
+    earlier routed one, or translates it on the same motor, follows it (module docstring). ``fixed``: indices of each tendon's
     points that stay (default: the last, where the tendon leaves the body to its motor)."""
 
     kind = "routing"
@@ -169,17 +173,32 @@ class TendonRouting:
         self.reflect[lateral, lateral] = -1.0
         self.offset = np.zeros(3)
         self.offset[lateral] = lo[lateral] + hi[lateral]
-        self.leaders, self.followers = [], {}          # follower tendon index -> leader index
+        motor = robot.tendon_motor
+        self.leaders = []
+        #: follower tendon -> (leader, R, c): its points are ``R q_leader + c``
+        self.followers: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}
+        placed: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}     # every routed tendon's map to its leader
         for n in tendons:
             t = names.index(n)
             pts = np.asarray(robot.tendons[t].points)
-            mirrored = pts @ self.reflect.T + self.offset
-            lead = next((l for l in self.leaders
-                         if np.abs(np.asarray(robot.tendons[l].points) - mirrored).max() <= mirror_tol), None)
-            if lead is None:
+            found = None
+            for o, (lead, R, c) in placed.items():
+                other = np.asarray(robot.tendons[o].points)
+                if other.shape != pts.shape:
+                    continue
+                mirrored = other @ self.reflect.T + self.offset
+                shift = (pts - other).mean(axis=0)
+                if np.abs(pts - mirrored).max() <= mirror_tol:          # the mirror image of o
+                    found = (lead, self.reflect @ R, self.reflect @ c + self.offset)
+                elif motor[t] >= 0 and motor[t] == motor[o] and np.abs(pts - other - shift).max() <= mirror_tol:
+                    found = (lead, R, c + shift)                          # o translated: its pair
+                if found:
+                    break
+            if found is None:
                 self.leaders.append(t)
+                placed[t] = (t, np.eye(3), np.zeros(3))
             else:
-                self.followers[t] = lead
+                self.followers[t] = placed[t] = found
         self.free = []                                 # (leader tendon, point index)
         for t in self.leaders:
             P = len(robot.tendons[t].points)
@@ -196,8 +215,8 @@ class TendonRouting:
         pts = [np.array(t.points) for t in robot.tendons]
         for j, (t, s) in enumerate(self.free):
             pts[t][s] = theta[3 * j:3 * j + 3]
-        for f, lead in self.followers.items():
-            pts[f] = pts[lead] @ self.reflect.T + self.offset
+        for f, (lead, R, c) in self.followers.items():
+            pts[f] = pts[lead] @ R.T + c
         return pts
 
     def apply(self, robot, theta: np.ndarray) -> dict:
@@ -214,10 +233,10 @@ class TendonRouting:
         return {"tendons": tuple(new)}
 
     def _columns(self):
-        """For each free point j: the (tendon, point, map) pairs it moves (the leader's with
-        the identity, each follower's with the reflection)."""
+        """For each free point j: the (tendon, point, dq/dq_leader) triples it moves (the
+        leader's with the identity, each follower's with its map's linear part)."""
         for j, (t, s) in enumerate(self.free):
-            yield j, [(t, s, np.eye(3))] + [(f, s, self.reflect) for f, l in self.followers.items() if l == t]
+            yield j, [(t, s, np.eye(3))] + [(f, s, R) for f, (l, R, _) in self.followers.items() if l == t]
 
     def force_jacobian(self, system, x, x_prev, u, history) -> np.ndarray:
         """``d(dE/dx)/dtheta`` (3n, 3 n_free): the cable term's part (the only one)."""
