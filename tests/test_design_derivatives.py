@@ -18,6 +18,7 @@ import pytest
 from soft_envs.sim import NewtonOptions, Simulator, load_robot
 from soft_envs.sim.design import (DesignParameters, LegMorph, RegionalModuli, TendonRouting, embedding_jacobian,
                                   legs_below, region_from_boxes, region_from_cell_tags, signed_distance)
+from soft_envs.sim.parameters import with_parameters
 from soft_envs.sim.system import EnergySystem
 
 from .conftest import small_robot
@@ -73,6 +74,24 @@ def test_regional_moduli_force_jacobian(case):
                                                         .mean(axis=1)[:, 0] > 0.04, True)])
     total = J.sum(axis=1) + rest.force_jacobian(sim.system, x, x_prev, u, history)[:, 0]
     assert relative_error(total, whole) <= 1e-12
+
+
+def test_physical_parameters_of_a_robot_with_regional_moduli():
+    """``youngs_modulus`` scales every region alike and ``poisson_ratio`` acts in each with its
+    modulus: their Jacobians (``Elastic.add_parameter_jacobian`` with ``modulus_scale``) against
+    central differences."""
+    sim0, x, x_prev, u, _ = perturbed_state("taut_cable_contact_friction")
+    base = sim0.robot
+    design = DesignParameters(base, [RegionalModuli(base, two_regions(base))])
+    robot = design.robot_at([2.5e5, 0.4e5])
+    system = EnergySystem(robot)
+    J = system.parameter_jacobian(x, x_prev, u, ["youngs_modulus", "poisson_ratio"])
+    for j, (name, value) in enumerate((("youngs_modulus", robot.youngs_modulus), ("poisson_ratio", robot.poisson_ratio))):
+        h = 1e-6 * value
+        g = [EnergySystem(with_parameters(robot, {name: value + s * h})).assemble(x, x_prev, u, want_hess=False)[1]
+             for s in (1, -1)]
+        err = relative_error(J[:, j], (g[0] - g[1]) / (2 * h))
+        assert err <= RTOL_TERM, f"d grad / d {name} with regional moduli: relative error {err:.2e}"
 
 
 def test_regional_moduli_set_the_elements_and_check_their_input():
