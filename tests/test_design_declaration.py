@@ -1,13 +1,14 @@
 """The ``[design]`` table of robot.toml (issue #29 item 1): what it declares, in the simulation
-frame, and the errors that name the file and the field."""
+frame, and the errors that name the file and the field; a design written as a robot folder."""
 from __future__ import annotations
 
 import meshio
 import numpy as np
 import pytest
 
-from soft_envs.sim import load_robot
-from soft_envs.sim.design import load_design, region_from_boxes
+from soft_envs.sim import Simulator, load_robot
+from soft_envs.sim.design import load_design, region_from_boxes, write_designed_robot
+from soft_envs.sim.robot_file import robot_fingerprint
 
 DESIGN = """
 [design]
@@ -74,3 +75,28 @@ def test_design_table_errors_name_the_file_and_field(robot_dir, text, match):
 def test_a_robot_without_design_table_is_fixed():
     with pytest.raises(ValueError, match=r"no \[design\] table"):
         load_design(load_robot("tripod"))
+
+
+def test_a_written_design_loads_back_and_is_another_robot(robot_dir, tmp_path):
+    """Routing, regional moduli and leg lengths written as a robot folder: it loads with
+    ``load_robot`` as the design's robot, simulates, and its fingerprint differs from the
+    source's (so a result made on one refuses the other)."""
+    robot = with_design(robot_dir)
+    design = load_design(robot)
+    theta = design.values.copy()
+    theta[0] *= 1.7                                             # the middle leg stiffer
+    theta[design.names.index("routing:front_a[1].y")] += 0.002
+    theta[design.names.index("legs:leg1")] = 0.003             # the middle leg 3 mm longer
+    path = write_designed_robot(design, theta, tmp_path / "designed")
+    back = load_robot(path)
+    want = design.robot_at(theta)
+    assert np.allclose(back.mesh.points, want.mesh.points) and (path.parent / "mesh.vtu").is_file()
+    assert np.allclose(back.element_lame()[0], want.element_lame()[0])
+    assert np.allclose(back.tendons[1].points, want.tendons[1].points)      # front_b mirrors front_a
+    assert back.total_mass > robot.total_mass
+    traj = Simulator(back).rollout(np.full((3, back.n_motors), 0.002))
+    assert np.isfinite(traj.x).all()
+    assert robot_fingerprint(path)["sha256"] != robot_fingerprint(robot)["sha256"]
+    assert load_design(back).names == design.names                   # it can be co-designed again
+    with pytest.raises(ValueError, match="never overwrites"):
+        write_designed_robot(design, theta, robot_dir)

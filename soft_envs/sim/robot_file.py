@@ -31,6 +31,11 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     [fixed]                      # optional: clamped nodes
     nodes = [0, 1, 2]            # and/or box = [[x0, x1], [y0, y1], [z0, z1]] (mesh frame and units)
 
+    [[material.regions]]         # optional, written by co-design: Young's modulus per set of tets
+    name = "middle_leg"
+    youngs_modulus = 2.4e5       # [Pa]
+    tets = [12, 13, 14]          # indices into the mesh's tets
+
     [cables]
     blend = 2e-4                 # [m] width of the one-sided quadratic's C2 blend (0: half-quadratic)
 
@@ -89,7 +94,7 @@ _SCHEMA: dict[str, dict[str, tuple[type | tuple[type, ...], bool]]] = {
               "forward_axis": (str, False), "up_axis": (str, False), "scale": ((int, float), False),
               "description": (str, False)},
     "material": {"youngs_modulus": ((int, float), True), "poisson_ratio": ((int, float), True),
-                 "density": ((int, float), True)},
+                 "density": ((int, float), True), "regions": (list, False)},
     "payload": {"mass": ((int, float), True), "nodes": ((str, list), False),
                 "top_tolerance": ((int, float), False)},
     "contact": {"stiffness": ((int, float), False), "friction": ((int, float), False),
@@ -310,12 +315,36 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
                   fixed_nodes=fixed_nodes, contact=contact,
                   body_length=float(rt["body_length"]) if "body_length" in rt else None,
                   cable_blend=float(tables["cables"].get("blend", 2e-4)), source=src, markers=markers)
+    if "regions" in mat:
+        kwargs["modulus_scale"] = _material_regions(mat["regions"], mesh, float(mat["youngs_modulus"]), src)
     kwargs.update(overrides)
     try:
         return Robot(**kwargs)
     except ValueError as exc:
         msg = str(exc)
         raise ValueError(msg if msg.startswith(src) else f"{src}: {msg}") from exc
+
+
+def _material_regions(raw: list, mesh: TetMesh, youngs_modulus: float, src: str) -> np.ndarray:
+    """Per-tet factors on ``[material].youngs_modulus`` from ``[[material.regions]]`` tables
+    (``name``, ``youngs_modulus`` [Pa], ``tets``: indices into the mesh's tets; written by
+    co-design, :mod:`soft_envs.sim.design`). Regions may not overlap."""
+    scale = np.ones(mesh.n_tets)
+    seen = np.zeros(mesh.n_tets, dtype=bool)
+    for i, r in enumerate(raw):
+        where = f"[[material.regions]][{i}]"
+        if not isinstance(r, dict):
+            raise ValueError(f"{src}: {where} must be a table")
+        _check_table(r, {"name": (str, True), "youngs_modulus": ((int, float), True), "tets": (list, True)}, where, src)
+        tets = _index_list(r["tets"], f"{where}.tets", mesh.n_tets, src)
+        if seen[tets].any():
+            raise ValueError(f"{src}: {where} ({r['name']!r}) overlaps an earlier region")
+        E = float(r["youngs_modulus"])
+        if not E > 0:
+            raise ValueError(f"{src}: {where}.youngs_modulus must be positive, got {E!r}")
+        seen[tets] = True
+        scale[tets] = E / youngs_modulus
+    return scale
 
 
 def _payload_nodes(pay: dict, pts: np.ndarray, src: str) -> np.ndarray:

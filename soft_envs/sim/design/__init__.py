@@ -7,8 +7,9 @@ from .declaration import KINDS, load_design
 from .morph import LegMorph, legs_below
 from .regions import Region, RegionalModuli, region_from_boxes, region_from_cell_tags
 from .routing import TendonRouting, cable_gradient_point_jacobian, embedding_jacobian
+from .writer import write_designed_robot
 
 __all__ = ["DesignParameters", "MAX_MASS_LOSS", "MIN_CLEARANCE", "signed_distance", "Region", "RegionalModuli",
            "region_from_boxes", "region_from_cell_tags", "TendonRouting", "cable_gradient_point_jacobian",
            "embedding_jacobian", "LegMorph", "legs_below", "KINDS",
-           "load_design"]
+           "load_design", "write_designed_robot"]
