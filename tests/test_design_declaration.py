@@ -60,6 +60,8 @@ def test_the_design_table_declares_every_kind(robot_dir):
     ("\n[design]\nrouting = [\"front_z\"]\n", "unknown tendon 'front_z'"),
     ("\n[design]\nrouting = \"all\"\n", r"\[design\]\.hip_height is missing"),
     ("\n[design]\nhip_height = 0.03\n[[design.regions]]\nname = \"r\"\n", "needs either boxes or cell_tag"),
+    ("\n[design]\nhip_height = 0.03\n[[design.regions]]\nname = \"r\"\nboxes = [[1, 2]]\n",
+     r"boxes must be a list of \[x0"),
     ("\n[design]\nhip_height = 0.03\n[[design.regions]]\nname = \"r\"\ncell_tag = 1\ncell_data = \"mat\"\n",
      "has no cell data 'mat'"),
 ])

@@ -23,10 +23,14 @@ gradient (the design may not lose more than 2 % of the shipped robot's mass).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..parameter_block import ParameterBlock
+
+if TYPE_CHECKING:
+    from ..robot import Robot
 
 __all__ = ["DesignParameters", "MAX_MASS_LOSS"]
 
@@ -58,7 +62,7 @@ class DesignParameters(ParameterBlock):
         """(len, 2) lower and upper bounds of theta."""
         return np.concatenate([k.bounds for k in self.kinds]).reshape(-1, 2) if self.kinds else np.zeros((0, 2))
 
-    def robot_at(self, theta) -> "object":
+    def robot_at(self, theta) -> "Robot":
         """The robot with design ``theta`` (a ValueError naming the parameter for a bad value)."""
         theta = np.asarray(theta, dtype=np.float64)
         if theta.shape != (len(self),):

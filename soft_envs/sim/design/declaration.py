@@ -96,7 +96,11 @@ def _moduli(robot, table: dict, doc: dict, to_sim, src: str) -> RegionalModuli:
         if ("boxes" in r) == ("cell_tag" in r):
             raise ValueError(f"{src}: {where} ({r['name']!r}) needs either boxes or cell_tag")
         if "boxes" in r:
-            boxes = np.asarray(r["boxes"], dtype=np.float64).reshape(-1, 6)
+            try:
+                boxes = np.asarray(r["boxes"], dtype=np.float64).reshape(-1, 6)
+            except (TypeError, ValueError):
+                raise ValueError(f"{src}: {where}.boxes must be a list of [x0, y0, z0, x1, y1, z1], "
+                                 f"got {r['boxes']!r}") from None
             lo, hi = to_sim(boxes[:, :3]), to_sim(boxes[:, 3:])
             sim_boxes = np.hstack([np.minimum(lo, hi), np.maximum(lo, hi)])
             regions.append(region_from_boxes(robot, r["name"], sim_boxes))

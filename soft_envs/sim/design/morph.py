@@ -24,6 +24,7 @@ feet tie for lowest, that derivative is one-sided.
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -109,9 +110,9 @@ class LegMorph:
             if rest is not None:          # keep the offset from the rest polyline's length
                 rest += (np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()
                          - np.linalg.norm(np.diff(np.asarray(t.points), axis=0), axis=1).sum())
-            tendons.append(t.__class__(t.name, pts, t.stiffness, rest))
+            tendons.append(dataclasses.replace(t, points=pts, rest_length=rest))
         ms = robot.marker_set
-        markers = tuple(m.__class__(m.name, np.asarray(m.point) + w @ dX[nodes])
+        markers = tuple(dataclasses.replace(m, point=np.asarray(m.point) + w @ dX[nodes])
                         for m, nodes, w in zip(robot.markers, ms.nodes, ms.weights))
         return {"mesh": mesh, "tendons": tuple(tendons), "markers": markers}
 

@@ -48,7 +48,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..cables import one_sided_quadratic
+from ..cables import LENGTH_CONTROL, one_sided_quadratic
 from .clearance import signed_distance
 
 __all__ = ["embedding_jacobian", "cable_gradient_point_jacobian", "cable_rest_length_jacobian", "rest_length_gradient",
@@ -110,7 +110,7 @@ def _tendon_state(system, x, u, t):
     nodes, w = cables.pt_nodes[p0:p1], cables.pt_w[p0:p1]
     p = np.einsum("sa,sai->si", w, x[nodes])
     lengths, dLp, h = _polyline(p)
-    if cables.mode == 0:          # length control
+    if cables.mode == LENGTH_CONTROL:
         gam = lengths.sum() - cables.rest_lengths(u)[t]
         _, c1, c2 = one_sided_quadratic(gam, cables.stiffness[t], cables.blend)
         return nodes, w, p, dLp, h, float(c1), float(c2)
