@@ -88,8 +88,8 @@ def test_deflection_per_contraction_follows_the_lever_arm(arm):
 def test_anchor_along_the_beam_follows_beam_theory_across_elements():
     """Moving the anchor toward the tip lowers delta/u at the rate of beam theory, over
     distances of a few elements (a secant across 4.5 cells). Inside one tet the derivative
-    differs (it may even have the other sign): the embedding is piecewise affine, so delta/u is
-    a sawtooth on the scale of the elements around the macroscopic trend (docs/codesign.md)."""
+    differs (it may even have the other sign): the embedding is piecewise affine, so delta/u
+    zigzags around the macroscopic trend with kinks on the tets' faces (docs/codesign.md)."""
     r = SIDE / np.sqrt(12.0)
     e, a0, a1 = 0.3 * r, 0.045, 0.075
     rate = (np.log(deflection_per_contraction(beam_with_cable(e, a1)))
