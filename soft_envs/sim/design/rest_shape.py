@@ -20,14 +20,14 @@ the shape-function gradients ``N_1..N_3``, ``N_0 = -sum``), ``V = det(Dm)/6`` an
   and ``sum_a w_a = 1``, so ``dw_a = N_a . (dq - sum_b w_b dX_b)`` and the cable point
   ``p = sum_a w_a x_a`` moves by ``dp = F (dq - sum_b w_b dX_b)``: a rest-shape change acts on
   a cable point like moving its rest position by ``dq - sum_b w_b dX_b``
-  (:func:`~.routing.cable_gradient_point_jacobian` without its rest-length part), while the
+  (:func:`~.routing.tendon_points_jacobian` without its rest-length part), while the
   assembly length alpha0 follows the rest polyline ``q`` itself.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .routing import cable_gradient_point_jacobian, cable_rest_length_jacobian, rest_length_gradient
+from .routing import cable_rest_length_jacobian, rest_length_gradient, tendon_points_jacobian
 
 __all__ = ["elastic_rest_derivative", "lumped_mass_rest_derivative", "embedding_rest_derivative",
            "cable_rest_derivative", "touched_elements"]
@@ -103,12 +103,11 @@ def cable_rest_derivative(system, x: np.ndarray, u: np.ndarray, dX: np.ndarray, 
     for t, tendon in enumerate(robot.tendons):
         tets, ws = robot._binding[t]
         pts = np.asarray(tendon.points)
-        dalpha = 0.0
-        for r in range(len(pts)):
-            delta = dq[t][r] - ws[r] @ dX[robot.mesh.tets[tets[r]]]
-            if np.any(delta):
-                out += cable_gradient_point_jacobian(system, x, u, t, r, rest_length=False) @ delta
-            dalpha += rest_length_gradient(pts, r) @ dq[t][r]
+        delta = dq[t] - np.einsum("sa,sai->si", ws, dX[robot.mesh.tets[tets]])
+        if np.any(delta):
+            dofs, J = tendon_points_jacobian(system, x, u, t, rest_length=False)
+            np.add.at(out, dofs, J @ delta.ravel())
+        dalpha = sum(rest_length_gradient(pts, r) @ dq[t][r] for r in range(len(pts)))
         if dalpha:
             out -= cable_rest_length_jacobian(system, x, u, t) * dalpha
     return out

@@ -51,8 +51,8 @@ import numpy as np
 from ..cables import LENGTH_CONTROL, one_sided_quadratic
 from .clearance import signed_distance
 
-__all__ = ["embedding_jacobian", "cable_gradient_point_jacobian", "cable_rest_length_jacobian", "rest_length_gradient",
-           "TendonRouting"]
+__all__ = ["embedding_jacobian", "tendon_points_jacobian", "cable_gradient_point_jacobian",
+           "cable_rest_length_jacobian", "rest_length_gradient", "TendonRouting"]
 
 AXES = "xyz"
 
@@ -126,37 +126,53 @@ def cable_rest_length_jacobian(system, x: np.ndarray, u: np.ndarray, t: int) -> 
     return out.ravel()
 
 
-def cable_gradient_point_jacobian(system, x: np.ndarray, u: np.ndarray, t: int, r: int,
-                                  rest_length: bool = True) -> np.ndarray:
-    """``d(dE_cables/dx)/dq_r`` (3n, 3): derivative of the cable term's gradient at x with
-    respect to the rest position of point r of tendon t (module docstring), at fixed binding
-    tets. ``rest_length=False`` leaves out the assembly length's part (the rest-shape
-    derivatives, :mod:`.rest_shape`, add it for the whole polyline)."""
+def tendon_points_jacobian(system, x: np.ndarray, u: np.ndarray, t: int,
+                           rest_length: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``(dofs (12 P,), J (12 P, 3 P))``: ``d(dE_cables/dx)/dq`` of tendon t's gradient at its
+    nodes' dofs (repeated where points share a node: add them up) with respect to the rest
+    positions of all its P points (module docstring), at fixed binding tets.
+    ``rest_length=False`` leaves out the assembly length's part (the rest-shape derivatives,
+    :mod:`.rest_shape`, add it for the whole polyline)."""
     mesh = system.robot.mesh
     nodes, w, p, dLp, h, c1, c2 = _tendon_state(system, x, u, t)
     tets = system.robot._binding[t][0]
-    F = embedding_jacobian(mesh, tets[r], x)
-    out = np.zeros((mesh.n_nodes, 3, 3))
+    P = len(p)
+    F = np.einsum("sai,sak->sik", x[mesh.tets[tets]], mesh.dN[tets])         # dp_s/dq_s per point
+    J = np.zeros((P, 4, 3, P, 3))                                              # (s, a, i) x (r, k)
     if c2:
-        gdir = cable_rest_length_jacobian(system, x, u, t).reshape(-1, 3)
-        out += gdir[:, :, None] * (F.T @ dLp[r])[None, None, :]
+        dgam = np.einsum("rik,ri->rk", F, dLp)                                 # F_r^T dL/dp_r
         if rest_length:
-            out -= gdir[:, :, None] * rest_length_gradient(np.asarray(system.robot.tendons[t].points), r)[None, None, :]
+            pts = np.asarray(system.robot.tendons[t].points)
+            dgam -= np.array([rest_length_gradient(pts, r) for r in range(P)])
+        J += c2 * (w[:, :, None] * dLp[:, None, :])[:, :, :, None, None] * dgam[None, None, None]
     if c1:
-        dN = mesh.dN[tets[r]]
-        np.add.at(out, nodes[r], c1 * dLp[r][None, :, None] * dN[:, None, :])
-        for s in range(max(r - 1, 0), min(r + 2, len(p))):
-            block = c1 * _d2L(h, s, r) @ F
-            np.add.at(out, nodes[s], w[s][:, None, None] * block[None])
-    return out.reshape(-1, 3)
+        dN = mesh.dN[tets]                                                     # (P, 4, 3)
+        for r in range(P):
+            J[r, :, :, r, :] += c1 * dLp[r][None, :, None] * dN[r][:, None, :]
+            for s in range(max(r - 1, 0), min(r + 2, P)):
+                J[s, :, :, r, :] += c1 * w[s][:, None, None] * (_d2L(h, s, r) @ F[r])[None]
+    dofs = (3 * nodes[:, :, None] + np.arange(3)).ravel()
+    return dofs, J.reshape(12 * P, 3 * P)
+
+
+def cable_gradient_point_jacobian(system, x: np.ndarray, u: np.ndarray, t: int, r: int,
+                                  rest_length: bool = True) -> np.ndarray:
+    """``d(dE_cables/dx)/dq_r`` (3n, 3): derivative of the cable term's gradient at x with
+    respect to the rest position of point r of tendon t (:func:`tendon_points_jacobian`'s
+    columns of that point, as a dense block)."""
+    dofs, J = tendon_points_jacobian(system, x, u, t, rest_length)
+    out = np.zeros((system.n_dof, 3))
+    np.add.at(out, dofs, J[:, 3 * r:3 * r + 3])
+    return out
 
 
 class TendonRouting:
     """Rest positions of via points as design parameters (3 columns per free point, metres).
 
     ``tendons``: the names of the tendons to route (default: all); a tendon that mirrors an
-    earlier routed one, or translates it on the same motor, follows it (module docstring). ``fixed``: indices of each tendon's
-    points that stay (default: the last, where the tendon leaves the body to its motor)."""
+    earlier routed one, or translates it on the same motor, follows it (module docstring).
+    ``fixed``: indices of each tendon's points that stay (default: the last, where the tendon
+    leaves the body to its motor)."""
 
     kind = "routing"
 
@@ -241,9 +257,13 @@ class TendonRouting:
     def force_jacobian(self, system, x, x_prev, u, history) -> np.ndarray:
         """``d(dE/dx)/dtheta`` (3n, 3 n_free): the cable term's part (the only one)."""
         out = np.zeros((system.n_dof, len(self.names)))
+        local = {}                                         # per tendon: its dofs and points' Jacobian
         for j, moved in self._columns():
             for t, s, R in moved:
-                out[:, 3 * j:3 * j + 3] += cable_gradient_point_jacobian(system, x, u, t, s) @ R
+                if t not in local:
+                    local[t] = tendon_points_jacobian(system, x, u, t)
+                dofs, J = local[t]
+                np.add.at(out, (dofs[:, None], np.arange(3 * j, 3 * j + 3)[None, :]), J[:, 3 * s:3 * s + 3] @ R)
         return out
 
     def clearance(self, robot) -> tuple[np.ndarray, np.ndarray]:
