@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from soft_envs.sim import Simulator, load_robot
-from soft_envs.sim.design import load_design, region_from_boxes, write_designed_robot
+from soft_envs.sim.design import MIN_CLEARANCE, TendonRouting, load_design, region_from_boxes, write_designed_robot
 from soft_envs.sim.robot_file import robot_fingerprint
 
 DESIGN = """
@@ -102,3 +102,14 @@ def test_a_written_design_loads_back_and_is_another_robot(robot_dir, tmp_path):
     assert load_design(back).names == design.names                   # it can be co-designed again
     with pytest.raises(ValueError, match="never overwrites"):
         write_designed_robot(design, theta, robot_dir)
+
+
+@pytest.mark.parametrize("name", ["tripod", "puppy"])
+def test_shipped_via_points_sit_on_the_clearance_bound(name):
+    """Every tendon point of the shipped robots lies at least 2 mm inside the body, most exactly
+    at 2 mm: the co-design's clearance constraint starts active (it needs a tolerance of ~1e-12 m
+    for round-off)."""
+    robot = load_robot(name)
+    d, J = TendonRouting(robot, fixed=()).clearance(robot)
+    assert (d >= MIN_CLEARANCE - 1e-12).all() and np.isclose(d.min(), MIN_CLEARANCE, atol=1e-12)
+    assert (np.linalg.norm(J, axis=1) > 0).all()          # each row: a unit gradient through its column
