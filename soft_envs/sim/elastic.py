@@ -33,6 +33,7 @@ class Elastic(EnergyTerm):
         mesh = robot.mesh
         self.tets, self.dN, self.vol = mesh.tets, mesh.dN, mesh.volumes
         self.mu, self.lam = robot.element_lame()
+        self.modulus_scale = robot.element_modulus_scale
         self._lame_jacobian = lame_jacobian(robot.youngs_modulus, robot.poisson_ratio)
 
     def hessian_blocks(self) -> list[np.ndarray]:
@@ -57,10 +58,17 @@ class Elastic(EnergyTerm):
         cols = [(j, self._lame_jacobian[n]) for j, n in enumerate(names) if n in self.parameters]
         if not cols:
             return
-        ones, zeros = np.ones_like(self.mu), np.zeros_like(self.mu)
-        g_mu, g_lam = np.zeros(out.shape[0]), np.zeros(out.shape[0])
-        for g, (m, lm) in ((g_mu, (ones, zeros)), (g_lam, (zeros, ones))):
-            if fem_assemble(x, self.tets, self.dN, self.vol, m, lm, g, g, self.hmap, False) == np.inf:
-                raise ValueError("an element is inverted: the elastic gradient has no parameter derivative")
+        scale, zeros = self.modulus_scale, np.zeros_like(self.mu)
+        g_mu, g_lam = self.lame_gradient(x, scale, zeros), self.lame_gradient(x, zeros, scale)
         for j, (dmu, dlam) in cols:
             out[:, j] += dmu * g_mu + dlam * g_lam
+
+    def lame_gradient(self, x, mu: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """The elastic gradient (3n,) at ``x`` with per-element Lame parameters ``(mu, lam)``
+        in place of the robot's: the gradient is linear in them, so per-element derivatives
+        (``dmu_e/dtheta``, ``dlam_e/dtheta``) give ``d(dE/dx)/dtheta`` (a parameter that acts
+        on some elements only passes zeros elsewhere)."""
+        g = np.zeros(3 * len(x))
+        if fem_assemble(x, self.tets, self.dN, self.vol, mu, lam, g, g, self.hmap, False) == np.inf:
+            raise ValueError("an element is inverted: the elastic gradient has no parameter derivative")
+        return g

@@ -14,11 +14,12 @@ from __future__ import annotations
 import numpy as np
 
 from .integrator import FactorCache, NewtonOptions, NewtonSolver, SimulationError
+from .parameter_block import parameter_block
 from .sensitivity import ForwardSensitivities
 from .state import State, advance
 from .system import EnergySystem
 
-__all__ = ["relax"]
+__all__ = ["relax", "placement_sensitivity"]
 
 
 def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
@@ -38,8 +39,9 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
     sens = exact = None
     if params:      # its own solver for the exact Hessians: the relaxation's path stays that of rest_state
         exact = NewtonSolver(system, 1.0, solver.options)
+        dx0, dh0 = placement_sensitivity(sim, system, params)
         sens = ForwardSensitivities(exact, sim.robot.node_masses, np.zeros((max_iter, sim.n_motors, 0)),
-                                    params=params, x0=x)
+                                    params=params, x0=x, dx0dtheta=dx0, dhistory0dtheta=dh0)
     cache = FactorCache()
     for j in range(max_iter):
         start = State(x, x, None, history, j)       # at rest (no x_{k-2}: the guess is x itself)
@@ -66,3 +68,21 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
         return rest
     dh = tuple(None if p is None else p[:, sens.nz:].copy() for p in (sens.P or (None,) * len(history)))
     return rest, sens.S1[:, sens.nz:].copy(), dh
+
+
+def placement_sensitivity(sim, system, params) -> tuple:
+    """``(d initial_placement/dtheta (3n, nt), d initial_history/dtheta)`` for parameters that
+    move the rest mesh (a :class:`~.parameter_block.ParameterBlock` with a
+    ``rest_position_jacobian``, e.g. the leg morph of :mod:`soft_envs.sim.design`; ``(None,
+    None)`` otherwise). The placement's shift to the ground follows the lowest node; the initial
+    histories (anchors at the nodes) are linear in the positions."""
+    dX = parameter_block(params).rest_position_jacobian(sim.robot)
+    if dX is None:
+        return None, None
+    dX = np.array(dX, dtype=np.float64)
+    if sim.robot.fixed_nodes.size == 0:
+        dX[:, 1, :] -= dX[int(np.argmin(sim.robot.mesh.points[:, 1])), 1, :]
+    cols = [system.initial_history(dX[:, :, j]) for j in range(dX.shape[2])]
+    dh = tuple(None if h is None else np.stack([c[i].ravel() for c in cols], axis=1)
+               for i, h in enumerate(cols[0])) if cols else None
+    return dX.reshape(-1, dX.shape[2]), dh

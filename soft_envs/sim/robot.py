@@ -98,9 +98,19 @@ class Robot:
     cable_blend: float = 2e-4
     source: str = "<python>"
     markers: tuple[Marker, ...] = ()
+    #: per-tet factor on ``youngs_modulus`` (None: uniform); the regional moduli of a design
+    #: (:mod:`soft_envs.sim.design`) set it
+    modulus_scale: np.ndarray | None = None
 
     def __post_init__(self):
         lame_parameters(self.youngs_modulus, self.poisson_ratio)   # validates
+        if self.modulus_scale is not None:
+            scale = np.array(self.modulus_scale, dtype=np.float64)
+            if scale.shape != (self.mesh.n_tets,) or not (np.isfinite(scale).all() and (scale > 0).all()):
+                raise ValueError(f"{self.source}: modulus_scale must be {self.mesh.n_tets} positive finite "
+                                 f"factors (one per tet), got shape {scale.shape}")
+            scale.setflags(write=False)
+            object.__setattr__(self, "modulus_scale", scale)
         if not (np.isfinite(self.density) and self.density > 0):
             raise ValueError(f"{self.source}: material.density must be positive, got {self.density!r}")
         if not (np.isfinite(self.payload_mass) and self.payload_mass >= 0):
@@ -310,9 +320,16 @@ class Robot:
         return np.einsum("...ni,n->...i", x, self.node_masses) / self.total_mass
 
     def element_lame(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per-tet Lame parameters ``(mu, lam)``: those of ``youngs_modulus`` times
+        :attr:`modulus_scale` (both are linear in E)."""
         mu, lam = lame_parameters(self.youngs_modulus, self.poisson_ratio)
-        m = self.mesh.n_tets
-        return np.full(m, mu), np.full(m, lam)
+        scale = self.element_modulus_scale
+        return mu * scale, lam * scale
+
+    @property
+    def element_modulus_scale(self) -> np.ndarray:
+        """Per-tet factor on ``youngs_modulus`` (ones when uniform)."""
+        return np.ones(self.mesh.n_tets) if self.modulus_scale is None else np.array(self.modulus_scale)
 
     @cached_property
     def cable_data(self) -> "CableData":

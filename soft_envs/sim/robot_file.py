@@ -32,6 +32,11 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     [fixed]                      # optional: clamped nodes
     nodes = [0, 1, 2]            # and/or box = [[x0, x1], [y0, y1], [z0, z1]] (mesh frame and units)
 
+    [[material.regions]]         # optional, written by co-design: Young's modulus per set of tets
+    name = "middle_leg"
+    youngs_modulus = 2.4e5       # [Pa]
+    tets = [12, 13, 14]          # indices into the mesh's tets
+
     [cables]
     blend = 2e-4                 # [m] width of the one-sided quadratic's C2 blend (0: half-quadratic)
 
@@ -55,6 +60,13 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     max_speed_rpm = 100.0        # [rpm] output speed limit (default 100: Pololu 298:1, no load, 6 V);
                                  # the contraction moves at most max_speed_rpm * 2 pi / 60 * spool_radius
 
+    [design]                     # optional: what co-design may change (soft_envs.sim.design;
+    routing = ["fore_left_front_a"]   # absent: the robot is fixed); see docs/codesign.md
+    hip_height = 0.03            # legs: connected parts below it (above the lowest node) vary in length
+    [[design.regions]]           # Young's modulus per region: boxes or a mesh cell tag
+    name = "legs"
+    boxes = [[0.0, 0.0, 0.0, 0.13, 0.03, 0.08]]   # [x0, y0, z0, x1, y1, z1], mesh frame
+
 Every error is a ``ValueError`` that names the file and the field: a file that is not UTF-8,
 not TOML, an unknown or missing key, a value of the wrong type, and any number that is not
 finite (TOML's ``inf`` and ``nan``).
@@ -77,7 +89,7 @@ import numpy as np
 from .mesh import TetMesh, load_mesh
 from .robot import DEFAULT_MAX_SPEED_RPM, ContactParams, Marker, Motor, Robot, Tendon
 
-__all__ = ["load_robot", "asset_path", "robot_fingerprint", "robot_file_path", "SHIPPED_ROBOTS"]
+__all__ = ["load_robot", "asset_path", "robot_fingerprint", "robot_file_path", "robot_document", "SHIPPED_ROBOTS"]
 
 SHIPPED_ROBOTS = ("tripod", "puppy")
 
@@ -86,7 +98,7 @@ _SCHEMA: dict[str, dict[str, tuple[type | tuple[type, ...], bool]]] = {
               "forward_axis": (str, False), "up_axis": (str, False), "scale": ((int, float), False),
               "description": (str, False)},
     "material": {"youngs_modulus": ((int, float), True), "poisson_ratio": ((int, float), True),
-                 "density": ((int, float), True)},
+                 "density": ((int, float), True), "regions": (list, False)},
     "payload": {"mass": ((int, float), True), "nodes": ((str, list), False),
                 "top_tolerance": ((int, float), False)},
     # [contact]: the fields of ContactParams (model and the keys the contact laws read)
@@ -149,6 +161,24 @@ def _frame(robot_tbl: dict, src: str) -> np.ndarray:
     if abs(f @ u) > 0:
         raise ValueError(f"{src}: [robot].forward_axis and up_axis must be different axes")
     return np.stack([f, u, np.cross(f, u)])     # rows: sim x, y, z in mesh coordinates
+
+
+def _to_sim(robot_tbl: dict, src: str):
+    """``(to_sim, R)``: the map of file coordinates (scaled by [robot].scale) to the simulation
+    frame, and the frame's rotation."""
+    scale = float(robot_tbl.get("scale", 1.0))
+    if not scale > 0:
+        raise ValueError(f"{src}: [robot].scale must be positive")
+    R = _frame(robot_tbl, src)
+    return (lambda q: scale * np.asarray(q, dtype=np.float64) @ R.T), R
+
+
+def robot_document(name_or_path: str | Path) -> tuple[dict[str, Any], Any]:
+    """The parsed robot.toml of ``name_or_path`` and its map from file coordinates to the
+    simulation frame (for tables read outside :func:`load_robot`, e.g. ``[design]``)."""
+    path = robot_file_path(name_or_path)
+    doc = _read_toml(path)
+    return doc, _to_sim(doc.get("robot", {}), str(path))[0]
 
 
 def robot_file_path(name_or_path: str | Path) -> Path:
@@ -256,7 +286,7 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
     path = robot_file_path(name_or_path)
     src = str(path)
     doc = _read_toml(path)
-    allowed = set(_SCHEMA) | {"tendons", "motors", "markers"}
+    allowed = set(_SCHEMA) | {"tendons", "motors", "markers", "design"}   # [design]: soft_envs.sim.design
     for key in doc:
         if key not in allowed:
             raise ValueError(f"{src}: unknown table [{key}] (allowed: {', '.join(sorted(allowed))})")
@@ -265,15 +295,11 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
             raise ValueError(f"{src}: table [{key}] is missing")
     tables = {k: _check_table(doc.get(k, {}), s, f"[{k}]", src) for k, s in _SCHEMA.items()}
     rt = tables["robot"]
-    scale = float(rt.get("scale", 1.0))
-    if not scale > 0:
-        raise ValueError(f"{src}: [robot].scale must be positive")
-    R = _frame(rt, src)
+    to_sim, R = _to_sim(rt, src)
     mesh_file = path.parent / rt["mesh"]
     if not mesh_file.is_file():
         raise ValueError(f"{src}: [robot].mesh file {str(mesh_file)!r} not found")
     raw = load_mesh(mesh_file)
-    to_sim = lambda q: scale * np.asarray(q, dtype=np.float64) @ R.T   # noqa: E731
     pts = to_sim(raw.points)
     tets = np.array(raw.tets)
     if np.linalg.det(R) < 0:   # cannot happen for a right-handed frame built by cross; keep safe
@@ -297,12 +323,36 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
                   fixed_nodes=fixed_nodes, contact=contact,
                   body_length=float(rt["body_length"]) if "body_length" in rt else None,
                   cable_blend=float(tables["cables"].get("blend", 2e-4)), source=src, markers=markers)
+    if "regions" in mat:
+        kwargs["modulus_scale"] = _material_regions(mat["regions"], mesh, float(mat["youngs_modulus"]), src)
     kwargs.update(overrides)
     try:
         return Robot(**kwargs)
     except ValueError as exc:
         msg = str(exc)
         raise ValueError(msg if msg.startswith(src) else f"{src}: {msg}") from exc
+
+
+def _material_regions(raw: list, mesh: TetMesh, youngs_modulus: float, src: str) -> np.ndarray:
+    """Per-tet factors on ``[material].youngs_modulus`` from ``[[material.regions]]`` tables
+    (``name``, ``youngs_modulus`` [Pa], ``tets``: indices into the mesh's tets; written by
+    co-design, :mod:`soft_envs.sim.design`). Regions may not overlap."""
+    scale = np.ones(mesh.n_tets)
+    seen = np.zeros(mesh.n_tets, dtype=bool)
+    for i, r in enumerate(raw):
+        where = f"[[material.regions]][{i}]"
+        if not isinstance(r, dict):
+            raise ValueError(f"{src}: {where} must be a table")
+        _check_table(r, {"name": (str, True), "youngs_modulus": ((int, float), True), "tets": (list, True)}, where, src)
+        tets = _index_list(r["tets"], f"{where}.tets", mesh.n_tets, src)
+        if seen[tets].any():
+            raise ValueError(f"{src}: {where} ({r['name']!r}) overlaps an earlier region")
+        E = float(r["youngs_modulus"])
+        if not E > 0:
+            raise ValueError(f"{src}: {where}.youngs_modulus must be positive, got {E!r}")
+        seen[tets] = True
+        scale[tets] = E / youngs_modulus
+    return scale
 
 
 def _payload_nodes(pay: dict, pts: np.ndarray, src: str) -> np.ndarray:

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .parameter_block import parameter_block
 from .state import State, next_state
 
 __all__ = ["ForwardSensitivities", "adjoint_pass"]
@@ -57,7 +58,9 @@ class ForwardSensitivities:
     histories' ``dhistory0dtheta`` (a tuple aligned with the terms) start it; ``x0`` gives the
     COM's entry 0. Then ``dxdtheta`` (K+1, 3n, ntheta) and ``dcomdtheta`` (K+1, 3, ntheta)
     (which includes the masses' own dependence) hold the results. Both blocks share each step's
-    one multi-right-hand-side solve."""
+    one multi-right-hand-side solve. ``params`` may also be a
+    :class:`~.parameter_block.ParameterBlock` (design parameters, :mod:`soft_envs.sim.design`):
+    the block gives the three partial derivatives."""
 
     def __init__(self, newton, masses: np.ndarray, dudz: np.ndarray, store_dxdz: bool = False,
                  params=(), dx0dtheta: np.ndarray | None = None, dhistory0dtheta: tuple | None = None,
@@ -68,7 +71,8 @@ class ForwardSensitivities:
         self.dudz = dudz
         self.masses = np.asarray(masses)
         self.total_mass = self.masses.sum()
-        self.params = tuple(params)
+        self.block = parameter_block(params)
+        self.params = self.block.names
         self.nz, nt = nz, len(self.params)
         self.S1 = np.zeros((system.n_dof, nz + nt))       # S_{k-1}, [dx/dz | dx/dtheta]
         if nt and dx0dtheta is not None:
@@ -81,7 +85,7 @@ class ForwardSensitivities:
         self._dh0 = dhistory0dtheta
         self.dxdtheta = self.dcomdtheta = None
         if nt:
-            self.mass_jacobian = system.mass_jacobian(self.params)          # (3n, nt)
+            self.mass_jacobian = self.block.mass_jacobian(system)           # (3n, nt)
             self.dxdtheta = np.zeros((K + 1, system.n_dof, nt))
             self.dxdtheta[0] = self.S1[:, nz:]
             self.dcomdtheta = np.zeros((K + 1, 3, nt))
@@ -131,7 +135,7 @@ class ForwardSensitivities:
             system.history_product(x, x_prev, u, history, self.P, d)
             rhs -= d
         if self.params:
-            rhs[:, nz:] -= system.parameter_jacobian(x, x_prev, u, self.params, history)
+            rhs[:, nz:] -= self.block.force_jacobian(system, x, x_prev, u, history)
             if self.mass_jacobian.any():
                 if x_prev2 is None:
                     raise ValueError("the parameter block needs x_prev2 for parameters that change the masses")
@@ -142,7 +146,7 @@ class ForwardSensitivities:
         if system.has_history:
             self.P = system.history_tangent(x, x_prev, history, S, self.P)
             if self.params:
-                for p, e in zip(self.P, system.history_parameter_jacobian(x, x_prev, history, self.params)):
+                for p, e in zip(self.P, self.block.history_jacobian(system, x, x_prev, history)):
                     if p is not None and e is not None:
                         p[:, nz:] += e
         if nz:

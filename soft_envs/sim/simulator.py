@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .integrator import FactorCache, NewtonOptions, NewtonSolver
+from .parameter_block import ParameterBlock
 from .robot import Robot
 from .rest import relax
 from .sensitivity import ForwardSensitivities, adjoint_pass
@@ -200,13 +201,20 @@ class Simulator:
         :data:`~soft_envs.sim.parameters.PARAMETERS`): the rest state is the end of the
         relaxation's implicit steps, differentiated through the same recurrence as rollouts
         (:class:`~.sensitivity.ForwardSensitivities`, each step starting at rest)."""
-        params = self.system.check_parameters(params)
+        params = self._parameters(params)
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
         key = (tuple(u.tolist()), tol, params)
         if key not in self._rest_sens_cache:
             rest, dx, dh = relax(self, u, tol, max_iter, params)
             self._rest_sens_cache[key] = rest.x, rest.history, dx, dh
         return self._rest_sens_cache[key]
+
+    def _parameters(self, params):
+        """Names of physical parameters checked against this robot, or a
+        :class:`~.parameter_block.ParameterBlock` (design parameters) checked by the block."""
+        if isinstance(params, ParameterBlock):
+            return params.check(self.system)
+        return self.system.check_parameters(params)
 
     def _rest(self, u, tol: float, max_iter: int) -> State:
         u = np.zeros(self.n_motors) if u is None else self._check_u(u)
@@ -311,15 +319,16 @@ class Simulator:
         end (continue with ``rollout(u2, x0=traj.info["state"])``), ``traj.info["history"]``
         its history, ``traj.info["start"]`` the State it started from.
 
-        With ``params`` (names of physical parameters, :mod:`.parameters`) the parameter block
-        of the recurrence runs too: ``traj.dxdtheta`` (K+1, 3n, ntheta) and ``traj.dcomdtheta``
+        With ``params`` (names of physical parameters, :mod:`.parameters`, or a
+        :class:`~.parameter_block.ParameterBlock` such as the design parameters of
+        :mod:`soft_envs.sim.design`) the parameter block of the recurrence runs too: ``traj.dxdtheta`` (K+1, 3n, ntheta) and ``traj.dcomdtheta``
         (K+1, 3, ntheta). From the rest state (``x0=None``) the derivative of the rest state
         itself is included (:meth:`rest_sensitivity`); from a given ``x0`` pass its derivative
         ``dx0dtheta`` (default 0) and that of the history, ``dhistory0dtheta``.
         """
         u = self._check_u(u, K=len(np.asarray(u)), check_bounds=check_bounds)
         K = len(u)
-        params = self.system.check_parameters(params) if params else ()
+        params = self._parameters(params) if params else ()
         if params and x0 is None:
             x_rest, rest_h, dx0dtheta, dhistory0dtheta = self.rest_sensitivity(params)
             start = self._start_state(x_rest, x_prev0, rest_h if history0 is None else history0)
@@ -361,7 +370,7 @@ class Simulator:
             traj.dcomdz, traj.dgammadz, traj.dxdz = sens.dcomdz, sens.dgammadz, sens.dxdz
         if params:
             traj.dxdtheta, traj.dcomdtheta = sens.dxdtheta, sens.dcomdtheta
-            traj.info["parameters"] = params
+            traj.info["parameters"] = params.names if isinstance(params, ParameterBlock) else params
         return traj
 
     def rollout_gradient(self, u, dobj_dx, x0=None, dudz=None, traj: Trajectory | None = None,

@@ -1,0 +1,109 @@
+"""Writing a designed robot as a robot folder that every command loads unchanged (issue #29).
+
+:func:`write_designed_robot` copies the source robot.toml (comments and layout kept, through
+tomlkit) into a new folder and sets what the design changed, in the file's own frame and
+units:
+
+* routing: every ``[[tendons]]`` table's ``points`` (and an explicit ``rest_length``);
+* moduli: ``[[material.regions]]`` tables (``name``, ``youngs_modulus``, ``tets``), read back by
+  :func:`~soft_envs.sim.robot_file.load_robot` into ``Robot.modulus_scale``;
+* leg lengths: a new mesh file ``mesh.vtu`` (``[robot].mesh`` points at it) and the markers'
+  points; otherwise ``[robot].mesh`` points at the source's mesh file.
+
+The written folder is loaded back and compared with ``design.robot_at(theta)`` (node positions,
+tendon points, element moduli, masses): a mismatch is a RuntimeError. A different robot file
+means a different :func:`~soft_envs.sim.robot_file.robot_fingerprint`, so results made on one
+robot refuse the other.
+"""
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import meshio
+import numpy as np
+
+from ..robot_file import load_robot, robot_document
+from .block import DesignParameters
+
+__all__ = ["write_designed_robot", "HEADER"]
+
+HEADER = "# Designed by soft_envs.sim.design"
+
+
+def write_designed_robot(design: DesignParameters, theta, out_dir: str | Path) -> Path:
+    """Write the robot of design ``theta`` into ``out_dir`` (created); returns its robot.toml."""
+    import tomlkit
+
+    source = Path(design.robot.source)
+    if not source.is_file():
+        raise ValueError(f"the design's robot was not loaded from a robot.toml ({design.robot.source!r}): "
+                         "there is no file to start the new one from")
+    out = Path(out_dir)
+    target = out / "robot.toml"
+    if target.resolve() == source.resolve():
+        raise ValueError(f"{target} is the source robot file: a design never overwrites it")
+    out.mkdir(parents=True, exist_ok=True)
+    robot = design.robot_at(theta)
+    _, to_sim = robot_document(source)
+    M = to_sim(np.eye(3))                       # rows: the simulation-frame images of the file axes
+    to_file = lambda p: np.asarray(p, dtype=np.float64) @ np.linalg.inv(M)   # noqa: E731
+    doc = tomlkit.parse(source.read_text(encoding="utf-8"))
+
+    for table, tendon in zip(doc.get("tendons", []), robot.tendons):
+        table["points"] = [[float(v) for v in p] for p in to_file(tendon.points)]
+        if tendon.rest_length is not None:
+            table["rest_length"] = float(tendon.rest_length)
+    for table, marker in zip(doc.get("markers", []), robot.markers):
+        table["point"] = [float(v) for v in to_file(marker.point)]
+
+    regions = [k for k in design.kinds if k.kind == "stiffness"]
+    if regions:
+        mat = doc["material"]
+        array = tomlkit.aot()
+        for region in regions[0].regions:
+            t = tomlkit.table()
+            t["name"] = region.name
+            t["youngs_modulus"] = float(robot.youngs_modulus * robot.element_modulus_scale[region.elements[0]])
+            t["tets"] = [int(e) for e in region.elements]
+            array.append(t)
+        mat["regions"] = array
+
+    mesh = (source.parent / str(doc["robot"]["mesh"])).resolve()
+    if np.array_equal(robot.mesh.points, design.robot.mesh.points):
+        near = os.path.commonpath([mesh, out.resolve()]) != os.path.sep
+        doc["robot"]["mesh"] = os.path.relpath(mesh, out.resolve()) if near else str(mesh)
+    else:
+        meshio.write(out / "mesh.vtu", _moved_mesh(mesh, robot.mesh, to_file(robot.mesh.points)))
+        doc["robot"]["mesh"] = "mesh.vtu"
+
+    changed = ", ".join(f"{n} = {float(v):.6g}" for n, v, v0 in zip(design.names, theta, design.values) if v != v0)
+    text = f"{HEADER} from {source} on {time.strftime('%Y-%m-%d %H:%M')}: {changed or 'no change'}\n"
+    target.write_text(text + tomlkit.dumps(doc), encoding="utf-8")
+    _check_written(target, robot)
+    return target
+
+
+def _moved_mesh(source_file: Path, mesh, points: np.ndarray) -> meshio.Mesh:
+    """The source mesh file's content (cells, cell data such as region tags) with new
+    ``points``, when its tets are the robot's; otherwise the bare tets."""
+    original = meshio.read(source_file)
+    tetra = [c.data for c in original.cells if c.type == "tetra"]
+    if original.points.shape[0] == len(points) and tetra and np.array_equal(np.concatenate(tetra), mesh.tets):
+        return meshio.Mesh(points, original.cells, cell_data=original.cell_data)
+    return meshio.Mesh(points, [("tetra", np.array(mesh.tets))])
+
+
+def _check_written(target: Path, robot) -> None:
+    back = load_robot(target)
+    checks = {"node positions": (back.mesh.points, robot.mesh.points),
+              "element moduli": (back.element_lame()[0], robot.element_lame()[0]),
+              "node masses": (back.node_masses, robot.node_masses),
+              "payload nodes": (back.payload_nodes, robot.payload_nodes),
+              "fixed nodes": (back.fixed_nodes, robot.fixed_nodes)}
+    for a, b in zip(back.tendons, robot.tendons):
+        checks[f"tendon {a.name!r} points"] = (np.asarray(a.points), np.asarray(b.points))
+    for what, (a, b) in checks.items():
+        if np.shape(a) != np.shape(b) or not np.allclose(a, b, rtol=1e-12, atol=1e-12):
+            raise RuntimeError(f"{target}: the written robot's {what} differ from the design's")
