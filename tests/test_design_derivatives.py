@@ -296,7 +296,7 @@ def test_rollout_design_column_matches_finite_differences(kind, model):
         runs = []
         for s in (1.0, -1.0):
             moved = Simulator(design.robot_at(design.values + s * h * d), newton=tight)
-            runs.append(moved.rollout(u, x0=moved.rest_state(tol=1e-13), history0=moved.rest_history(tol=1e-13)))
+            runs.append(moved.rollout(u, x0=moved.rest_state(tol=1e-13)))       # a State: its anchors
         fd = (runs[0].com - runs[1].com) / (2 * h)
         what = design.names[j] if model == "coulomb" else f"{kind} (random direction)"
         err = relative_error(traj.dcomdtheta @ d, fd)

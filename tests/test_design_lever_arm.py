@@ -54,7 +54,7 @@ def deflection_per_contraction(robot, design=None):
     sim = Simulator(robot, gravity=(0.0, 0.0, 0.0), newton=NewtonOptions(tol=1e-12))
     tip = np.flatnonzero(robot.mesh.points[:, 0] > L - 1e-12)
     if design is None:
-        x = sim.rest_state(u=[U], tol=1e-13)
+        x = sim.rest_positions(u=[U], tol=1e-13)
         return (x[tip, 1] - robot.mesh.points[tip, 1]).mean() / U
     x, _, dx, _ = sim.rest_sensitivity(design, u=[U], tol=1e-13)
     delta = (x[tip, 1] - robot.mesh.points[tip, 1]).mean()
