@@ -5,7 +5,10 @@
     python benchmarks/reference_rollouts.py record refs/coulomb.npz --contact coulomb
 
 ``--contact coulomb`` runs the same cases with the robots' ``[contact] model`` set to the
-Coulomb law (keys ``<case>_coulomb``); the default is the robot files' own law.
+Coulomb law (keys ``<case>_coulomb``); the default is the robot files' own law. Since issue #27
+``sim.rest_state()`` is a State that carries the rest state's loaded stick anchors; a recording
+made before, when it was a bare array (anchors reset where the nodes stood), is compared with
+``--bare-start``. Under the paper's law (no anchors) both starts are the same.
 
 Cases (both shipped robots): a smooth gait, seeded random controls within the motor bounds
 (reversing at the motors' speed limit) and zero controls, in length control; a gait in tension
@@ -53,7 +56,8 @@ def cases(contact: str | None = None):
         yield key, robot, kw, u
 
 
-def record(ref_points: dict | None = None, contact: str | None = None) -> dict[str, np.ndarray]:
+def record(ref_points: dict | None = None, contact: str | None = None,
+           bare_start: bool = False) -> dict[str, np.ndarray]:
     """Every case's arrays; ``ref_points`` {case: (x, x_prev, u)} fixes where E, its gradient
     and Hessian are evaluated (compare uses the reference's points)."""
     ref_points = ref_points or {}
@@ -61,6 +65,8 @@ def record(ref_points: dict | None = None, contact: str | None = None) -> dict[s
     for key, robot, kw, u in cases(contact):
         sim = Simulator(robot, dt=0.033, **kw)
         x0 = sim.rest_state()              # a State since issue #27 (an array before)
+        if bare_start:                     # the rest positions alone: anchors where the nodes stand
+            x0 = x0.x
         rng = np.random.default_rng(99)
         dudz = rng.standard_normal((len(u), robot.n_motors, NZ)) * 1e-3
         traj = sim.rollout(u, x0=x0, dudz=dudz, store_dxdz=True)
@@ -113,9 +119,12 @@ def main(argv=None) -> int:
     p.add_argument("path", type=Path)
     p.add_argument("--rtol", type=float, default=1e-10)
     p.add_argument("--contact", default=None, help="contact law of every case (default: the robot files')")
+    p.add_argument("--bare-start", action="store_true",
+                   help="start from the rest positions as a bare array, stick anchors where the nodes stand "
+                        "(what x0=sim.rest_state() meant before issue #27 made it a State with its loaded anchors)")
     a = p.parse_args(argv)
     if a.action == "record":
-        new = record(contact=a.contact)
+        new = record(contact=a.contact, bare_start=a.bare_start)
         a.path.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(a.path, **new)
         print(f"wrote {a.path} ({len(new)} arrays)")
@@ -125,7 +134,7 @@ def main(argv=None) -> int:
     cases_ = {k.rsplit("/", 1)[0] for k in ref}
     points = {c: (ref[f"{c}/eval_x"], ref[f"{c}/eval_xp"], ref[f"{c}/eval_u"])
               for c in cases_ if f"{c}/eval_x" in ref}
-    new = record(points, contact=a.contact)
+    new = record(points, contact=a.contact, bare_start=a.bare_start)
     ok = compare(ref, new, a.rtol)
     print("all within rtol" if ok else "DIFFERENCES above rtol")
     return 0 if ok else 1
