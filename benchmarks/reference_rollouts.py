@@ -5,7 +5,9 @@
     python benchmarks/reference_rollouts.py record refs/coulomb.npz --contact coulomb
 
 ``--contact coulomb`` runs the same cases with the robots' ``[contact] model`` set to the
-Coulomb law (keys ``<case>_coulomb``); the default is the robot files' own law.
+Coulomb law (keys ``<case>_coulomb``); the default is the paper's law, named explicitly (the
+robot files' default is the Coulomb law since issue #31; recordings made before it, keys
+without a suffix, were made with the paper's law and compare unchanged).
 
 Cases (both shipped robots): a smooth gait, seeded random controls within the motor bounds
 (reversing at the motors' speed limit) and zero controls, in length control; a gait in tension
@@ -21,7 +23,6 @@ sides of a refactor. The cases are those of the regression test, ``tests/data/ma
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import importlib.util
 import sys
 from pathlib import Path
@@ -43,17 +44,15 @@ def _load_case_generator():
     return module
 
 
-def cases(contact: str | None = None):
+def cases(contact: str = "paper"):
     """The regression test's cases (smooth gait, random and zero controls, tension control, a
-    10-degree slope; both robots), ``K`` steps each; with ``contact`` the robots use that
-    contact law and the keys end in ``_<contact>``."""
-    for key, robot, kw, u in _load_case_generator().cases(K):
-        if contact is not None:
-            key, robot = f"{key}_{contact}", robot.replace(contact=dataclasses.replace(robot.contact, model=contact))
-        yield key, robot, kw, u
+    10-degree slope; both robots), ``K`` steps each, the robots under the contact law
+    ``contact``; the keys of a law other than the paper's end in ``_<contact>``."""
+    for key, robot, kw, u in _load_case_generator().cases(K, contact=contact):
+        yield (key if contact == "paper" else f"{key}_{contact}"), robot, kw, u
 
 
-def record(ref_points: dict | None = None, contact: str | None = None) -> dict[str, np.ndarray]:
+def record(ref_points: dict | None = None, contact: str = "paper") -> dict[str, np.ndarray]:
     """Every case's arrays; ``ref_points`` {case: (x, x_prev, u)} fixes where E, its gradient
     and Hessian are evaluated (compare uses the reference's points)."""
     ref_points = ref_points or {}
@@ -112,7 +111,8 @@ def main(argv=None) -> int:
     p.add_argument("action", choices=["record", "compare"])
     p.add_argument("path", type=Path)
     p.add_argument("--rtol", type=float, default=1e-10)
-    p.add_argument("--contact", default=None, help="contact law of every case (default: the robot files')")
+    p.add_argument("--contact", default="paper", help="contact law of every case (default: paper, the law of "
+                   "every recording made before the robot files' default became the Coulomb law)")
     a = p.parse_args(argv)
     if a.action == "record":
         new = record(contact=a.contact)
