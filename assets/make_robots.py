@@ -26,10 +26,10 @@ from soft_envs.sim.robot import DEFAULT_MAX_SPEED_RPM
 HERE = Path(__file__).resolve().parent
 
 MATERIAL = dict(youngs_modulus=1.0e5, poisson_ratio=0.3)   # fitted foam (paper II-A), see README
-# model "paper" (paper II-C: friction weight [1/m]) for SoftTripod-v0/SoftPuppy-v0 and Table I;
-# the Coulomb law's parameters (SoftTripod-v1/SoftPuppy-v1, trajopt --contact coulomb) are here
-# too: foam on a table, mu = 0.8, feet stick until they are 0.3 mm from their anchors
-CONTACT = dict(model='"paper"', stiffness=2000.0, friction=1000.0, blend=5e-4, friction_coefficient=0.8,
+# model "coulomb", the default law (docs/contact.md): foam on a table, mu = 0.8, feet stick until
+# they are 0.3 mm from their anchors; the paper's law (II-C: friction weight [1/m]) is here too,
+# for contact="paper", --contact paper, SoftTripod-v0/SoftPuppy-v0 and Table I
+CONTACT = dict(model='"coulomb"', stiffness=2000.0, friction=1000.0, blend=5e-4, friction_coefficient=0.8,
                slip_distance=3e-4)
 CABLE_STIFFNESS = 1e5
 

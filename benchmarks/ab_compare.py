@@ -7,7 +7,9 @@ Each round runs the same timing script once under each checkout (a subprocess wi
 checkout first on ``PYTHONPATH``), alternating A, B, A, B ..., so a slow spell of the shared
 machine hits both. Timed: a 168-step gait rollout of the Puppy and of the Tripod, the Puppy's
 rollout with exact sensitivities for nz = 32 parameters, and 300 random-action steps of
-``SoftTripod-v0``. Prints the best CPU time of each over the rounds and the ratio B / A.
+``SoftTripod-v1``, all under the paper's contact law named explicitly (``contact="paper"``), so
+that both sides simulate the same physics whatever their robot files' default law (the paper's
+before issue #31, Coulomb's since). Prints the best CPU time of each over the rounds and the ratio B / A.
 """
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ import subprocess
 import sys
 
 SNIPPET = r"""
-import json, time
+import dataclasses, json, time
 import numpy as np
 import gymnasium as gym
 import soft_envs
@@ -43,12 +45,13 @@ def best(f, n=3):
 
 res = {"module": sys_path_check}
 for name in ("puppy", "tripod"):
-    r = load_robot(name); sim = Simulator(r); x0 = sim.rest_state(); u = gait(r)
+    r = load_robot(name); r = r.replace(contact=dataclasses.replace(r.contact, model="paper"))
+    sim = Simulator(r); x0 = sim.rest_state(); u = gait(r)
     res[f"{name}_rollout_s"] = best(lambda: sim.rollout(u, x0=x0))
     if name == "puppy":
         dudz = np.random.default_rng(0).normal(size=(len(u), r.n_motors, 32)) * 1e-4
         res["puppy_jacobian_s"] = best(lambda: sim.rollout(u, x0=x0, dudz=dudz), n=2)
-env = gym.make("SoftTripod-v0")
+env = gym.make("SoftTripod-v1", contact="paper")
 env.reset(seed=0)
 rng = np.random.default_rng(0)
 acts = rng.uniform(-1, 1, size=(300, 2))

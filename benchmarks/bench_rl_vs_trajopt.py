@@ -71,7 +71,7 @@ def trajopt_row(run_dir: Path, name: str) -> dict:
     u = param.controls(res.z, int(s["eval_cycles"]))
     in_env = {}
     for tag, kw in (("no_limit", {"motor_speed_rpm": None}), ("motor_limit", {})):
-        env = gym.make(env_id(res.robot, physics.contact_model), reset_noise_scale=0.0, terminate_when_unhealthy=False,
+        env = gym.make(env_id(res.robot), contact=physics.contact_model, reset_noise_scale=0.0, terminate_when_unhealthy=False,
                        max_episode_steps=len(u), **kw)
         acts = env.unwrapped.control_to_action(u)
         rec = play_controls_in_env(env, lambda obs, k, acts=acts: acts[k], len(u), seed=0)

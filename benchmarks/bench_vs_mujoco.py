@@ -16,8 +16,8 @@ times, alternating in one process for ``--rounds`` rounds (best of each figure):
     (``common.random_controls``, the environments' 100 rpm on a 5 mm spool), each in ms/step
     and as a ratio to MuJoCo standing; Newton iterations per step; the gait step in CHOLMOD
     factorisations of that robot's Hessian (mid-gait, as in bench_sim.py),
-  * the environments' steps/s with random actions (``SoftTripod-v0``/``SoftPuppy-v0`` for the
-    paper's law, ``-v1`` for the Coulomb law when registered).
+  * the environments' steps/s with random actions (``SoftTripod-v1``/``SoftPuppy-v1`` with
+    ``contact=`` the case's law).
 The issue's targets (Coulomb law) are printed beside the figures; the load average is printed
 per round (the machine is shared: compare the ratios, measured in the same round).
 Run: python benchmarks/bench_vs_mujoco.py [--contact paper coulomb] [--rounds 3] [--steps 168]
@@ -44,7 +44,6 @@ from soft_envs.sim.kinematics import BodyFrame, tilt_deg_of
 
 DT = 0.033
 ENV_NAMES = {"tripod": "SoftTripod", "puppy": "SoftPuppy"}
-ENV_VERSION = {"paper": "v0", "coulomb": "v1"}
 #: issue #15's speed targets, for the Coulomb law
 TARGETS = {"gait_x": 1.0, "random_x": 1.5, "gait_factorizations": 4.0,
            "env_steps_per_s": {"tripod": 500.0, "puppy": 350.0}}
@@ -86,10 +85,10 @@ class OursCase:
         u = self.controls["gait"]
         xt = 2 * gait.x[k] - gait.x[k - 1]
         _, _, self.hessian = self.sim.newton.phi_assemble(gait.x[k + 1], xt, gait.x[k], u[k])
-        self.env_id = f"{ENV_NAMES[name]}-{ENV_VERSION[law]}"
+        self.env_id = f"{ENV_NAMES[name]}-v1"         # the latest id, under either law (contact=)
         self.env = None
         if self.env_id in gym.registry:
-            self.env = gym.make(self.env_id, max_episode_steps=10 * env_steps)
+            self.env = gym.make(self.env_id, contact=law, max_episode_steps=10 * env_steps)
             self.env.action_space.seed(0)
             self.actions = np.array([self.env.action_space.sample() for _ in range(env_steps)])
 
@@ -257,7 +256,7 @@ def summary_rows(a, cases: dict, times: dict, failures: dict) -> list[dict]:
             row["linear_solver"] = type(case.sim.newton.solver).__name__
             row["factorize_ms"] = 1e3 * best[name, law, "factorize"]
             row["gait_in_factorizations"] = best[name, law, "gait"] / best[name, law, "factorize"]
-            row["env"] = case.env_id if env else f"{case.env_id} (not registered)"
+            row["env"] = f"{case.env_id}, contact={law}" if env else f"{case.env_id} (not registered)"
             row["env_steps_per_s"] = 1.0 / best[name, law, "env"] if env else None
             row["env_step_x_mj"] = best[name, law, "env"] / t_mj if env else None
             row["env_failures"] = failures.get((name, law))

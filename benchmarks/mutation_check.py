@@ -202,7 +202,8 @@ FAULTS = [
           "slack eating (eq. 13) only on cables more than eps slack instead of less than eps taut"),
     Fault("robustness_contact_law", "trajopt/robustness.py",
           "robot = with_contact_law(load_robot(job.robot), job.contact)", "robot = load_robot(job.robot)",
-          ("tests/test_robustness.py",), "robustness replays a Coulomb gait under the robot file's (paper) law"),
+          ("tests/test_robustness.py",),
+          "robustness replays a gait under the robot file's law, not its own (a paper-law gait under Coulomb)"),
     # ================================================================== issue #30: the six classes
     # (1) magnitudes asserted as thresholds
     Fault("cable_tension_is_stiffness", "soft_envs/sim/cables.py",

@@ -7,8 +7,8 @@ the COM target is a quarter circle over the horizon (prep + 2 cycles, 168 steps)
 also tracks the body's heading (the yaw of the best-fit rotation of all nodes from the rest
 shape, with its exact derivative through the rollout's dx/dz), and each motor's cycle has 12
 keyframes without bilateral symmetry, so the legs on the two sides may differ. The Coulomb
-contact law is the turn's default: the turn pivots on feet that stick, which the paper's
-viscous-like friction cannot hold. The starts are the walk (as three strides per cycle) and
+contact law is the default (the robot files') and the turn's whatever the file says: the turn
+pivots on feet that stick, which the paper's viscous-like friction cannot hold. The starts are the walk (as three strides per cycle) and
 the walk with one side's motors played backwards (tank turns) and eight random patterns;
 Gauss-Newton refines the best.
 
@@ -27,7 +27,7 @@ QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"
 short = dict(n_prep=4, n_cycle=12) if QUICK else {}
 iterations = 1 if QUICK else 10
 
-# 1. the walk (the paper's law, as the robot file says); its keyframes start the turn
+# 1. the walk (the Coulomb law, as the robot file says); its keyframes start the turn
 walk = optimize_gait("puppy", "walk", gait=GaitSpec.for_task("walk", **short),
                      options=GaussNewtonOptions(max_iter=iterations), n_seeds=1 if QUICK else 8, eval_cycles=2)
 print(walk.summary())

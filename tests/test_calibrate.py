@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from soft_envs.envs import MarkerSet, load_robot, parameter_values, with_parameters
+from soft_envs.envs import MarkerSet, load_robot, parameter_values, with_contact_law, with_parameters
 from trajopt.calibrate import (MarkerData, fit_parameters, kabsch, rotation_jacobian, separability_warnings,
                                synthetic_tracks)
 from trajopt.calibration_files import HEADER
@@ -141,8 +141,9 @@ def make_result(tmp_path: Path, robot, u) -> Path:
 def test_calibrate_command_recovers_hidden_parameters_paper_law(tmp_path, capsys):
     """Synthetic tracks of the Tripod (paper law) with hidden E, nu and friction 25 %, 20 % and
     30 % off the robot's, 8 markers, 0.5 mm noise, 30 Hz: ``trajopt calibrate`` recovers them
-    within 5 % (measured: 0.25 %, 0.06 %, 0.7 %) and writes a loadable robot.toml."""
-    robot = load_robot("tripod")
+    within 5 % (measured: 0.25 %, 0.06 %, 0.7 %) and writes a loadable robot.toml, under the
+    paper's law (``--contact paper``: the shipped robot file says Coulomb; the new file says paper)."""
+    robot = with_contact_law(load_robot("tripod"), "paper")
     names = ["youngs_modulus", "poisson_ratio", "friction"]
     truth = np.array([1.25e5, 0.36, 700.0])
     markers = spread_markers(robot)
@@ -155,7 +156,8 @@ def test_calibrate_command_recovers_hidden_parameters_paper_law(tmp_path, capsys
     gait = make_result(tmp_path, robot, u)
     out = tmp_path / "calib"
     code = main(["calibrate", "tripod", "--markers", str(tmp_path / "tracks.csv"), "--controls", str(gait),
-                 "--fit", ",".join(names), "--marker-points", str(tmp_path / "markers.csv"), "--out", str(out)])
+                 "--fit", ",".join(names), "--marker-points", str(tmp_path / "markers.csv"), "--contact", "paper",
+                 "--out", str(out)])
     assert code == 0
     report = json.loads((out / "calibration.json").read_text())
     fitted = np.array([report["parameters"][n]["fitted"] for n in names])
@@ -165,6 +167,7 @@ def test_calibrate_command_recovers_hidden_parameters_paper_law(tmp_path, capsys
     assert report["rms_after_mm"] < 0.95 < 1.3 < report["rms_before_mm"]      # noise: 0.87 mm RMS distance
     assert report["warnings"] == [] and (out / "tracks.png").stat().st_size > 10_000
     new = load_robot(out / "robot.toml")
+    assert new.contact.model == "paper" and report["contact"] == "paper"      # the law the fit was made under
     np.testing.assert_allclose(parameter_values(new, names), fitted, rtol=1e-12)
     assert (out / "robot.toml").read_text().startswith(HEADER)
     assert "RMS marker error" in capsys.readouterr().out

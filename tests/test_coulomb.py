@@ -73,7 +73,8 @@ def test_shipped_robots_stand_on_a_10_degree_slope(name):
 def test_the_paper_law_creeps_where_coulomb_sticks():
     """The reason for the second law: the paper's friction is viscous, so the same Puppy creeps
     down the 10-degree slope (DESIGN.md: about 1.2 BL/min)."""
-    robot = load_robot("puppy")
+    base = load_robot("puppy")                                   # the shipped file says Coulomb
+    robot = base.replace(contact=dataclasses.replace(base.contact, model="paper"))
     sim = Simulator(robot, gravity=incline_gravity(10.0))
     traj = sim.rollout(np.zeros((91, robot.n_motors)), x0=sim.rest_state())
     assert np.linalg.norm(traj.com[-1] - traj.com[0]) > 1e-3

@@ -36,13 +36,14 @@ def test_numpy_numbers_are_accepted():
     assert env.frame_skip == 2 and env.dt == pytest.approx(2 * 0.033)
 
 
-# Factors at which the Tripod's rest state does not settle (soft, heavy foam on soft ground).
+# Factors at which the Tripod's rest state does not settle under the paper's contact law (soft,
+# heavy foam on soft ground; the tests below name that law: Coulomb feet hold at some of them).
 CANNOT_STAND = {"contact_stiffness": (5.0, 5.0), "density": (5.0, 5.0), "friction": (5.0, 5.0),
                 "payload_mass": (5.0, 5.0), "youngs_modulus": (0.2, 0.2)}
 
 
 def test_reset_falls_back_to_the_nominal_robot_when_no_draw_can_stand():
-    env = SoftTripodEnv(domain_randomization=CANNOT_STAND)
+    env = SoftTripodEnv(domain_randomization=CANNOT_STAND, contact="paper")
     with pytest.warns(UserWarning, match=f"none of {domain.MAX_DOMAIN_DRAWS} draws could stand at rest.*nominal"):
         obs, info = env.reset(seed=0)
     assert info["domain_fallback"] and info["domain_draws"] == domain.MAX_DOMAIN_DRAWS
@@ -54,7 +55,7 @@ def test_reset_falls_back_to_the_nominal_robot_when_no_draw_can_stand():
 
 def test_reset_redraws_until_the_robot_stands_and_reports_the_factors():
     ranges = {**CANNOT_STAND, "youngs_modulus": (0.2, 1.0)}    # soft draws cannot stand, stiffer ones can
-    env = SoftTripodEnv(domain_randomization=ranges, reset_noise_scale=0.0)
+    env = SoftTripodEnv(domain_randomization=ranges, reset_noise_scale=0.0, contact="paper")
     draws = []
     for seed in range(3):
         with warnings.catch_warnings():
@@ -69,7 +70,7 @@ def test_reset_redraws_until_the_robot_stands_and_reports_the_factors():
 
 
 def test_step_after_terminated_warns_like_gymnasium():
-    env = gym.make("SoftTripod-v0", healthy_tilt_deg=1e-9, reset_noise_scale=0.0).unwrapped
+    env = gym.make("SoftTripod-v1", healthy_tilt_deg=1e-9, reset_noise_scale=0.0).unwrapped
     env.reset(seed=0)
     _, _, terminated, _, _ = env.step(np.ones(2))
     assert terminated

@@ -47,7 +47,7 @@ def expected_ctrl_cost(action, weight=0.01) -> float:
 
 
 @pytest.mark.parametrize("frame_skip", [1, 3])
-@pytest.mark.parametrize("env_id, length", [("SoftTripod-v0", 0.14), ("SoftPuppy-v0", 0.13)])
+@pytest.mark.parametrize("env_id, length", [("SoftTripod-v1", 0.14), ("SoftPuppy-v1", 0.13)])
 def test_walk_reward_terms_for_a_known_motion(env_id, length, frame_skip):
     """3 cm/s forward: forward reward 10 * 0.03 / L per step, healthy reward 0.1, control cost
     0.01 * sum(((a + 1) / 2)^2) of the commanded action, total their sum. With ``frame_skip``
@@ -71,14 +71,14 @@ def test_walk_reward_terms_for_a_known_motion(env_id, length, frame_skip):
     (90.0, [0.0, 0.0, 0.02], 0.02), (90.0, [0.02, 0.0, 0.0], 0.0), (180.0, [0.02, 0.0, 0.0], -0.02),
     (45.0, [0.02, 0.0, 0.02], 0.02 * math.sqrt(2.0))])
 def test_forward_reward_is_the_speed_along_the_target_heading(heading, velocity, expected):
-    env = flying("SoftTripod-v0", velocity, target_heading_deg=heading)
+    env = flying("SoftTripod-v1", velocity, target_heading_deg=heading)
     info = env.step(-np.ones(2, np.float32))[4]
     assert info["reward_forward"] == pytest.approx(10.0 * expected / 0.14, abs=1e-6)
     assert info["reward_ctrl"] == 0.0                                          # a = -1: cables released
 
 
 def test_weights_scale_the_terms():
-    env = flying("SoftTripod-v0", [0.03, 0.0, 0.0], forward_reward_weight=2.5, ctrl_cost_weight=0.2,
+    env = flying("SoftTripod-v1", [0.03, 0.0, 0.0], forward_reward_weight=2.5, ctrl_cost_weight=0.2,
                  healthy_reward=0.7)
     info = env.step(np.ones(2, np.float32))[4]
     assert info["reward_forward"] == pytest.approx(2.5 * 0.03 / 0.14, rel=1e-5)
@@ -91,11 +91,11 @@ def test_turn_reward_for_a_known_yaw_rate(direction, sign):
     """Yawing at 0.3 rad/s towards +z (a right turn): turn reward = 10 * yaw rate * radius / L
     (radius L by default) = 3 per step for a right turn, -3 for a left one. The rotation is not
     exactly rigid over the step (implicit Euler, elastic body): 1 % tolerance."""
-    env = flying("SoftTripod-v0", [0.0, 0.0, 0.0], yaw_rate=0.3, task="turn", turn_direction=direction)
+    env = flying("SoftTripod-v1", [0.0, 0.0, 0.0], yaw_rate=0.3, task="turn", turn_direction=direction)
     info = env.step(-np.ones(2, np.float32))[4]
     assert info["yaw_rate"] == pytest.approx(0.3, rel=1e-2)
     assert info["reward_forward"] == pytest.approx(sign * 10.0 * 0.3, rel=1e-2)
-    env = flying("SoftTripod-v0", [0.0, 0.0, 0.0], yaw_rate=0.3, task="turn", turn_radius=0.07)
+    env = flying("SoftTripod-v1", [0.0, 0.0, 0.0], yaw_rate=0.3, task="turn", turn_radius=0.07)
     assert env.step(-np.ones(2, np.float32))[4]["reward_forward"] == pytest.approx(10.0 * 0.3 * 0.5, rel=1e-2)
 
 
@@ -106,7 +106,7 @@ def test_observation_entries_against_the_state(frame_skip):
     orientation, cable deformation over the motor range, applied contraction at the speed
     limit, gait phase."""
     v = 0.03
-    env = flying("SoftTripod-v0", [v, 0.0, 0.0], frame_skip=frame_skip)
+    env = flying("SoftTripod-v1", [v, 0.0, 0.0], frame_skip=frame_skip)
     u = env.unwrapped
     c_reset = u.robot.com(u.reset_state()[0])
     action = np.array([0.0, 1.0], np.float32)
@@ -136,7 +136,7 @@ def test_observation_entries_against_the_state(frame_skip):
 
 
 def test_node_observations_are_positions_relative_to_the_com():
-    env = flying("SoftPuppy-v0", [0.01, 0.0, 0.0], observe_nodes=True)
+    env = flying("SoftPuppy-v1", [0.01, 0.0, 0.0], observe_nodes=True)
     obs = env.step(np.zeros(8, np.float32))[0]
     u = env.unwrapped
     x = u.get_state()["x"]
@@ -150,8 +150,8 @@ def test_domain_randomisation_scales_mass_and_stiffness():
     with its own factor, and the elastic stiffness (the Hessian of the energy at the undeformed
     shape in the air, where cables and ground exert nothing) with Young's modulus."""
     f_rho, f_pay, f_E = 1.3, 0.5, 0.8
-    nominal = gym.make("SoftTripod-v0", reset_noise_scale=0.0).unwrapped
-    env = gym.make("SoftTripod-v0", reset_noise_scale=0.0, domain_randomization={
+    nominal = gym.make("SoftTripod-v1", reset_noise_scale=0.0).unwrapped
+    env = gym.make("SoftTripod-v1", reset_noise_scale=0.0, domain_randomization={
         "density": (f_rho, f_rho), "payload_mass": (f_pay, f_pay), "youngs_modulus": (f_E, f_E)})
     env.reset(seed=0)
     rand = env.unwrapped
@@ -176,8 +176,8 @@ def test_domain_factors_are_drawn_from_the_seeded_generator():
     """One uniform draw per key in sorted key order from the generator seeded by reset(seed):
     the factors can be predicted from the seed (and so are reproducible across processes)."""
     dr = {"youngs_modulus": (0.8, 1.2), "friction": (0.7, 1.3), "density": (0.9, 1.1)}
-    env = gym.make("SoftTripod-v0", domain_randomization=dr)
-    base = gym.make("SoftTripod-v0").unwrapped.robot                     # the nominal robot
+    env = gym.make("SoftTripod-v1", domain_randomization=dr)
+    base = gym.make("SoftTripod-v1").unwrapped.robot                     # the nominal robot
     for seed in (3, 11):
         env.reset(seed=seed)
         rng, _ = seeding.np_random(seed)
@@ -185,6 +185,6 @@ def test_domain_factors_are_drawn_from_the_seeded_generator():
         got = env.unwrapped.domain_parameters
         assert got == pytest.approx(expected, rel=1e-15), f"seed {seed}"
         r = env.unwrapped.robot
-        assert r.contact.friction == pytest.approx(base.contact.friction * expected["friction"], rel=1e-15)
+        assert r.contact.friction_coefficient == pytest.approx(base.contact.friction_coefficient * expected["friction"], rel=1e-15)
         assert r.youngs_modulus == pytest.approx(base.youngs_modulus * expected["youngs_modulus"], rel=1e-15)
         assert r.density == pytest.approx(base.density * expected["density"], rel=1e-15)

@@ -23,7 +23,8 @@ from soft_envs.envs import DEFAULT_DOMAIN_RANDOMIZATION, SoftPuppyEnv, SoftTripo
 from soft_envs.envs.domain import DOMAIN_KEYS, sample_factors
 from soft_envs.envs.task import LocomotionTask
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")      # -v0 is "out of date"
+# -v0 (the paper's law, Table I) is made here on purpose, next to -v1: Gymnasium reports it "out of date"
+pytestmark = pytest.mark.filterwarnings("ignore:.*Soft(Tripod|Puppy)-v0 is out of date:DeprecationWarning")
 
 
 # ----------------------------------------------------------------------------- termination
@@ -106,7 +107,7 @@ def test_the_documented_default_ranges_are_the_ones_drawn():
         f = np.array([d[key] for d in draws])
         assert lo <= f.min() < lo + 0.02 * (hi - lo) and hi - 0.02 * (hi - lo) < f.max() <= hi, key
         assert abs(f.mean() - 0.5 * (lo + hi)) < 0.05 * (hi - lo), key       # uniform, not skewed
-    env = gym.make("SoftTripod-v0", domain_randomization=True)
+    env = gym.make("SoftTripod-v1", domain_randomization=True)
     _, info = env.reset(seed=0)
     assert sorted(info["domain_parameters"]) == sorted(DOCUMENTED_DEFAULT_RANGES)
     for key, (lo, hi) in DOCUMENTED_DEFAULT_RANGES.items():

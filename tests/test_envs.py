@@ -1,4 +1,4 @@
-"""Gymnasium environments SoftTripod-v0 / SoftPuppy-v0: API conformance, determinism, action
+"""Gymnasium environments SoftTripod-v1 / SoftPuppy-v1: API conformance, determinism, action
 handling, gradient hooks, failure handling, pickling, vectorisation and rendering."""
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import soft_envs  # noqa: F401  (registers the ids)
 from soft_envs.envs import GradientEnv, SoftPuppyEnv, SoftTripodEnv
 from soft_envs.sim import SimulationError, incline_gravity
 
-IDS = ["SoftTripod-v0", "SoftPuppy-v0"]
+IDS = ["SoftTripod-v1", "SoftPuppy-v1"]
 
 # Gymnasium's own whitelist (tests/envs/test_envs.py, CHECK_ENV_IGNORE_WARNINGS)
 GYM_WHITELIST = [
@@ -62,10 +62,10 @@ def test_registration():
     for env_id in IDS:
         spec = gym.spec(env_id)
         assert spec.max_episode_steps == 300
-    env = gym.make("soft_envs:SoftPuppy-v0")
+    env = gym.make("soft_envs:SoftPuppy-v1")
     assert isinstance(env.unwrapped, SoftPuppyEnv)
-    assert isinstance(gym.make("SoftTripod-v0").unwrapped, SoftTripodEnv)
-    env = gym.make("SoftTripod-v0", max_episode_steps=3)
+    assert isinstance(gym.make("SoftTripod-v1").unwrapped, SoftTripodEnv)
+    env = gym.make("SoftTripod-v1", max_episode_steps=3)
     env.reset(seed=0)
     truncs = [env.step(env.action_space.sample())[3] for _ in range(3)]
     assert truncs == [False, False, True]
@@ -75,8 +75,8 @@ VARIANT = dict(frame_skip=2, observe_nodes=True, task="turn", incline_deg=5.0,
                domain_randomization={"friction": (0.7, 1.3), "youngs_modulus": (0.8, 1.2)})
 
 
-@pytest.mark.parametrize("env_id, kwargs", [(i, {}) for i in IDS] + [("SoftTripod-v0", VARIANT)],
-                         ids=IDS + ["SoftTripod-v0-variant"])
+@pytest.mark.parametrize("env_id, kwargs", [(i, {}) for i in IDS] + [("SoftTripod-v1", VARIANT)],
+                         ids=IDS + ["SoftTripod-v1-variant"])
 def test_check_env_gymnasium_and_sb3(env_id, kwargs):
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
     env = gym.make(env_id, **kwargs)
@@ -115,13 +115,13 @@ def test_observation_layout_at_rest(env_id):
 
 # ---------------------------------------------------------------------------- determinism, seeding
 def test_seeded_determinism_and_fresh_observations():
-    env = gym.make("SoftTripod-v0")
+    env = gym.make("SoftTripod-v1")
     acts = _actions(env, 8)
     env.reset(seed=3)
     run1 = _run(env, acts)
     env.reset(seed=3)
     run2 = _run(env, acts)
-    other = gym.make("SoftTripod-v0")
+    other = gym.make("SoftTripod-v1")
     other.reset(seed=3)
     assert _same(run1, run2) and _same(run1, _run(other, acts))
     # observations never share memory between steps (nor with the environment)
@@ -144,7 +144,7 @@ def test_custom_robot_object():
 
 
 def test_reset_noise_follows_the_seed():
-    env = gym.make("SoftPuppy-v0", reset_noise_scale=1e-4)
+    env = gym.make("SoftPuppy-v1", reset_noise_scale=1e-4)
     a, _ = env.reset(seed=1)
     b, _ = env.reset(seed=1)
     c, _ = env.reset(seed=2)
@@ -153,14 +153,14 @@ def test_reset_noise_follows_the_seed():
     x0, xm1 = env.unwrapped.reset_state()
     rest = env.unwrapped.simulator.rest_positions()
     assert 0 < np.abs(x0 - rest).max() <= 1e-4 and 0 < np.abs(xm1 - x0).max() <= 1e-4
-    quiet = gym.make("SoftPuppy-v0", reset_noise_scale=0.0)
+    quiet = gym.make("SoftPuppy-v1", reset_noise_scale=0.0)
     quiet.reset(seed=1)
     np.testing.assert_array_equal(quiet.unwrapped.reset_state()[0], rest)
 
 
 # ---------------------------------------------------------------------------- actions
 def test_action_validation_clipping_and_mapping():
-    env = gym.make("SoftTripod-v0", motor_speed_rpm=None)
+    env = gym.make("SoftTripod-v1", motor_speed_rpm=None)
     u = env.unwrapped
     env.reset(seed=0)
     for bad in ([np.nan, 0.0], [0.0, np.inf], [-np.inf, 0.0]):
@@ -183,7 +183,7 @@ def test_action_validation_clipping_and_mapping():
 
 
 def test_motor_speed_limit():
-    env = gym.make("SoftTripod-v0")
+    env = gym.make("SoftTripod-v1")
     env.reset(seed=0)
     v = 100 / 60 * 2 * np.pi * 0.005                # 100 rpm on a 5 mm spool [m/s]
     assert env.unwrapped.motor_speed == pytest.approx([v, v])
@@ -192,7 +192,7 @@ def test_motor_speed_limit():
     us = [env.step(np.array([1.0, -1.0], np.float32))[4]["u"][0] for _ in range(n + 1)]
     np.testing.assert_allclose(us[:n - 1], v * 0.033 * np.arange(1, n))
     assert us[n - 1] == us[n] == u_max
-    skip = gym.make("SoftTripod-v0", frame_skip=2)
+    skip = gym.make("SoftTripod-v1", frame_skip=2)
     skip.reset(seed=0)
     info = skip.step(np.array([1.0, 1.0], np.float32))[4]
     np.testing.assert_allclose(info["u_substeps"][:, 0], [v * 0.033, 2 * v * 0.033])
@@ -201,7 +201,7 @@ def test_motor_speed_limit():
 # ---------------------------------------------------------------------------- gradient hooks
 @pytest.mark.parametrize("frame_skip", [1, 2])
 def test_hooks_rollout_equals_stepping(frame_skip):
-    env = gym.make("SoftTripod-v0", reset_noise_scale=0.0, frame_skip=frame_skip)
+    env = gym.make("SoftTripod-v1", reset_noise_scale=0.0, frame_skip=frame_skip)
     u = env.unwrapped
     env.reset(seed=0)
     states, controls = [], []
@@ -226,7 +226,7 @@ def test_hooks_rollout_equals_stepping(frame_skip):
 
 
 def test_rollout_does_not_perturb_stepping():
-    a, b = gym.make("SoftTripod-v0"), gym.make("SoftTripod-v0")
+    a, b = gym.make("SoftTripod-v1"), gym.make("SoftTripod-v1")
     acts = _actions(a, 6)
     a.reset(seed=5)
     b.reset(seed=5)
@@ -236,7 +236,7 @@ def test_rollout_does_not_perturb_stepping():
 
 
 def test_get_set_state_and_hook_values():
-    env = gym.make("SoftPuppy-v0")
+    env = gym.make("SoftPuppy-v1")
     u = env.unwrapped
     env.reset(seed=0)
     acts = _actions(env, 4)
@@ -276,20 +276,20 @@ def _kicked(env_id, dx=None, yaw=0.0, **kw):
 def test_walk_and_turn_rewards():
     off = -np.ones(2, np.float32)
     v = 0.002                                        # 2 mm per step along +x
-    fwd = _kicked("SoftTripod-v0", dx=np.array([v, 0, 0])).step(off)[4]
-    back = _kicked("SoftTripod-v0", dx=np.array([v, 0, 0]), target_heading_deg=180).step(off)[4]
+    fwd = _kicked("SoftTripod-v1", dx=np.array([v, 0, 0])).step(off)[4]
+    back = _kicked("SoftTripod-v1", dx=np.array([v, 0, 0]), target_heading_deg=180).step(off)[4]
     assert fwd["forward_velocity"] > 0 and fwd["reward_forward"] > 0
     assert back["reward_forward"] == pytest.approx(-fwd["reward_forward"])
     # yaw from +x towards +z (trajopt's heading convention): turning towards +z is turning right
-    right = _kicked("SoftTripod-v0", yaw=0.01, task="turn", turn_direction="right").step(off)[4]
-    left = _kicked("SoftTripod-v0", yaw=0.01, task="turn", turn_direction="left").step(off)[4]
+    right = _kicked("SoftTripod-v1", yaw=0.01, task="turn", turn_direction="right").step(off)[4]
+    left = _kicked("SoftTripod-v1", yaw=0.01, task="turn", turn_direction="left").step(off)[4]
     assert right["yaw_rate"] > 0 and right["reward_forward"] > 0
     assert left["reward_forward"] == pytest.approx(-right["reward_forward"])
     assert right["reward_ctrl"] == 0.0 and right["reward_survive"] == 0.1
 
 
 def test_falling_over_terminates():
-    env = _kicked("SoftTripod-v0")
+    env = _kicked("SoftTripod-v1")
     u = env.unwrapped
     x = u.simulator.rest_positions()
     c = u.robot.com(x)
@@ -299,21 +299,21 @@ def test_falling_over_terminates():
     u.set_state({"x": on_side, "x_prev": on_side})
     _, rew, term, _, info = env.step(-np.ones(2, np.float32))
     assert term and not info["is_healthy"] and info["reward_survive"] == 0.0
-    lax = gym.make("SoftTripod-v0", terminate_when_unhealthy=False)
+    lax = gym.make("SoftTripod-v1", terminate_when_unhealthy=False)
     lax.reset(seed=0)
     lax.unwrapped.set_state({"x": on_side, "x_prev": on_side})
     assert not lax.step(-np.ones(2, np.float32))[2]
 
 
 def test_incline_and_heading_rotate_gravity():
-    env = gym.make("SoftPuppy-v0", incline_deg=10.0, target_heading_deg=90.0)
+    env = gym.make("SoftPuppy-v1", incline_deg=10.0, target_heading_deg=90.0)
     g = env.unwrapped.simulator.gravity
     np.testing.assert_allclose(g, incline_gravity(10.0, uphill=(0.0, 1.0)), atol=1e-12)
     assert g[2] < 0 and abs(g[0]) < 1e-12            # uphill towards +z (the right): pulled to -z
 
 
 def test_sim_failure_terminates_and_keeps_state(monkeypatch):
-    env = gym.make("SoftPuppy-v0")
+    env = gym.make("SoftPuppy-v1")
     u = env.unwrapped
     obs0, _ = env.reset(seed=0)
     before = u.get_state()
@@ -333,30 +333,30 @@ def test_sim_failure_terminates_and_keeps_state(monkeypatch):
 
 def test_domain_randomization():
     dr = {"friction": (0.7, 1.3), "youngs_modulus": (0.8, 1.2), "payload_mass": (0.9, 1.1)}
-    env = gym.make("SoftTripod-v0", domain_randomization=dr)
+    env = gym.make("SoftTripod-v1", domain_randomization=dr)
     u = env.unwrapped
     base = SoftTripodEnv().robot
     env.reset(seed=0)
     p0 = u.domain_parameters
     assert set(p0) == set(dr) and all(dr[k][0] <= p0[k] <= dr[k][1] for k in dr)
-    assert u.robot.contact.friction == pytest.approx(base.contact.friction * p0["friction"])
+    assert u.robot.contact.friction_coefficient == pytest.approx(base.contact.friction_coefficient * p0["friction"])  # Coulomb's mu
     assert u.robot.youngs_modulus == pytest.approx(base.youngs_modulus * p0["youngs_modulus"])
     env.reset(seed=1)
     assert u.domain_parameters != p0
     env.reset(seed=0)
     assert u.domain_parameters == p0
-    fixed = gym.make("SoftTripod-v0", domain_randomization={"density": (1.0, 1.0)})
+    fixed = gym.make("SoftTripod-v1", domain_randomization={"density": (1.0, 1.0)})
     fixed.reset(seed=0)
     sim = fixed.unwrapped.simulator
     fixed.reset(seed=1)
     assert fixed.unwrapped.simulator is sim           # unchanged parameters: no rebuild
     with pytest.raises(ValueError, match="unknown key"):
-        gym.make("SoftTripod-v0", domain_randomization={"gravity": (0.9, 1.1)})
+        gym.make("SoftTripod-v1", domain_randomization={"gravity": (0.9, 1.1)})
 
 
 # ---------------------------------------------------------------------------- pickling, vectorisation
 def test_pickle_steps_identically():
-    env = gym.make("SoftPuppy-v0", render_mode="rgb_array")
+    env = gym.make("SoftPuppy-v1", render_mode="rgb_array")
     env.reset(seed=4)
     acts = _actions(env, 5)
     _run(env, acts[:2])
@@ -366,7 +366,7 @@ def test_pickle_steps_identically():
 
 
 def test_make_vec_async():
-    envs = gym.make_vec("SoftPuppy-v0", num_envs=2, vectorization_mode="async")
+    envs = gym.make_vec("SoftPuppy-v1", num_envs=2, vectorization_mode="async")
     try:
         obs, _ = envs.reset(seed=0)
         assert obs.shape == (2, 38)
@@ -381,13 +381,13 @@ def test_make_vec_async():
 
 # ---------------------------------------------------------------------------- rendering
 def test_render_rgb_array_and_human():
-    env = gym.make("SoftTripod-v0", render_mode="rgb_array", width=160, height=120)
+    env = gym.make("SoftTripod-v1", render_mode="rgb_array", width=160, height=120)
     env.reset(seed=0)
     env.step(np.ones(2, np.float32))
     frame = env.render()
     assert frame.dtype == np.uint8 and frame.shape == (120, 160, 3)
     assert frame.reshape(-1, 3).std(axis=0).max() > 10          # not blank
-    human = gym.make("SoftTripod-v0", render_mode="human", width=80, height=60)
+    human = gym.make("SoftTripod-v1", render_mode="human", width=80, height=60)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         human.reset(seed=0)

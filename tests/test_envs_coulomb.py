@@ -16,10 +16,15 @@ def actions(env, n, seed=3):
 
 
 @pytest.mark.parametrize("env_id", ["SoftTripod-v1", "SoftPuppy-v1"])
+@pytest.mark.filterwarnings("ignore:.*Soft(Tripod|Puppy)-v0 is out of date:DeprecationWarning")   # -v0 on purpose
 def test_v1_uses_the_coulomb_law_and_passes_gymnasiums_checker(env_id):
+    """-v1 (the latest, the default) runs the Coulomb law, the shipped robot files' own; the
+    paper's is ``contact="paper"`` on it, and -v0 keeps the paper's law whatever the file says."""
     env = gym.make(env_id)
     u = env.unwrapped
     assert u.contact_model == "coulomb" and u.simulator.has_history
+    assert u.robot.contact.model == "coulomb"          # the robot file's law
+    assert gym.make(env_id, contact="paper").unwrapped.contact_model == "paper"
     assert gym.make(env_id.replace("-v1", "-v0")).unwrapped.contact_model == "paper"
     check_env(u, skip_render_check=True)
 

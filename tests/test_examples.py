@@ -6,7 +6,8 @@ in a subprocess with it set, in a temporary working directory (its TMPDIR a fold
 with this checkout first on the import path. It must exit with 0, print what it promises
 (``EXPECTED``, checked line by line), write the files it says it writes (``WRITES``) and write
 nothing in the working directory outside ``results/``; a quick run writes names of its own. Every script in ``examples/`` needs an ``EXPECTED`` entry and must read
-``SOFT_ENVS_QUICK``: a new example without them fails here until it is covered.
+``SOFT_ENVS_QUICK``: a new example without them fails here until it is covered. No example
+prints Gymnasium's deprecation warning of a ``-v0`` id (the project makes the latest ids).
 """
 from __future__ import annotations
 
@@ -87,7 +88,8 @@ def test_example_runs_quick(script, tmp_path):
         pytest.importorskip(NEEDS[script.name])
     (tmp_path / "tmp").mkdir()
     env = {**os.environ, "SOFT_ENVS_QUICK": "1", "MPLBACKEND": "Agg", "TMPDIR": str(tmp_path / "tmp"),
-           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+           "PYTHONWARNINGS": "always::DeprecationWarning"}          # shown, so that the check below sees them
     proc = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
                           timeout=300)
     assert proc.returncode == 0, f"{script.name} exited with {proc.returncode}:\n{proc.stdout}\n{proc.stderr}"
@@ -98,6 +100,8 @@ def test_example_runs_quick(script, tmp_path):
         assert (tmp_path / name).is_file() and (tmp_path / name).stat().st_size > 0, f"{script.name}: no {name}"
     outside = sorted(p.name for p in tmp_path.iterdir() if p.name not in ("results", "tmp"))
     assert not outside, f"{script.name} wrote outside results/: {outside}"
+    # the examples make the latest ids (issue #31): never Gymnasium's "SoftTripod-v0 is out of date"
+    assert "is out of date" not in proc.stderr, f"{script.name} made a -v0 id:\n{proc.stderr[-2000:]}"
 
 
 def test_quick_runs_have_their_own_file_names():

@@ -1,4 +1,4 @@
-"""Gymnasium conventions of SoftTripod-v0 / SoftPuppy-v0, as in Gymnasium's MuJoCo v5
+"""Gymnasium conventions of SoftTripod-v1 / SoftPuppy-v1, as in Gymnasium's MuJoCo v5
 environments: ``env.dt`` is the duration of one ``env.step`` (frame_skip x simulation step),
 every keyword is documented in the class docstring's Arguments table, ``domain_randomization``
 accepts ``True``, and the episode length is one documented number. trajopt measures with the
@@ -18,12 +18,12 @@ import soft_envs
 from soft_envs.envs import DEFAULT_DOMAIN_RANDOMIZATION, SoftPuppyEnv, SoftRobotEnv, SoftTripodEnv
 from trajopt.evaluation import evaluate_controls
 
-IDS = ["SoftTripod-v0", "SoftPuppy-v0"]
+IDS = ["SoftTripod-v1", "SoftPuppy-v1"]
 
 
 @pytest.mark.parametrize("frame_skip, timestep", [(1, 0.033), (2, 0.033), (3, 0.02)])
 def test_dt_is_the_duration_of_an_env_step(frame_skip, timestep):
-    env = gym.make("SoftTripod-v0", frame_skip=frame_skip, timestep=timestep, reset_noise_scale=0.0)
+    env = gym.make("SoftTripod-v1", frame_skip=frame_skip, timestep=timestep, reset_noise_scale=0.0)
     u = env.unwrapped
     assert u.dt == pytest.approx(frame_skip * timestep, rel=1e-15)
     assert u.timestep == u.simulator.dt == timestep                # the simulation step
@@ -45,7 +45,7 @@ def test_trajopt_uses_the_simulation_step_whatever_the_frame_skip():
     u = np.tile(np.linspace(0.0, 0.01, 8)[:, None], (2, 2))          # 16 steps: prep 4 + 1 cycle of 12
     evs = []
     for fs in (1, 2):
-        env = gym.make("SoftTripod-v0", frame_skip=fs, reset_noise_scale=0.0)
+        env = gym.make("SoftTripod-v1", frame_skip=fs, reset_noise_scale=0.0)
         env.reset(seed=0)
         assert env.unwrapped.timestep == 0.033
         evs.append(evaluate_controls(env.unwrapped, u, n_prep=4, n_cycle=12))
@@ -80,7 +80,7 @@ def test_max_episode_steps_is_one_documented_number():
 
 
 def test_domain_randomization_true_uses_the_documented_ranges():
-    env = gym.make("SoftTripod-v0", domain_randomization=True)
+    env = gym.make("SoftTripod-v1", domain_randomization=True)
     u = env.unwrapped
     env.reset(seed=0)
     p0 = u.domain_parameters
@@ -89,19 +89,19 @@ def test_domain_randomization_true_uses_the_documented_ranges():
     assert any(p0[k] != 1.0 for k in p0)
     env.reset(seed=1)
     assert u.domain_parameters != p0
-    same = gym.make("SoftTripod-v0", domain_randomization=dict(DEFAULT_DOMAIN_RANDOMIZATION))
+    same = gym.make("SoftTripod-v1", domain_randomization=dict(DEFAULT_DOMAIN_RANDOMIZATION))
     same.reset(seed=0)
     assert same.unwrapped.domain_parameters == p0                      # True means exactly these ranges
-    off = gym.make("SoftTripod-v0", domain_randomization=False)
+    off = gym.make("SoftTripod-v1", domain_randomization=False)
     off.reset(seed=0)
     assert off.unwrapped.domain_parameters == {}
     with pytest.raises(TypeError, match="True"):
-        gym.make("SoftTripod-v0", domain_randomization=1.2)
+        gym.make("SoftTripod-v1", domain_randomization=1.2)
 
 
 def test_check_env_with_default_domain_randomization():
     from .test_envs import _expected
-    env = gym.make("SoftTripod-v0", domain_randomization=True, frame_skip=2)
+    env = gym.make("SoftTripod-v1", domain_randomization=True, frame_skip=2)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         check_env(env.unwrapped)

@@ -82,12 +82,12 @@ print("ok")
 def test_registration_with_and_without_importing_the_package():
     code = """
 import gymnasium as gym
-env = gym.make("soft_envs:SoftPuppy-v0")
+env = gym.make("soft_envs:SoftPuppy-v1")
 assert type(env.unwrapped).__name__ == "SoftPuppyEnv"
 import soft_envs
-env = gym.make("SoftPuppy-v0")
+env = gym.make("SoftPuppy-v1")
 assert type(env.unwrapped).__name__ == "SoftPuppyEnv"
-assert gym.spec("SoftPuppy-v0").max_episode_steps == soft_envs.MAX_EPISODE_STEPS
+assert gym.spec("SoftPuppy-v1").max_episode_steps == soft_envs.MAX_EPISODE_STEPS
 print("ok")
 """
     r = _python(code)

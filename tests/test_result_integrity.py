@@ -40,7 +40,7 @@ def gait(tmp_path):
     res = Result(robot=str(toml), task="walk", motor_names=robot.motor_names, dt=0.033, z=z, u=u, u_post=u_post,
                  target=np.zeros((K + 1, 2)), com=traj.com, status="converged",
                  settings={**GAIT.to_settings(), "keyframes": param.keyframes(z).tolist(), "heading_deg": 0.0,
-                           "eval_cycles": 1},
+                           "eval_cycles": 1, "contact": robot.contact.model},   # as results record it
                  evaluation={"upright": True, "speed_bl_per_min": 1.0}, robot_fingerprint=robot_fingerprint(toml))
     return res.save(tmp_path / "gait.npz")
 

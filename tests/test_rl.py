@@ -110,7 +110,7 @@ def test_export_replays_to_the_evaluated_displacement(runs, robot, walker, tmp_p
     assert loaded.u.shape == (24 + 72 * CYCLES, len(loaded.motor_names))
     np.testing.assert_array_equal(loaded.u, res.u)
     # the controls, replayed open loop from the reset state, reproduce the closed-loop run
-    env = gym.make({"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}[robot], reset_noise_scale=0.0)
+    env = gym.make({"tripod": "SoftTripod-v1", "puppy": "SoftPuppy-v1"}[robot], reset_noise_scale=0.0)
     env.reset(seed=0)
     traj = env.unwrapped.rollout(loaded.u)
     disp = float(traj.com[-1, 0] - traj.com[24, 0])          # target direction +x
@@ -130,7 +130,7 @@ def test_applied_controls_as_actions_replay_in_env(runs):
     """control_to_action of the exported u, stepped through the env, is the same run."""
     from trajopt.rl.evaluate import export_result, play_controls_in_env
     res = export_result(runs["tripod", "sac"].run_dir, n_cycles=CYCLES)
-    env = gym.make("SoftTripod-v0", reset_noise_scale=0.0, max_episode_steps=len(res.u))
+    env = gym.make("SoftTripod-v1", reset_noise_scale=0.0, max_episode_steps=len(res.u))
     acts = env.unwrapped.control_to_action(res.u)
     rec = play_controls_in_env(env, lambda obs, k: acts[k], len(res.u), seed=0)
     np.testing.assert_allclose(rec["u"], res.u, atol=1e-12)
@@ -202,8 +202,50 @@ def test_env_ids_have_one_home():
     assert ROBOT_IDS == {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
     assert COULOMB_IDS == {"tripod": "SoftTripod-v1", "puppy": "SoftPuppy-v1"}
     assert set(soft_envs.ENV_IDS) == {*ROBOT_IDS.values(), *COULOMB_IDS.values()}
-    assert soft_envs.ENV_KWARGS == {"SoftTripod-v1": {"contact": "coulomb"}, "SoftPuppy-v1": {"contact": "coulomb"}}
-    assert env_id("puppy", "coulomb") == "SoftPuppy-v1" and env_id("SoftPuppy-v1") == "SoftPuppy-v0"
+    assert soft_envs.ENV_KWARGS == {"SoftTripod-v0": {"contact": "paper"}, "SoftPuppy-v0": {"contact": "paper"},
+                                    "SoftTripod-v1": {"contact": "coulomb"}, "SoftPuppy-v1": {"contact": "coulomb"}}
+    assert soft_envs.LATEST_ENV_IDS == COULOMB_IDS
+    # the RL baseline makes the latest id under either law (never -v0, "out of date")
+    assert env_id("puppy") == "SoftPuppy-v1" and env_id("SoftPuppy-v0") == "SoftPuppy-v1"
     assert robot_name("SoftTripod-v1") == "tripod"
     with pytest.raises(ValueError, match="SoftTripod-v0"):
         robot_name("cube")
+
+
+def _out_of_date(caught) -> list[str]:
+    """Gymnasium's "SoftTripod-v0 is out of date" (and any DeprecationWarning naming a -v0 id)."""
+    return [str(w.message) for w in caught if "out of date" in str(w.message)
+            or (issubclass(w.category, DeprecationWarning) and "-v0" in str(w.message))]
+
+
+@pytest.mark.parametrize("contact", [None, "paper"])
+def test_rl_commands_use_the_latest_id_under_either_law_without_a_deprecation_warning(tmp_path, contact):
+    """``trajopt rl train`` / ``rl evaluate`` (issue #31 item 4): the default is the Coulomb law
+    on -v1; ``--contact paper`` is the paper's law on -v1 too (``contact="paper"``), never -v0,
+    which Gymnasium reports "out of date". The run records its law, and evaluates with it."""
+    import json
+    import warnings
+    law = ["--contact", contact] if contact else []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["rl", "train", "tripod", "--algo", "ppo", "--timesteps", "32", "--n-envs", "1", "--vec-env",
+                     "dummy", "--out", str(tmp_path), "--name", "run", "--no-progress", "--hp", "n_steps=32",
+                     "--hp", "batch_size=32", "--hp", "n_epochs=1", "--hp", "policy_kwargs=dict(net_arch=[8])",
+                     *law]) == 0
+        main(["rl", "evaluate", str(tmp_path / "run"), "--cycles", "1", "--json"])
+        assert main(["rl", "export", str(tmp_path / "run"), "--cycles", "1", "--out", str(tmp_path / "g.npz")]) == 0
+    assert not _out_of_date(caught), _out_of_date(caught)
+    config = json.loads((tmp_path / "run" / "rl_config.json").read_text())
+    assert config["env_id"] == "SoftTripod-v1"
+    assert config["env"]["env_kwargs"]["contact"] == (contact or "coulomb")
+    assert Result.load(tmp_path / "g.npz").settings["contact"] == (contact or "coulomb")   # evaluated with it
+
+
+def test_runs_made_before_the_law_was_recorded_evaluate_with_their_ids_law():
+    """rl_config.json of older runs holds no ``contact``: -v0 runs were the paper's law, -v1 runs
+    Coulomb's; a recorded law wins."""
+    from trajopt.rl.envs import run_contact
+    assert run_contact({"env_id": "SoftPuppy-v0", "env": {"env_kwargs": {"task": "walk"}}}) == "paper"
+    assert run_contact({"env_id": "SoftPuppy-v1", "env": {"env_kwargs": {}}}) == "coulomb"
+    assert run_contact({"env_id": "SoftPuppy-v1", "env": {"env_kwargs": {"contact": "paper"}}}) == "paper"
+    assert run_contact({}) == "paper"

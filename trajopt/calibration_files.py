@@ -53,7 +53,8 @@ def read_marker_points(path: str | Path, mesh) -> MarkerSet:
 
 def write_calibrated_robot(source: Path, target: Path, robot, names, values) -> Path:
     """Write ``target``: the robot file ``source`` (comments and layout kept, through tomlkit)
-    with the parameters ``names`` set to ``values`` and its mesh path made relative to the new
+    with the parameters ``names`` set to ``values`` (and ``[contact] model`` to ``robot``'s law
+    when it was switched from the file's) and its mesh path made relative to the new
     file (absolute when the two share no folder but the root); checked by loading it back."""
     import tomlkit
     doc = tomlkit.parse(source.read_text())
@@ -75,6 +76,10 @@ def write_calibrated_robot(source: Path, target: Path, robot, names, values) -> 
         if table not in doc:
             doc[table] = tomlkit.table()
         doc[table][key] = float(v)
+    if robot.contact.model != load_robot(source).contact.model:      # fitted under another law (--contact)
+        if "contact" not in doc:
+            doc["contact"] = tomlkit.table()
+        doc["contact"]["model"] = robot.contact.model
     fitted = ", ".join(f"{n} = {float(v):.6g}" for n, v in zip(names, values))
     text = f"{HEADER} from {source} on {time.strftime('%Y-%m-%d %H:%M')}: {fitted}\n" + tomlkit.dumps(doc)
     atomic_write_bytes(target, text.encode())

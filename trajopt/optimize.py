@@ -2,7 +2,7 @@
 
 >>> import gymnasium as gym, soft_envs
 >>> from trajopt import optimize_gait
->>> result = optimize_gait(gym.make("SoftTripod-v0"), task="walk")
+>>> result = optimize_gait(gym.make("SoftTripod-v1"), task="walk")
 >>> result.save("tripod_walk.npz")
 
 Tasks (:data:`trajopt.tasks.TASKS`): ``"walk"`` (straight line at ``speed_bl_per_min`` along

@@ -176,7 +176,9 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
     with compile_ahead(run.robot):            # first run on a machine: numba compiles meanwhile
         env = make_gradient_env(run.robot, incline_deg=incline, heading_deg=run.heading, contact=contact)
     print(f"{env.robot.summary()}; task {task.name}; {env.contact_model} contact law"
-          + (f" (the {task.name}'s default; --contact paper for the paper's)" if contact and not run.contact else "")
+          + (f" (the {task.name}'s default; --contact paper for the paper's)" if contact and not run.contact
+             else " (the robot file's; --contact paper for the paper's)"
+             if not run.contact and env.contact_model != "paper" else "")
           + (f", slope {incline:g} deg" if incline else ""))
     print(f"writes {out} (+ .json) when it finishes; checkpoints in {partial} until then")
     done_before = len(resume.history) if resume else 0

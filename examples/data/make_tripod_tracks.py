@@ -4,7 +4,7 @@ positions) and ``tripod_gait.npz`` (+ .json: the controls that were played).
 
 Run:  python examples/data/make_tripod_tracks.py          (a few seconds; rewrites the three files)
 
-A Tripod with hidden parameters (E 25 % stiffer, nu 0.36 instead of 0.3, friction 30 % lower)
+A Tripod under the paper's contact law with hidden parameters (E 25 % stiffer, nu 0.36 instead of 0.3, friction 30 % lower)
 plays 120 steps of a gait (the two motors pull in turn, 1.2 s period) while a tracker records 8
 surface markers at 30 Hz with 0.5 mm noise (seeded: the files are the same every run).
 ``examples/calibrate_from_markers.py`` makes the same data with :func:`write_tripod_tracks`.
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from soft_envs.envs import MarkerSet, load_robot, with_parameters
+from soft_envs.envs import MarkerSet, load_robot, with_contact_law, with_parameters
 from trajopt.calibrate import synthetic_tracks
 from trajopt.results import Result
 from trajopt.tracks import write_tracks
@@ -29,7 +29,7 @@ def write_tripod_tracks(markers_csv: Path, gait_npz: Path, tracks_csv: Path, *, 
                         hidden: dict[str, float] = HIDDEN) -> dict[str, float]:
     """Write the three files for a Tripod with ``hidden`` parameters playing ``steps`` steps;
     returns ``hidden``."""
-    robot = load_robot("tripod")
+    robot = with_contact_law(load_robot("tripod"), "paper")   # the files were made under the paper's law
     dt = 0.033
     # 8 markers on the surface, spread over the body (farthest-point sampling of surface nodes)
     X, surface = robot.mesh.points, robot.mesh.boundary_nodes

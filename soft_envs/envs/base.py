@@ -1,4 +1,4 @@
-"""SoftRobotEnv: the Gymnasium environment shared by ``SoftTripod-v0`` and ``SoftPuppy-v0``.
+"""SoftRobotEnv: the Gymnasium environment shared by ``SoftTripod-v1`` and ``SoftPuppy-v1`` (and their ``-v0``).
 
 A thin layer over :class:`soft_envs.sim.Simulator`: actions in [-1, 1] become cable
 contractions (with a motor speed limit), ``frame_skip`` implicit-Euler steps are taken, and the

@@ -207,10 +207,12 @@ def _arguments(r: RobotDoc) -> list[tuple[str, str, str, str]]:
          "friction (0.7, 1.3), youngs_modulus (0.8, 1.2), density (0.9, 1.1), payload_mass (0.9, 1.1); "
          "`None` or `False`: the nominal robot. `env.unwrapped.domain_parameters` holds the episode's factors"),
         ("`contact`", "**str \\| None**", "`None`",
-         "ground contact law: `\"paper\"` (paper II-C: viscous-like lagged friction, what Table I was made with; "
-         "the robot file's default), `\"coulomb\"` (Coulomb friction bounded by `friction_coefficient` x the "
-         "normal force, feet held by stick anchors: `soft_envs.sim.coulomb`), or `None` for the robot file's "
-         f"`[contact] model`. `{r.env_name}-v1` passes `\"coulomb\"`"),
+         "ground contact law: `\"coulomb\"` (Coulomb friction bounded by `friction_coefficient` x the "
+         "normal force, feet held by stick anchors: `soft_envs.sim.contact.coulomb`; the shipped robot "
+         "files' default), `\"paper\"` (paper II-C: viscous-like lagged friction, what Table I was made with), "
+         f"or `None` for the robot file's `[contact] model`. `{r.env_name}-v1`, the latest id, passes "
+         f"`\"coulomb\"` (`gym.make(\"{r.env_name}-v1\", contact=\"paper\")` for the paper's law); "
+         f"`{r.env_name}-v0` passes `\"paper\"` (Table I)"),
         ("`render_mode`", "**str \\| None**", "`None`",
          '`"rgb_array"` (uint8 frames, offscreen matplotlib, no OpenGL) or `"human"` (matplotlib window)'),
         ("`width`, `height`", "**int**", "`480`, `360`", "frame size in pixels"),
@@ -272,7 +274,9 @@ def _version_section(r: RobotDoc) -> str:
 * v1: the Coulomb contact law (`contact="coulomb"`: friction bounded by mu N with
   mu = 0.8, feet that stick; the `friction` factor of domain randomisation scales mu).
   Observations, actions and rewards as in v0. The stick anchors are part of the state
-  (`get_state()["history"]`).
+  (`get_state()["history"]`). The latest id and the project's default; `contact="paper"`
+  gives the paper's law on it. Since the shipped robot files default to the Coulomb law
+  (issue #31), v0 passes `contact="paper"` explicitly and keeps the paper's law.
 """
 
 

@@ -1,8 +1,8 @@
 """The gradient protocol: the one way ``trajopt`` reaches the physics.
 
 Any object satisfying :class:`GradientEnv` (usually ``env.unwrapped`` of a Gymnasium
-environment) can be optimised by ``trajopt.optimize_gait``; the shipped ``SoftTripod-v0`` and
-``SoftPuppy-v0`` do. :func:`~soft_envs.envs.factory.as_gradient_env` finds it in a (wrapped)
+environment) can be optimised by ``trajopt.optimize_gait``; the shipped ``SoftTripod-v1`` and
+``SoftPuppy-v1`` do. :func:`~soft_envs.envs.factory.as_gradient_env` finds it in a (wrapped)
 environment, or builds a bare one (:func:`~soft_envs.envs.factory.make_gradient_env`) for a
 robot, a shipped robot name or a robot.toml path.
 """

@@ -39,7 +39,7 @@ leg as a pivot).""",
             "fore_right_back_b: motor 0's pair first)",
     contractions="motors 0-7 (Action Space order)",
     body_length_m=0.13,
-    example='env = gym.make("SoftPuppy-v0", incline_deg=10.0, domain_randomization={"friction": (0.7, 1.3)})',
+    example='env = gym.make("SoftPuppy-v1", incline_deg=10.0, domain_randomization={"friction": (0.7, 1.3)})',
 )
 
 

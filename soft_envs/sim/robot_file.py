@@ -21,8 +21,9 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     top_tolerance = 1e-4         # [m] nodes this close to the highest point are "top"
 
     [contact]                    # optional, defaults of ContactParams; each law reads its own keys
-    model = "paper"              # a contact law (soft_envs.sim.contact.CONTACT_LAWS): "paper" (II-C,
-                                 # viscous-like) or "coulomb" (mu N bound)
+    model = "coulomb"            # a contact law (soft_envs.sim.contact.CONTACT_LAWS): "coulomb" (mu N
+                                 # bound; the shipped robots') or "paper" (II-C, viscous-like; the
+                                 # default of a file without model, so older files keep their law)
     stiffness = 2000.0           # [N/m]
     friction = 500.0             # [1/m]
     blend = 5e-4                 # [m] C2 blend of the normal law (0: half-quadratic, coulomb)

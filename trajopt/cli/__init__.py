@@ -12,7 +12,7 @@
     trajopt mesh examples/data/quadruped.obj --scale 0.001 --up +z --out results/my_robot
     trajopt check results/my_robot/robot.toml
     trajopt sweep examples/sweep_speeds.toml --out results/sweeps/speeds [--workers N] [--address auto]
-    trajopt calibrate tripod --markers examples/data/tripod_tracks.csv --controls examples/data/tripod_gait.npz --marker-points examples/data/tripod_markers.csv --fit youngs_modulus --out results/calib
+    trajopt calibrate tripod --markers examples/data/tripod_tracks.csv --controls examples/data/tripod_gait.npz --marker-points examples/data/tripod_markers.csv --fit youngs_modulus --contact paper --out results/calib
     trajopt robustness results/tripod_walk.npz --samples 64 --cycles 4 --out results/robustness [--overwrite]
 
 The package holds the command line only (parsing, printing, exit codes): each command calls
@@ -51,9 +51,9 @@ def _add_optimize(sub) -> None:
     p.add_argument("--turn", choices=["right", "left"], default="right", help="turn direction (task turn)")
     p.add_argument("--angle", type=slope_deg, default=20.0, help="slope [deg] (task incline)")
     p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
-                   help="ground contact law: paper (II-C, viscous-like friction, Table I) or coulomb "
-                        "(friction bounded by mu N, feet that stick); default: the robot file's, coulomb "
-                        "for the turn (it pivots on a foot that sticks)")
+                   help="ground contact law: coulomb (friction bounded by mu N, feet that stick) or paper "
+                        "(II-C, viscous-like friction, Table I); default: the robot file's (the shipped "
+                        "robots': coulomb), coulomb for the turn (it pivots on a foot that sticks)")
     sym = p.add_mutually_exclusive_group()
     sym.add_argument("--symmetry", dest="symmetry", action="store_true", default=None,
                      help="bilateral symmetry on (default for walk and incline)")
@@ -191,6 +191,9 @@ def _add_identification_commands(sub) -> None:
                         "above 3x what it explains is refused (docs/calibration.md)")
     p.add_argument("--force", action="store_true",
                    help="write the robot even when a check of the tracks or the fit fails (printed as warnings)")
+    p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
+                   help="ground contact law of the fit: coulomb or paper (default: the robot file's; the "
+                        "shipped examples/data tracks were made under the paper's law); written to the new robot.toml")
     p.set_defaults(func=_cmd_calibrate)
     p = sub.add_parser("robustness", help="replay a gait under perturbed physics and report its speed spread")
     p.add_argument("result", type=Path)

@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from soft_envs.envs import PHYSICAL_PARAMETERS, MarkerSet, check_parameters, load_robot
+from soft_envs.envs import PHYSICAL_PARAMETERS, MarkerSet, check_parameters, load_robot, with_contact_law
 
 from ..calibrate import MarkerData, fit_parameters
 from ..calibration_checks import check_fit, check_tracks
@@ -41,7 +41,7 @@ def _output_toml(out: Path, source: Path) -> Path:
 
 
 def _inputs(args) -> tuple[Any, MarkerSet, MarkerData, tuple[str, ...], Any]:
-    robot = load_robot(args.robot)
+    robot = with_contact_law(load_robot(args.robot), getattr(args, "contact", None))
     markers = (read_marker_points(args.marker_points, robot.mesh) if args.marker_points else robot.marker_set)
     if not len(markers):
         raise ValueError(f"{robot.source}: the robot has no [[markers]]; add them or give --marker-points FILE")
@@ -85,7 +85,7 @@ def run_calibrate(args) -> int:
     write_calibrated_robot(Path(robot.source), target, robot, names, fit.values)
     plot = plot_tracks(data, fit, out / "tracks.png", tracks_file=args.markers)
     summary = {"robot": args.robot, "robot_toml": str(target), "markers": str(args.markers),
-               "controls": str(args.controls), "played": args.play, "frame": args.frame, "dt": data.dt,
+               "controls": str(args.controls), "contact": robot.contact.model, "played": args.play, "frame": args.frame, "dt": data.dt,
                "n_steps": len(data.u), "missing_samples": tracks.n_missing, "samples_used": len(data.times),
                "samples_read": tracks.n_samples, "noise_m": args.noise, "checks_failed": failures,
                "wall_time_s": time.perf_counter() - t0, **fit.summary()}

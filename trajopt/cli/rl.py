@@ -31,13 +31,13 @@ __all__ = ["add_rl_parser"]
 def add_rl_parser(sub) -> argparse.ArgumentParser:
     """Add ``rl`` (with ``train``, ``evaluate``, ``export``) to the ``trajopt`` sub-parsers."""
     rl = sub.add_parser("rl", help="RL baseline (Stable-Baselines3 PPO / SAC) on the same simulator",
-                        description="RL baseline: Stable-Baselines3 PPO and SAC on SoftTripod-v0 / "
-                                    "SoftPuppy-v0, scored with trajopt's metric. Needs "
+                        description="RL baseline: Stable-Baselines3 PPO and SAC on SoftTripod-v1 / "
+                                    "SoftPuppy-v1, scored with trajopt's metric. Needs "
                                     "pip install soft-envs[rl].")
     rsub = rl.add_subparsers(dest="rl_command", required=True)
 
     p = rsub.add_parser("train", help="train a policy (checkpoints, TensorBoard + CSV logs)")
-    p.add_argument("robot", choices=sorted(ROBOTS), help="robot (environment SoftTripod-v0 / SoftPuppy-v0)")
+    p.add_argument("robot", choices=sorted(ROBOTS), help="robot (environment SoftTripod-v1 / SoftPuppy-v1)")
     p.add_argument("--algo", choices=ALGOS, default="ppo")
     p.add_argument("--timesteps", type=positive_int, default=30_000, help="environment steps to train for")
     p.add_argument("--seed", type=SEED, default=0)
@@ -52,7 +52,8 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
                    help=f"max_episode_steps (default {TRAIN_HORIZON}, trajopt's horizon)")
     p.add_argument("--incline", type=slope_deg, default=0.0, help="ground slope [deg]")
     p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
-                   help="ground contact law (paper: -v0's; coulomb: -v1's); default: the robot file's (paper)")
+                   help="ground contact law: coulomb (the default, feet that stick) or paper (II-C, Table I's; "
+                        "made as contact=\"paper\" on the -v1 id)")
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--checkpoint-every", type=positive_int, default=None,
                    help="environment steps between checkpoints (default: a tenth of the budget)")

@@ -1,7 +1,8 @@
 """The environments the RL baseline trains and is evaluated on.
 
-The physics is the registered Gymnasium environment, unchanged (``SoftTripod-v0`` /
-``SoftPuppy-v0``: same simulator, motor speed limit, reward and termination as documented in
+The physics is the registered Gymnasium environment, unchanged (the latest ids,
+``SoftTripod-v1`` / ``SoftPuppy-v1``, under the Coulomb law by default or the paper's with
+``contact="paper"``: same simulator, motor speed limit, reward and termination as documented in
 :class:`soft_envs.envs.tripod.SoftTripodEnv`). Two choices are made here, both recorded in the
 run's ``rl_config.json``:
 
@@ -32,7 +33,7 @@ from gymnasium import spaces
 from ..gait import DEFAULT_EVAL_CYCLES, GaitSpec
 
 __all__ = ["ROBOTS", "ROBOT_IDS", "COULOMB_IDS", "GAIT", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES",
-           "DropHorizontalPosition", "make_env", "robot_name", "env_id"]
+           "DropHorizontalPosition", "make_env", "robot_name", "env_id", "run_contact"]
 
 #: robots of the RL baseline: the shipped robots (their Gymnasium ids: ``soft_envs.ENV_IDS_BY_ROBOT``)
 ROBOTS = ("tripod", "puppy")
@@ -64,12 +65,21 @@ def robot_name(robot: str) -> str:
     raise ValueError(f"robot must be one of {sorted(ROBOTS)} (or their ids {all_ids}), got {robot!r}")
 
 
-def env_id(robot: str, contact: str | None = None) -> str:
-    """The registered id of ``robot`` under the contact law ``contact`` (``"coulomb"``: ``-v1``;
-    ``"paper"`` or None: ``-v0``, the robot file's law)."""
-    from soft_envs import ENV_IDS_BY_ROBOT
-    ids = ENV_IDS_BY_ROBOT[robot_name(robot)]
-    return ids["coulomb"] if contact == "coulomb" else ids["paper"]
+def env_id(robot: str) -> str:
+    """The registered id the RL baseline makes for ``robot``: the latest (``-v1``), under any
+    contact law given as its ``contact`` keyword (the paper's law is ``contact="paper"`` on it,
+    not ``-v0``, which Gymnasium reports out of date)."""
+    from soft_envs import LATEST_ENV_IDS
+    return LATEST_ENV_IDS[robot_name(robot)]
+
+
+def run_contact(config: Mapping[str, Any]) -> str:
+    """The contact law of a run from its ``rl_config.json``: its ``env_kwargs["contact"]`` (runs
+    record it since the Coulomb law became the default), else the law of the id it was made on
+    (older runs: ``-v0`` the paper's, ``-v1`` Coulomb's), else the paper's."""
+    from soft_envs import ENV_KWARGS
+    kwargs = (config.get("env") or {}).get("env_kwargs") or {}
+    return kwargs.get("contact") or ENV_KWARGS.get(config.get("env_id"), {}).get("contact", "paper")
 
 
 class DropHorizontalPosition(gym.ObservationWrapper):
@@ -113,7 +123,7 @@ def make_env(robot: str, *, frame_skip: int = 1, max_episode_steps: int | None =
     kwargs["frame_skip"] = int(frame_skip)
     if max_episode_steps is not None:
         kwargs["max_episode_steps"] = int(max_episode_steps)
-    env = gym.make(env_id(robot, kwargs.get("contact")), **kwargs)
+    env = gym.make(env_id(robot), **kwargs)
     if drop_com_xz:
         env = DropHorizontalPosition(env)
     return env

@@ -35,7 +35,7 @@ from ..gait import GaitSpec
 from ..results import Result
 from ..robot_match import fingerprint_of
 from . import require_sb3
-from .envs import DEFAULT_EVAL_CYCLES, GAIT, make_env
+from .envs import DEFAULT_EVAL_CYCLES, GAIT, make_env, run_contact
 from .training import CONFIG_NAME, MODEL_NAME, VECNORM_NAME
 
 __all__ = ["LoadedPolicy", "load_policy", "run_policy", "evaluate_policy_metric", "export_result",
@@ -155,6 +155,7 @@ def run_metric(env, u: np.ndarray, x: np.ndarray | None, *, gait: GaitSpec = GAI
 def _eval_env(policy: LoadedPolicy, n_env_steps: int, reset_noise_scale: float):
     cfg = policy.config["env"]
     kwargs = dict(cfg.get("env_kwargs", {}))
+    kwargs["contact"] = run_contact(policy.config)          # runs made before it was recorded: their id's law
     kwargs.update(reset_noise_scale=float(reset_noise_scale), terminate_when_unhealthy=False)
     return make_env(cfg["robot"], frame_skip=int(cfg.get("frame_skip", 1)), max_episode_steps=n_env_steps,
                     drop_com_xz=bool(cfg.get("drop_com_xz", True)), env_kwargs=kwargs)

@@ -1,4 +1,5 @@
-"""Training PPO / SAC (Stable-Baselines3) on ``SoftTripod-v0`` / ``SoftPuppy-v0``.
+"""Training PPO / SAC (Stable-Baselines3) on ``SoftTripod-v1`` / ``SoftPuppy-v1`` (the Coulomb
+law by default, the paper's with ``contact="paper"``).
 
 A run writes one directory, ``OUT/NAME`` (default ``NAME = ROBOT_ALGO_seedS``)::
 
@@ -105,6 +106,9 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     use_subproc = vec_env == "subproc" or (vec_env == "auto" and n_envs > 1)
     env_kwargs = dict(env_kwargs or {})
     env_kwargs.setdefault("task", "walk")
+    # the law is recorded explicitly, so the run replays with it whatever the default becomes
+    from soft_envs import ENV_KWARGS
+    env_kwargs.setdefault("contact", ENV_KWARGS[env_id(robot)]["contact"])
     hp = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
     hp.update(hyperparams or {})
     checkpoint_every = int(checkpoint_every or max(timesteps // 10, 1))
@@ -167,7 +171,7 @@ def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_su
     from stable_baselines3.common.logger import configure
 
     config: dict[str, Any] = {
-        "robot": robot, "env_id": env_id(robot, (env_cfg.get("env_kwargs") or {}).get("contact")),
+        "robot": robot, "env_id": env_id(robot),
         "algo": algo, "timesteps": timesteps,
         "seed": int(seed), "n_envs": n_envs, "vec_env": "subproc" if use_subproc else "dummy",
         "env": env_cfg, "hyperparams": hp, "vecnormalize": vn_kwargs,
