@@ -182,3 +182,20 @@ def test_registering_checks_the_declarations(frictionless):
     with pytest.raises(ValueError, match="friction_parameter 'rolling_resistance'"):
         register_contact_law(Bad)
     assert "bad" not in CONTACT_LAWS
+
+
+def test_the_command_line_knows_a_registered_law_without_being_edited(frictionless, capsys):
+    """`--contact` is checked against the registry when it is parsed (optimize, rl train,
+    calibrate and the sweep's run options): a law registered with one line is accepted, an
+    unknown one refused naming the laws."""
+    from trajopt.cli import build_parser
+    from trajopt.sweep.kinds import KINDS
+    parser = build_parser()
+    for argv in (["optimize", "tripod"], ["rl", "train", "tripod"]):
+        assert parser.parse_args([*argv, "--contact", "frictionless"]).contact == "frictionless"
+        with pytest.raises(SystemExit):
+            parser.parse_args([*argv, "--contact", "frictionles"])
+        assert "'paper', 'coulomb', 'frictionless'" in capsys.readouterr().err
+    assert KINDS["optimize"].check("contact", "frictionless") == "frictionless"
+    with pytest.raises(ValueError, match="argument contact: invalid choice: .frictionles."):
+        KINDS["optimize"].check("contact", "frictionles")

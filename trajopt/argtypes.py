@@ -14,7 +14,7 @@ from typing import Callable
 
 from .files import check_output_dir
 
-__all__ = ["integer", "positive_int", "nonnegative_int", "number", "positive_float", "nonnegative_float",
+__all__ = ["contact_law", "integer", "positive_int", "nonnegative_int", "number", "positive_float", "nonnegative_float",
            "slope_deg", "file_name", "frame_size", "output_dir", "output_file", "cycles", "steps"]
 
 
@@ -111,3 +111,15 @@ def output_file(text: str) -> Path:
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"{path}: {str(exc).removeprefix('directory ')}")
     return path
+
+
+def contact_law(text: str) -> str:
+    """A contact law of the registry ``soft_envs.envs.CONTACT_LAWS`` (``paper``,
+    ``coulomb``, and any law registered since: a new law is known to the command line without
+    editing it). The registry is imported only when a ``--contact`` value is parsed, so
+    ``trajopt --help`` stays light."""
+    from soft_envs.envs import CONTACT_LAWS
+    if text not in CONTACT_LAWS:
+        raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from "
+                                         f"{', '.join(map(repr, CONTACT_LAWS))})")
+    return text

@@ -12,6 +12,7 @@ It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`
 ``trajopt``.
 """
 from ..sim import Robot, SimulationError, Trajectory, load_robot
+from ..sim.contact import CONTACT_LAWS
 from ..sim.robot_file import robot_fingerprint
 from ..sim.warmup import compile_ahead
 from .base import MOTOR_NO_LOAD_RPM, PAPER_GAIT_PERIOD, PAPER_TIMESTEP, SoftRobotEnv, with_contact_law
@@ -31,4 +32,4 @@ __all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv", "make
            "tilt_deg_of", "wrap_angle", "heading_vector", "cable_points", "strain_energy_density",
            "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION",
            "PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "scale_parameters", "check_parameters", "Marker",
-           "MarkerSet", "compile_ahead", "with_contact_law"]
+           "MarkerSet", "compile_ahead", "with_contact_law", "CONTACT_LAWS"]

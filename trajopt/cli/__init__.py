@@ -28,7 +28,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from ..argtypes import (cycles, file_name, frame_size, integer, number, output_dir, output_file, positive_float,
+from ..argtypes import (contact_law, cycles, file_name, frame_size, integer, number, output_dir, output_file, positive_float,
                        positive_int, slope_deg, steps)
 from ..files import RESULTS_DIR
 from ..gait import DEFAULT_EVAL_CYCLES, GaitSpec
@@ -50,10 +50,11 @@ def _add_optimize(sub) -> None:
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--turn", choices=["right", "left"], default="right", help="turn direction (task turn)")
     p.add_argument("--angle", type=slope_deg, default=20.0, help="slope [deg] (task incline)")
-    p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
+    p.add_argument("--contact", type=contact_law, default=None, metavar="LAW",
                    help="ground contact law: coulomb (friction bounded by mu N, feet that stick) or paper "
                         "(II-C, viscous-like friction, Table I); default: the robot file's (the shipped "
-                        "robots': coulomb), coulomb for the turn (it pivots on a foot that sticks)")
+                        "robots': coulomb), coulomb for the turn (it pivots on a foot that sticks); any law "
+                        "registered in soft_envs.sim.contact.CONTACT_LAWS")
     sym = p.add_mutually_exclusive_group()
     sym.add_argument("--symmetry", dest="symmetry", action="store_true", default=None,
                      help="bilateral symmetry on (default for walk and incline)")
@@ -191,7 +192,7 @@ def _add_identification_commands(sub) -> None:
                         "above 3x what it explains is refused (docs/calibration.md)")
     p.add_argument("--force", action="store_true",
                    help="write the robot even when a check of the tracks or the fit fails (printed as warnings)")
-    p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
+    p.add_argument("--contact", type=contact_law, default=None, metavar="LAW",
                    help="ground contact law of the fit: coulomb or paper (default: the robot file's; the "
                         "shipped examples/data tracks were made under the paper's law); written to the new robot.toml")
     p.set_defaults(func=_cmd_calibrate)

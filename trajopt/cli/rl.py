@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..argtypes import (cycles, file_name, integer, nonnegative_float, number, output_dir, output_file, positive_int,
+from ..argtypes import (contact_law, cycles, file_name, integer, nonnegative_float, number, output_dir, output_file, positive_int,
                         slope_deg)
 from ..files import RESULTS_DIR, refuse_existing
 from ..rl.envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOTS, TRAIN_HORIZON
@@ -51,7 +51,7 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--episode-steps", type=positive_int, default=TRAIN_HORIZON,
                    help=f"max_episode_steps (default {TRAIN_HORIZON}, trajopt's horizon)")
     p.add_argument("--incline", type=slope_deg, default=0.0, help="ground slope [deg]")
-    p.add_argument("--contact", choices=["paper", "coulomb"], default=None,
+    p.add_argument("--contact", type=contact_law, default=None, metavar="LAW",
                    help="ground contact law: coulomb (the default, feet that stick) or paper (II-C, Table I's; "
                         "made as contact=\"paper\" on the -v1 id)")
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")

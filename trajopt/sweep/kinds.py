@@ -18,14 +18,15 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
-from ..argtypes import cycles, integer, nonnegative_float, number, positive_float, positive_int, slope_deg, steps
+from ..argtypes import contact_law, cycles, integer, nonnegative_float, number, positive_float, positive_int, slope_deg, steps
 from ..rl.envs import ROBOTS
 from ..rl.hyperparams import ALGOS
 from ..tasks import command_line_tasks
 
 __all__ = ["Option", "RunKind", "KINDS", "CONTACT_LAWS"]
 
-#: the contact laws a run may choose (the ``--contact`` choices)
+#: the built-in contact laws (a run may choose any law of soft_envs.sim.contact.CONTACT_LAWS,
+#: checked when the value is: :func:`trajopt.argtypes.contact_law`)
 CONTACT_LAWS = ("paper", "coulomb")
 
 
@@ -111,7 +112,7 @@ _SEED = Option(integer(0, 2**32 - 1))           # what NumPy's legacy seeding ac
 #: options of ``trajopt optimize`` (:class:`trajopt.optimize_run.OptimizeRun`)
 _OPTIMIZE = {
     "task": Option(_task), "speed": Option(positive_float), "heading": Option(number()),
-    "turn": Option(_choice("right", "left")), "angle": Option(slope_deg), "contact": Option(_choice(*CONTACT_LAWS)),
+    "turn": Option(_choice("right", "left")), "angle": Option(slope_deg), "contact": Option(contact_law),
     "symmetry": _BOOL, "warm_start": Option(), "no_motor_limit": _BOOL, "iterations": Option(integer(0, 100_000)),
     "keyframes": Option(steps), "cycle_steps": Option(steps), "prep_steps": Option(integer(0, 100_000)),
     "seeds": Option(integer(0, 10_000)), "cycles": Option(cycles), "out": Option(), "name": Option(),
@@ -122,7 +123,7 @@ _RL_TRAIN = {
     "algo": Option(_choice(*ALGOS)), "timesteps": Option(positive_int), "seed": _SEED, "out": Option(),
     "name": Option(), "n_envs": Option(positive_int), "vec_env": Option(_choice("auto", "subproc", "dummy")),
     "frame_skip": Option(positive_int), "episode_steps": Option(positive_int), "incline": Option(slope_deg),
-    "contact": Option(_choice(*CONTACT_LAWS)), "heading": Option(number()), "checkpoint_every": Option(positive_int),
+    "contact": Option(contact_law), "heading": Option(number()), "checkpoint_every": Option(positive_int),
     "hp": Option(repeatable=True), "overwrite": _BOOL, "no_progress": _BOOL, "verbose": _BOOL,
 }
 
