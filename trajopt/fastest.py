@@ -5,10 +5,10 @@ limit (:mod:`trajopt.motor_limit`) needs a shorter one. :func:`fastest_gait` sea
 cycle length and the keyframe count discretely, with several starts, coarse to fine:
 
 1. **coarse**: every candidate ``(n_cycle, n_keyframes)`` of :class:`SearchSettings`
-   (shortest cycles first, per keyframe count) gets ``coarse_iterations`` Gauss-Newton
+   (shortest cycles first, then fewer keyframes first) gets ``coarse_iterations`` Gauss-Newton
    iterations from the best of its starts: the previous candidate's keyframes (keyframes are
-   phases of the cycle, so a gait at one cycle length is a start at its neighbour: repeated when
-   the keyframe count is a multiple, else resampled at the new phases) and
+   phases of the cycle, so a gait at one cycle length is a start at its neighbour; resampled
+   at the new phases for another keyframe count, :func:`keyframes_at`) and
    ``param.seeds(seeds)`` (screened by cheap rollouts without sensitivities);
 2. **fine**: the ``n_fine`` fastest upright candidates continue for ``fine_iterations``
    iterations from where they stopped.
@@ -51,7 +51,7 @@ from .optimize import optimize_gait
 from .results import Result
 
 __all__ = ["SearchSettings", "fastest_gait", "write_search_table", "search_table_paths", "TABLE_COLUMNS",
-           "SEARCH_EVAL_CYCLES"]
+           "SEARCH_EVAL_CYCLES", "keyframes_at"]
 
 #: cycles played after the prep phase when a candidate is evaluated (the issue's "10 cycles")
 SEARCH_EVAL_CYCLES = 10
@@ -63,7 +63,11 @@ class SearchSettings:
     [simulation steps]; ``keyframes``: keyframe counts per cycle (a count is tried on a cycle of
     at least ``min_steps_per_keyframe`` steps per keyframe); ``seeds``: random starts screened
     besides the mid-range and square-wave starts; Gauss-Newton iterations per stage;
-    ``n_fine``: candidates refined; the target speed rule; the interpolation of the keyframes."""
+    ``n_fine``: candidates refined; the target speed rule; the interpolation of the keyframes.
+    ``max_sim_steps``: a budget of simulation steps (None: none): the coarse stage starts no
+    candidate once ``coarse_share`` of it is spent, the fine stage none once all of it is (a
+    run that has started finishes, so the total can pass the budget by one run; the table
+    lists the candidates skipped)."""
 
     cycle_steps: tuple[int, ...] = (8, 12, 16, 24, 36, 72)
     keyframes: tuple[int, ...] = (4, 8)
@@ -78,6 +82,8 @@ class SearchSettings:
     n_prep: int = 24
     interpolation: str = "linear"
     eval_cycles: int = SEARCH_EVAL_CYCLES
+    max_sim_steps: int | None = None
+    coarse_share: float = 0.75
 
     @classmethod
     def quick(cls) -> "SearchSettings":
@@ -86,10 +92,10 @@ class SearchSettings:
                    n_fine=1, min_horizon_steps=16, n_prep=4, eval_cycles=2)
 
     def candidates(self, cycle_steps: int | None = None) -> list[tuple[int, int]]:
-        """``(n_cycle, n_keyframes)`` in search order: per keyframe count, shortest cycle first
+        """``(n_cycle, n_keyframes)`` in search order: shortest cycle first, fewer keyframes first
         (``cycle_steps``: that cycle only)."""
         cycles = (int(cycle_steps),) if cycle_steps is not None else self.cycle_steps
-        out = [(c, k) for k in self.keyframes for c in sorted(cycles) if c >= self.min_steps_per_keyframe * k]
+        out = [(c, k) for c in sorted(cycles) for k in sorted(self.keyframes) if c >= self.min_steps_per_keyframe * k]
         if not out:
             raise ValueError(f"no (cycle, keyframes) candidate: cycles {cycles} are shorter than "
                              f"{self.min_steps_per_keyframe} steps per keyframe for keyframes {self.keyframes}")
@@ -119,30 +125,29 @@ class _KeyframeStart:
         self.settings = {"keyframes": np.asarray(keyframes).tolist(), "source": source}
 
 
-def _keyframes_at(keyframes: np.ndarray, n_keyframes: int) -> np.ndarray:
-    """Keyframes (M, k) of a cycle as ``n_keyframes`` keyframes: repeated when ``n_keyframes`` is
-    a multiple of k (that many strides per cycle), else the periodic piecewise-linear cycle
-    sampled at the new keyframes' phases."""
+def keyframes_at(keyframes: np.ndarray, n_keyframes: int) -> np.ndarray:
+    """Keyframes (M, k) of a cycle as ``n_keyframes`` keyframes at the same phases of the cycle:
+    the periodic piecewise-linear cycle through them sampled at the new keyframes' phases (the
+    same cycle when k divides ``n_keyframes`` and the keyframes are joined by straight lines)."""
     kf = np.asarray(keyframes, dtype=np.float64)
     k = kf.shape[1]
-    if n_keyframes % k == 0:
-        return np.tile(kf, (1, n_keyframes // k))
     phase = np.arange(n_keyframes) * k / n_keyframes
     return np.array([np.interp(phase, np.arange(k + 1), np.append(row, row[0])) for row in kf])
 
 
 def _evaluation_steps(res: Result) -> int:
-    ev = res.evaluation
-    return 0 if "sim_failure" in ev else int(res.settings["n_prep"]) + int(ev["cycles"]) * int(res.settings["n_cycle"])
+    """The steps of a result's evaluation (prep + its cycles; a failed one counted in full)."""
+    s = res.settings
+    return int(s["n_prep"]) + int(s["eval_cycles"]) * int(s["n_cycle"])
 
 
 def _row(stage: str, res: Result | None, gait: GaitSpec, start: str, target: float, opt_steps: int,
-         eval_steps: int, total: int, seconds: float, failure: str | None = None) -> dict[str, Any]:
+         eval_steps: int, total: int, seconds: float, failure: str = "") -> dict[str, Any]:
     ev = res.evaluation if res is not None else {}
     return {"stage": stage, "n_cycle": gait.n_cycle, "n_keyframes": gait.n_keyframes,
             "horizon_cycles": gait.n_cycles, "start": start, "target_bl_per_min": round(target, 3),
             "iterations": len(res.history) if res is not None else 0,
-            "status": res.status if res is not None else f"failed: {failure}",
+            "status": res.status if res is not None else failure,
             "speed_bl_per_min": float(ev.get("speed_bl_per_min", float("nan"))),
             "upright": bool(ev.get("upright", False)), "max_tilt_deg": float(ev.get("max_tilt_deg", float("nan"))),
             "optimization_sim_steps": opt_steps, "evaluation_sim_steps": eval_steps, "total_sim_steps": total,
@@ -166,7 +171,7 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     run's :class:`Result` (evaluated over ``settings.eval_cycles`` cycles); its
     ``settings["search"]`` and ``evaluation["search_sim_steps"]`` record the search; the table
     has one row per optimisation (:data:`TABLE_COLUMNS`), the chosen one marked. Raises
-    RuntimeError when no candidate stays upright."""
+    :class:`~soft_envs.envs.SimulationError` when no candidate stays upright."""
     env = as_gradient_env(env, contact=contact)
     candidates = settings.candidates(cycle_steps)
     bar = _progress(len(candidates) + settings.n_fine, quiet)
@@ -189,7 +194,7 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
                                 motor_limit=True)
             opt_steps, eval_steps = int(res.evaluation["optimization_sim_steps"]), _evaluation_steps(res)
         except SimulationError as err:       # a start that cannot be simulated: the candidate fails
-            failure, opt_steps, eval_steps = str(err), 0, 0
+            failure, opt_steps, eval_steps = f"failed: {err}", 0, 0
         total += opt_steps + eval_steps
         row = _row(stage, res, gait, start, target, opt_steps, eval_steps, total, time.perf_counter() - t0, failure)
         rows.append(row)
@@ -204,23 +209,35 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
             bar.update(1)
         return res
 
+    def spent(share: float) -> bool:
+        return settings.max_sim_steps is not None and total >= share * settings.max_sim_steps
+
+    def skip(stage: str, gait: GaitSpec) -> None:
+        rows.append(_row(stage, None, gait, "-", settings.target(best), 0, 0, total, 0.0, "skipped: budget"))
+        if bar is not None:
+            bar.update(1)
+
     try:
-        previous: dict[int, Result] = {}            # keyframe count -> the last candidate's result
+        previous: Result | None = None          # the last candidate's result: the next one's warm start
         for n_cycle, n_kf in candidates:
             gait = settings.gait(n_cycle, n_kf)
-            source = previous.get(n_kf) or (next(iter(previous.values())) if previous else None)
+            if spent(settings.coarse_share):
+                skip("coarse", gait)
+                continue
             warm = None
-            if source is not None:
-                kf = _keyframes_at(np.asarray(source.settings["keyframes"]), n_kf)
-                warm = _KeyframeStart(kf, f"cycle {source.settings['n_cycle']}, "
-                                          f"{source.settings['n_keyframes']} keyframes")
+            if previous is not None:
+                warm = _KeyframeStart(keyframes_at(np.asarray(previous.settings["keyframes"]), n_kf),
+                                      f"cycle {previous.settings['n_cycle']}, "
+                                      f"{previous.settings['n_keyframes']} keyframes")
             res = run("coarse", gait, warm.settings["source"] if warm else "seeds", settings.coarse_iterations,
                       warm=warm, n_seeds=settings.seeds if warm is not None else max(settings.seeds, 1))
-            if res is not None:
-                previous[n_kf] = res
+            previous = res if res is not None else previous
         upright = sorted((p for p in runs if p[0]["upright"]), key=lambda p: -p[0]["speed_bl_per_min"])
         for row, res in upright[:settings.n_fine]:
             gait = GaitSpec.from_settings(res.settings)
+            if spent(1.0):
+                skip("fine", gait)
+                continue
             run("fine", gait, f"coarse cycle {gait.n_cycle}, {gait.n_keyframes} keyframes",
                 settings.fine_iterations, z0=res.z)
     finally:
@@ -228,7 +245,7 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
             bar.close()
     upright = [p for p in runs if p[0]["upright"]]
     if not upright:
-        raise RuntimeError(f"--speed max: none of the {len(rows)} gaits tried stayed upright over "
+        raise SimulationError(f"--speed max: none of the {len(rows)} gaits tried stayed upright over "
                            f"{settings.eval_cycles} cycles ({total:,} simulation steps)")
     row, res = max(upright, key=lambda p: p[0]["speed_bl_per_min"])
     row["chosen"] = True

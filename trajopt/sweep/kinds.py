@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
-from ..argtypes import cycles, integer, nonnegative_float, number, positive_float, positive_int, slope_deg, steps
+from ..argtypes import cycles, integer, nonnegative_float, number, positive_int, slope_deg, speed, steps
 from ..rl.envs import ROBOTS
 from ..rl.hyperparams import ALGOS
 from ..tasks import command_line_tasks
@@ -110,7 +110,7 @@ _SEED = Option(integer(0, 2**32 - 1))           # what NumPy's legacy seeding ac
 
 #: options of ``trajopt optimize`` (:class:`trajopt.optimize_run.OptimizeRun`)
 _OPTIMIZE = {
-    "task": Option(_task), "speed": Option(positive_float), "heading": Option(number()),
+    "task": Option(_task), "speed": Option(speed), "heading": Option(number()),
     "turn": Option(_choice("right", "left")), "angle": Option(slope_deg), "contact": Option(_choice(*CONTACT_LAWS)),
     "symmetry": _BOOL, "warm_start": Option(), "no_motor_limit": _BOOL, "iterations": Option(integer(0, 100_000)),
     "keyframes": Option(steps), "cycle_steps": Option(steps), "prep_steps": Option(integer(0, 100_000)),
