@@ -59,7 +59,7 @@ def test_keyframes_at_other_phases_keep_the_cycle():
 def test_the_speed_option_takes_a_number_or_max():
     import argparse
     assert speed("max") == "max" and speed("12.5") == 12.5
-    with pytest.raises(argparse.ArgumentTypeError, match="must be a number > 0 \\[BL/min\\] or 'max', got 'fast'"):
+    with pytest.raises(argparse.ArgumentTypeError, match="must be a finite number > 0 \\[BL/min\\] or 'max', got 'fast'"):
         speed("fast")
 
 
@@ -132,3 +132,14 @@ def test_speed_max_refuses_what_it_cannot_do(tmp_path, capsys, args, message):
     assert main(["optimize", "tripod", "--speed", "max", *args, "--quiet", "--out", str(tmp_path)]) == 2
     assert message in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+def test_the_search_keeps_within_its_budget():
+    """A budget of simulation steps is never passed: runs that would not fit are skipped
+    (listed), a run stops early rather than risk it."""
+    import dataclasses
+    from trajopt.fastest import fastest_gait
+    settings = dataclasses.replace(SearchSettings.quick(), coarse_iterations=3, max_sim_steps=600)
+    res, rows = fastest_gait("tripod", contact="coulomb", settings=settings, quiet=True)
+    assert rows[-1]["total_sim_steps"] == res.evaluation["search_sim_steps"] <= 600
+    assert any(r["status"] == "skipped: budget" for r in rows) or any(r["status"] == "callback" for r in rows)

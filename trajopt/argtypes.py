@@ -82,7 +82,7 @@ def speed(text: str) -> float | str:
     try:
         return positive_float(text)
     except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0 [BL/min] or 'max', got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0 [BL/min] or 'max', got {text!r}") from None
 
 
 def file_name(text: str) -> str:

@@ -24,8 +24,8 @@ over several strides, not only its prep phase.
 
 Each candidate is evaluated with :func:`trajopt.evaluation.evaluate_controls` over
 ``eval_cycles`` cycles (10) after the prep phase; the result is the fastest upright one.
-Every simulation step is counted: the optimisations' (:attr:`GaitProblem.sim_steps
-<trajopt.optimize.GaitProblem.sim_steps>`: rollouts with and without sensitivities,
+Every simulation step is counted: the optimisations' (``sim_steps`` of
+:class:`trajopt.optimize.GaitProblem`: rollouts with and without sensitivities,
 line-search trials, seed screening) and the evaluations'; the total is in
 ``result.evaluation["search_sim_steps"]`` and the table. :func:`write_search_table` writes the
 table beside the result (``NAME.search.csv`` and ``.md``).
@@ -48,6 +48,7 @@ from .files import atomic_write_bytes
 from .gait import GaitSpec
 from .gauss_newton import GaussNewtonOptions
 from .optimize import optimize_gait
+from .parameterization import GaitParameterization
 from .results import Result
 
 __all__ = ["SearchSettings", "fastest_gait", "write_search_table", "search_table_paths", "TABLE_COLUMNS",
@@ -63,11 +64,11 @@ class SearchSettings:
     [simulation steps]; ``keyframes``: keyframe counts per cycle (a count is tried on a cycle of
     at least ``min_steps_per_keyframe`` steps per keyframe); ``seeds``: random starts screened
     besides the mid-range and square-wave starts; Gauss-Newton iterations per stage;
-    ``n_fine``: candidates refined; the target speed rule; the interpolation of the keyframes.
-    ``max_sim_steps``: a budget of simulation steps (None: none): the coarse stage starts no
-    candidate once ``coarse_share`` of it is spent, the fine stage none once all of it is (a
-    run that has started finishes, so the total can pass the budget by one run; the table
-    lists the candidates skipped)."""
+    ``n_fine``: candidates refined; the target speed rule; the interpolation of the keyframes; bilateral symmetry.
+    ``max_sim_steps``: a budget of simulation steps (None: none) the search never exceeds: the
+    coarse stage keeps within ``coarse_share`` of it, the fine stage within all of it; a run
+    that would not fit is skipped (listed in the table), and one that runs stops early rather
+    than risk its next iteration and evaluation passing the budget."""
 
     cycle_steps: tuple[int, ...] = (8, 12, 16, 24, 36, 72)
     keyframes: tuple[int, ...] = (4, 8)
@@ -81,6 +82,7 @@ class SearchSettings:
     min_horizon_steps: int = 48
     n_prep: int = 24
     interpolation: str = "linear"
+    symmetry: bool = True
     eval_cycles: int = SEARCH_EVAL_CYCLES
     max_sim_steps: int | None = None
     coarse_share: float = 0.75
@@ -105,7 +107,7 @@ class SearchSettings:
         """The gait of a candidate: horizon of at least ``min_horizon_steps`` cycle steps."""
         n_cycles = max(2, math.ceil(self.min_horizon_steps / n_cycle))
         return GaitSpec(n_prep=self.n_prep, n_cycle=n_cycle, n_cycles=n_cycles, n_keyframes=n_keyframes,
-                        symmetry=True, interpolation=self.interpolation)
+                        symmetry=self.symmetry, interpolation=self.interpolation)
 
     def target(self, best: float) -> float:
         """The tracking target [BL/min] when the fastest upright gait so far makes ``best``."""
@@ -161,6 +163,77 @@ def _progress(total: int, quiet: bool):
     return tqdm(total=total, desc="--speed max", unit="run", leave=True)
 
 
+class _Search:
+    """The state of a search: its rows, runs, step count and the fastest upright speed so far."""
+
+    def __init__(self, env, settings: SearchSettings, heading_deg: float, robot_spec: str | None, bar, say):
+        self.env, self.settings, self.heading_deg, self.robot_spec = env, settings, heading_deg, robot_spec
+        self.bar, self.say = bar, say
+        self.t_start = time.perf_counter()
+        self.rows: list[dict] = []
+        self.runs: list[tuple[dict, Result]] = []
+        self.total = 0
+        self.best = 0.0
+
+    def _cap(self, share: float) -> float:
+        budget = self.settings.max_sim_steps
+        return np.inf if budget is None else share * budget
+
+    def _n_starts(self, gait: GaitSpec, warm, z0, n_seeds: int) -> int:
+        """Rollouts :func:`~trajopt.optimize.choose_start` screens before Gauss-Newton."""
+        if z0 is not None:
+            return 0
+        n = (1 if warm is not None else 0) + (len(GaitParameterization.for_robot(self.env.robot, gait).seeds(n_seeds))
+                                              if (n_seeds > 0 or warm is None) else 0)
+        return n if n > 1 else 0
+
+    def run(self, stage: str, gait: GaitSpec, start: str, iterations: int, share: float, *, warm=None, z0=None,
+            n_seeds: int = 0) -> Result | None:
+        """One optimisation and its evaluation, within ``share`` of the budget: skipped when the
+        start, one iteration and the evaluation do not fit, and stopped after the iteration
+        beyond which the next (its line search at most ``max_backtracks + 1`` trials and a
+        Jacobian rollout) and the evaluation might not."""
+        cap, options = self._cap(share), GaussNewtonOptions(max_iter=iterations)
+        horizon, eval_steps = gait.n_steps(), gait.n_prep + self.settings.eval_cycles * gait.n_cycle
+        per_iteration = horizon * (options.max_backtracks + 2)
+        target = self.settings.target(self.best)
+        if self.total + (self._n_starts(gait, warm, z0, n_seeds) + 1) * horizon + per_iteration + eval_steps > cap:
+            self.rows.append(_row(stage, None, gait, start, target, 0, 0, self.total, 0.0, "skipped: budget"))
+            self._tick()
+            return None
+
+        def within_budget(entry: dict, _partial: Result) -> bool:
+            return self.total + entry["sim_steps_total"] + per_iteration + eval_steps > cap
+
+        t0 = time.perf_counter()
+        res, failure = None, ""
+        try:
+            res = optimize_gait(self.env, "walk", gait=gait, speed_bl_per_min=target, heading_deg=self.heading_deg,
+                                options=options, warm_start=warm, z0=z0, n_seeds=n_seeds,
+                                eval_cycles=self.settings.eval_cycles, robot_spec=self.robot_spec,
+                                callback=within_budget, motor_limit=True)
+            opt_steps, eval_steps = int(res.evaluation["optimization_sim_steps"]), _evaluation_steps(res)
+        except SimulationError as err:       # a start that cannot be simulated: the candidate fails
+            failure, opt_steps, eval_steps = f"failed: {err}", 0, 0
+        self.total += opt_steps + eval_steps
+        row = _row(stage, res, gait, start, target, opt_steps, eval_steps, self.total, time.perf_counter() - t0,
+                   failure)
+        self.rows.append(row)
+        if res is not None:
+            self.runs.append((row, res))
+            if row["upright"] and row["speed_bl_per_min"] > self.best:
+                self.best = row["speed_bl_per_min"]
+        self.say(f"{stage} cycle {gait.n_cycle} keyframes {gait.n_keyframes}: {row['speed_bl_per_min']:.2f} BL/min "
+                 f"({'upright' if row['upright'] else 'fell'}), {self.total:,} simulation steps so far")
+        self._tick()
+        return res
+
+    def _tick(self) -> None:
+        if self.bar is not None:
+            self.bar.set_postfix(best=f"{self.best:.2f} BL/min", steps=f"{self.total:,}")
+            self.bar.update(1)
+
+
 def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle_steps: int | None = None,
                  contact: str | None = None, heading_deg: float = 0.0, robot_spec: str | None = None,
                  quiet: bool = False, log: Callable[[str], Any] | None = None) -> tuple[Result, list[dict]]:
@@ -174,75 +247,29 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     :class:`~soft_envs.envs.SimulationError` when no candidate stays upright."""
     env = as_gradient_env(env, contact=contact)
     candidates = settings.candidates(cycle_steps)
-    bar = _progress(len(candidates) + settings.n_fine, quiet)
-    say = log or (lambda text: None)
-    t_start = time.perf_counter()
-    rows: list[dict] = []
-    runs: list[tuple[dict, Result]] = []
-    total = 0
-    best = 0.0
-
-    def run(stage: str, gait: GaitSpec, start: str, iterations: int, *, warm=None, z0=None, n_seeds=0):
-        nonlocal total, best
-        target = settings.target(best)
-        t0 = time.perf_counter()
-        res, failure = None, None
-        try:
-            res = optimize_gait(env, "walk", gait=gait, speed_bl_per_min=target, heading_deg=heading_deg,
-                                options=GaussNewtonOptions(max_iter=iterations), warm_start=warm, z0=z0,
-                                n_seeds=n_seeds, eval_cycles=settings.eval_cycles, robot_spec=robot_spec,
-                                motor_limit=True)
-            opt_steps, eval_steps = int(res.evaluation["optimization_sim_steps"]), _evaluation_steps(res)
-        except SimulationError as err:       # a start that cannot be simulated: the candidate fails
-            failure, opt_steps, eval_steps = f"failed: {err}", 0, 0
-        total += opt_steps + eval_steps
-        row = _row(stage, res, gait, start, target, opt_steps, eval_steps, total, time.perf_counter() - t0, failure)
-        rows.append(row)
-        if res is not None:
-            runs.append((row, res))
-            if row["upright"] and row["speed_bl_per_min"] > best:
-                best = row["speed_bl_per_min"]
-        say(f"{stage} cycle {gait.n_cycle} keyframes {gait.n_keyframes}: {row['speed_bl_per_min']:.2f} BL/min "
-            f"({'upright' if row['upright'] else 'fell'}), {total:,} simulation steps so far")
-        if bar is not None:
-            bar.set_postfix(best=f"{best:.2f} BL/min", steps=f"{total:,}")
-            bar.update(1)
-        return res
-
-    def spent(share: float) -> bool:
-        return settings.max_sim_steps is not None and total >= share * settings.max_sim_steps
-
-    def skip(stage: str, gait: GaitSpec) -> None:
-        rows.append(_row(stage, None, gait, "-", settings.target(best), 0, 0, total, 0.0, "skipped: budget"))
-        if bar is not None:
-            bar.update(1)
-
+    search = _Search(env, settings, heading_deg, robot_spec, _progress(len(candidates) + settings.n_fine, quiet),
+                     log or (lambda text: None))
     try:
         previous: Result | None = None          # the last candidate's result: the next one's warm start
         for n_cycle, n_kf in candidates:
-            gait = settings.gait(n_cycle, n_kf)
-            if spent(settings.coarse_share):
-                skip("coarse", gait)
-                continue
             warm = None
             if previous is not None:
                 warm = _KeyframeStart(keyframes_at(np.asarray(previous.settings["keyframes"]), n_kf),
                                       f"cycle {previous.settings['n_cycle']}, "
                                       f"{previous.settings['n_keyframes']} keyframes")
-            res = run("coarse", gait, warm.settings["source"] if warm else "seeds", settings.coarse_iterations,
-                      warm=warm, n_seeds=settings.seeds if warm is not None else max(settings.seeds, 1))
+            res = search.run("coarse", settings.gait(n_cycle, n_kf), warm.settings["source"] if warm else "seeds",
+                             settings.coarse_iterations, settings.coarse_share, warm=warm,
+                             n_seeds=settings.seeds if warm is not None else max(settings.seeds, 1))
             previous = res if res is not None else previous
-        upright = sorted((p for p in runs if p[0]["upright"]), key=lambda p: -p[0]["speed_bl_per_min"])
+        upright = sorted((p for p in search.runs if p[0]["upright"]), key=lambda p: -p[0]["speed_bl_per_min"])
         for row, res in upright[:settings.n_fine]:
             gait = GaitSpec.from_settings(res.settings)
-            if spent(1.0):
-                skip("fine", gait)
-                continue
-            run("fine", gait, f"coarse cycle {gait.n_cycle}, {gait.n_keyframes} keyframes",
-                settings.fine_iterations, z0=res.z)
+            search.run("fine", gait, f"coarse cycle {gait.n_cycle}, {gait.n_keyframes} keyframes",
+                       settings.fine_iterations, 1.0, z0=res.z)
     finally:
-        if bar is not None:
-            bar.close()
+        if search.bar is not None:
+            search.bar.close()
+    rows, runs, total = search.rows, search.runs, search.total
     upright = [p for p in runs if p[0]["upright"]]
     if not upright:
         raise SimulationError(f"--speed max: none of the {len(rows)} gaits tried stayed upright over "
@@ -250,9 +277,9 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     row, res = max(upright, key=lambda p: p[0]["speed_bl_per_min"])
     row["chosen"] = True
     res.settings["search"] = {"settings": asdict(settings), "cycle_steps_pinned": cycle_steps, "runs": len(rows),
-                              "sim_steps": total, "wall_time_s": time.perf_counter() - t_start}
+                              "sim_steps": total, "wall_time_s": time.perf_counter() - search.t_start}
     res.evaluation["search_sim_steps"] = total
-    res.evaluation["search_wall_time_s"] = time.perf_counter() - t_start
+    res.evaluation["search_wall_time_s"] = time.perf_counter() - search.t_start
     return res, rows
 
 

@@ -183,15 +183,21 @@ def run_optimization(run: OptimizeRun, progress: Callable[[int], Any] | None = N
 
 def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Result, Path]:
     """``--speed max`` (:func:`trajopt.fastest.fastest_gait`): the search's default settings
-    (``SOFT_ENVS_QUICK=1``: its quick ones), the cycle pinned by ``cycle_steps``, the result and
-    its table (``NAME.search.csv`` / ``.md``) written when it finishes."""
+    (``SOFT_ENVS_QUICK=1``: its quick ones), the cycle pinned by ``cycle_steps``, the keyframe
+    count by ``keyframes``; ``iterations`` and ``seeds`` cap each run's Gauss-Newton iterations
+    and random starts, ``cycles`` raises the evaluation's 10 cycles; the result and its table
+    (``NAME.search.csv`` / ``.md``) written when it finishes."""
     from .fastest import SearchSettings, fastest_gait, write_search_table
     _plan(out, partial, run)
     quick = os.environ.get("SOFT_ENVS_QUICK", "") not in ("", "0")
     settings = SearchSettings.quick() if quick else SearchSettings()
-    if run.keyframes is not None:
-        settings = dataclasses.replace(settings, keyframes=(run.keyframes,))
-    settings = dataclasses.replace(settings, n_prep=run.prep_steps if not quick else settings.n_prep)
+    settings = dataclasses.replace(            # the options cap the search's effort
+        settings, coarse_iterations=min(settings.coarse_iterations, run.iterations),
+        fine_iterations=min(settings.fine_iterations, run.iterations), seeds=min(settings.seeds, run.seeds),
+        eval_cycles=max(settings.eval_cycles, run.cycles) if not quick else settings.eval_cycles,
+        n_prep=run.prep_steps if not quick else settings.n_prep,
+        keyframes=(run.keyframes,) if run.keyframes is not None else settings.keyframes,
+        symmetry=settings.symmetry if run.symmetry is None else run.symmetry)
     with compile_ahead(run.robot):
         env = make_gradient_env(run.robot, heading_deg=run.heading, contact=run.contact)
     print(f"{env.robot.summary()}; task walk at the highest speed within the motors' limit; {env.contact_model} "
