@@ -14,7 +14,11 @@ from trajopt.argtypes import speed
 from trajopt.cli import main
 from trajopt.fastest import SearchSettings, keyframes_at, search_table_paths
 from trajopt.motor_limit import speed_limit_constraints
-from trajopt.parameterization import GaitParameterization, hermite_cycle_basis, linear_cycle_basis
+from trajopt.parameterization import (
+    GaitParameterization,
+    hermite_cycle_basis,
+    linear_cycle_basis,
+)
 from trajopt.results import Result
 
 from .test_motor_limit import STEP, _obeys_over_ten_cycles
@@ -138,6 +142,7 @@ def test_the_search_keeps_within_its_budget():
     """A budget of simulation steps is never passed: runs that would not fit are skipped
     (listed), a run stops early rather than risk it."""
     import dataclasses
+
     from trajopt.fastest import fastest_gait
     settings = dataclasses.replace(SearchSettings.quick(), coarse_iterations=3, max_sim_steps=600)
     res, rows = fastest_gait("tripod", contact="coulomb", settings=settings, quiet=True)

@@ -36,9 +36,10 @@ import csv
 import io
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -51,8 +52,15 @@ from .optimize import optimize_gait
 from .parameterization import GaitParameterization
 from .results import Result
 
-__all__ = ["SearchSettings", "fastest_gait", "write_search_table", "search_table_paths", "TABLE_COLUMNS",
-           "SEARCH_EVAL_CYCLES", "keyframes_at"]
+__all__ = [
+    "SEARCH_EVAL_CYCLES",
+    "TABLE_COLUMNS",
+    "SearchSettings",
+    "fastest_gait",
+    "keyframes_at",
+    "search_table_paths",
+    "write_search_table",
+]
 
 #: cycles played after the prep phase when a candidate is evaluated (the issue's "10 cycles")
 SEARCH_EVAL_CYCLES = 10
@@ -88,7 +96,7 @@ class SearchSettings:
     coarse_share: float = 0.75
 
     @classmethod
-    def quick(cls) -> "SearchSettings":
+    def quick(cls) -> SearchSettings:
         """A search small enough for tests and CI (a few seconds)."""
         return cls(cycle_steps=(8, 12), keyframes=(4,), seeds=0, coarse_iterations=1, fine_iterations=1,
                    n_fine=1, min_horizon_steps=16, n_prep=4, eval_cycles=2)
@@ -273,7 +281,7 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     upright = [p for p in runs if p[0]["upright"]]
     if not upright:
         raise SimulationError(f"--speed max: none of the {len(rows)} gaits tried stayed upright over "
-                           f"{settings.eval_cycles} cycles ({total:,} simulation steps)")
+                              f"{settings.eval_cycles} cycles ({total:,} simulation steps)")
     row, res = max(upright, key=lambda p: p[0]["speed_bl_per_min"])
     row["chosen"] = True
     res.settings["search"] = {"settings": asdict(settings), "cycle_steps_pinned": cycle_steps, "runs": len(rows),
@@ -286,7 +294,7 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
 def search_table_paths(result_file: str | Path) -> tuple[Path, Path]:
     """``(NAME.search.csv, NAME.search.md)`` beside the result ``NAME.npz``."""
     p = Path(result_file)
-    stem = p.name[:-len(".npz")] if p.name.endswith(".npz") else p.name
+    stem = p.name.removesuffix(".npz")
     return p.with_name(stem + ".search.csv"), p.with_name(stem + ".search.md")
 
 
