@@ -148,3 +148,18 @@ def test_the_search_keeps_within_its_budget():
     res, rows = fastest_gait("tripod", contact="coulomb", settings=settings, quiet=True)
     assert rows[-1]["total_sim_steps"] == res.evaluation["search_sim_steps"] <= 600
     assert any(r["status"] == "skipped: budget" for r in rows) or any(r["status"] == "callback" for r in rows)
+
+
+def test_the_command_takes_the_search_budget(tmp_path, monkeypatch):
+    monkeypatch.setenv("SOFT_ENVS_QUICK", "1")
+    assert main(["optimize", "tripod", "--speed", "max", "--max-sim-steps", "500", "--contact", "coulomb", "--quiet",
+                 "--out", str(tmp_path)]) == 0
+    res = Result.load(tmp_path / "tripod_walk.npz")
+    assert res.evaluation["search_sim_steps"] <= 500 and res.settings["search"]["settings"]["max_sim_steps"] == 500
+
+
+def test_a_budget_that_fits_no_candidate_is_refused(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("SOFT_ENVS_QUICK", "1")
+    assert main(["optimize", "tripod", "--speed", "max", "--max-sim-steps", "50", "--quiet", "--out", str(tmp_path)]) == 2
+    assert "--speed max: a budget of 50 simulation steps fits none of the 2 candidates" in capsys.readouterr().err
+    assert not (tmp_path / "tripod_walk.npz").exists()

@@ -252,7 +252,8 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     run's :class:`Result` (evaluated over ``settings.eval_cycles`` cycles); its
     ``settings["search"]`` and ``evaluation["search_sim_steps"]`` record the search; the table
     has one row per optimisation (:data:`TABLE_COLUMNS`), the chosen one marked. Raises
-    :class:`~soft_envs.envs.SimulationError` when no candidate stays upright."""
+    :class:`~soft_envs.envs.SimulationError` when no candidate stays upright, ValueError when the
+    budget fits none."""
     env = as_gradient_env(env, contact=contact)
     candidates = settings.candidates(cycle_steps)
     search = _Search(env, settings, heading_deg, robot_spec, _progress(len(candidates) + settings.n_fine, quiet),
@@ -279,6 +280,9 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
             search.bar.close()
     rows, runs, total = search.rows, search.runs, search.total
     upright = [p for p in runs if p[0]["upright"]]
+    if not runs:
+        raise ValueError(f"--speed max: a budget of {settings.max_sim_steps:,} simulation steps fits none of the "
+                         f"{len(rows)} candidates (a start, one Gauss-Newton iteration and the evaluation)")
     if not upright:
         raise SimulationError(f"--speed max: none of the {len(rows)} gaits tried stayed upright over "
                               f"{settings.eval_cycles} cycles ({total:,} simulation steps)")

@@ -42,7 +42,9 @@ class OptimizeRun:
     on a slope), contact law (None: the task's, else the robot file's), symmetry (None: the
     task's), warm start result, whether to optimise without the motors' speed limit
     (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes (None: the task's), cycle
-    steps (None: the paper's 72; with ``speed="max"``: searched) and prep steps, random seeds, evaluation cycles, output folder and result name (None:
+    steps (None: the paper's 72; with ``speed="max"``: searched) and prep steps, random seeds, evaluation cycles,
+    the ``speed="max"`` search's budget of simulation steps (``max_sim_steps``, None: none), output folder and
+    result name (None:
     ``ROBOT_TASK``), resume / overwrite, and quiet (no progress)."""
 
     robot: str
@@ -61,6 +63,7 @@ class OptimizeRun:
     prep_steps: int = _PAPER.n_prep
     seeds: int = 8
     cycles: int = DEFAULT_EVAL_CYCLES
+    max_sim_steps: int | None = None
     out: Path = RESULTS_DIR
     name: str | None = None
     resume: bool = False
@@ -197,7 +200,8 @@ def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Resul
         eval_cycles=max(settings.eval_cycles, run.cycles) if not quick else settings.eval_cycles,
         n_prep=run.prep_steps if not quick else settings.n_prep,
         keyframes=(run.keyframes,) if run.keyframes is not None else settings.keyframes,
-        symmetry=settings.symmetry if run.symmetry is None else run.symmetry)
+        symmetry=settings.symmetry if run.symmetry is None else run.symmetry,
+        max_sim_steps=run.max_sim_steps)
     with compile_ahead(run.robot):
         env = make_gradient_env(run.robot, heading_deg=run.heading, contact=run.contact)
     print(f"{env.robot.summary()}; task walk at the highest speed within the motors' limit; {env.contact_model} "

@@ -79,6 +79,8 @@ def _add_optimize(sub) -> None:
     p.add_argument("--seeds", type=integer(0, 10_000), default=8,
                    help="random starting patterns tried (no warm start)")
     p.add_argument("--cycles", type=cycles, default=DEFAULT_EVAL_CYCLES, help="cycles played for the evaluation")
+    p.add_argument("--max-sim-steps", type=positive_int, default=None,
+                   help="--speed max: simulation steps the search may spend at most (default: no budget)")
     p.add_argument("--out", type=output_dir, default=RESULTS_DIR, help=f"output directory (default {RESULTS_DIR}/)")
     p.add_argument("--name", type=file_name, default=None, help="result file name (default ROBOT_TASK)")
     p.add_argument("--resume", action="store_true",

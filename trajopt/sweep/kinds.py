@@ -114,8 +114,8 @@ _OPTIMIZE = {
     "turn": Option(_choice("right", "left")), "angle": Option(slope_deg), "contact": Option(_choice(*CONTACT_LAWS)),
     "symmetry": _BOOL, "warm_start": Option(), "no_motor_limit": _BOOL, "iterations": Option(integer(0, 100_000)),
     "keyframes": Option(steps), "cycle_steps": Option(steps), "prep_steps": Option(integer(0, 100_000)),
-    "seeds": Option(integer(0, 10_000)), "cycles": Option(cycles), "out": Option(), "name": Option(),
-    "resume": _BOOL, "overwrite": _BOOL, "quiet": _BOOL,
+    "seeds": Option(integer(0, 10_000)), "cycles": Option(cycles), "max_sim_steps": Option(positive_int),
+    "out": Option(), "name": Option(), "resume": _BOOL, "overwrite": _BOOL, "quiet": _BOOL,
 }
 #: options of ``trajopt rl train`` (:func:`trajopt.rl.options.train_with_options`)
 _RL_TRAIN = {
