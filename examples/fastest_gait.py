@@ -1,6 +1,6 @@
 """The fastest walk the Tripod's motors allow: a search over cycle length and keyframes (issue #28).
 
-Run:  python examples/fastest_gait.py      (about two minutes on two cores)
+Run:  python examples/fastest_gait.py      (about three minutes on two cores)
 
 The paper plays a hand-set 72-step cycle (2.4 s). Under the motors' speed limit (robot.toml
 ``max_speed_rpm``: at most 1.73 mm of cable per 0.033 s step) a faster walk needs shorter,
