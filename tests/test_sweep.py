@@ -57,7 +57,7 @@ def test_spec_expands_grids_names_and_arguments(tmp_path):
 @pytest.mark.parametrize("text, message", [
     ('[[runs]]\nkind = "optimise"\n', "runs[0].kind must be one of"),
     ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeeed = 3\n', "unknown argument 'speeed'"),
-    ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeed = "fast"\n', "argument speed: must be a finite number > 0, got 'fast'"),
+    ('[[runs]]\nkind = "optimize"\n[runs.args]\nrobot = "tripod"\nspeed = "fast"\n', "argument speed: must be a finite number > 0 [BL/min] or 'max', got 'fast'"),
     ('[[runs]]\nkind = "optimize"\n[runs.args]\nspeed = 3\n', "argument 'robot' is missing"),
     ('[[runs]]\nkind = "optimize"\nname = "{robot}_{sped}"\n[runs.args]\nrobot = "tripod"\n',
      "runs[0].name: {sped} is not a parameter"),

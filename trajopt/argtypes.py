@@ -15,7 +15,7 @@ from typing import Callable
 from .files import check_output_dir
 
 __all__ = ["contact_law", "integer", "positive_int", "nonnegative_int", "number", "positive_float", "nonnegative_float",
-           "slope_deg", "file_name", "frame_size", "output_dir", "output_file", "cycles", "steps"]
+           "slope_deg", "speed", "file_name", "frame_size", "output_dir", "output_file", "cycles", "steps"]
 
 
 def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
@@ -72,6 +72,17 @@ def number(lo: float | None = None, hi: float | None = None, *, lo_open: bool = 
 positive_float = number(0.0, lo_open=True)
 nonnegative_float = number(0.0)
 slope_deg = number(-90.0, 90.0, lo_open=True, hi_open=True)
+
+
+def speed(text: str) -> float | str:
+    """A target speed [BL/min] > 0, or ``max`` (the fastest gait within the motors' limit,
+    :mod:`trajopt.fastest`)."""
+    if text.strip().lower() == "max":
+        return "max"
+    try:
+        return positive_float(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0 [BL/min] or 'max', got {text!r}") from None
 
 
 def file_name(text: str) -> str:

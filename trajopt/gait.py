@@ -2,7 +2,8 @@
 
 ``u = (u_prep, u_cycle, ..., u_cycle)`` (paper III-B, eq. 12): ``n_prep`` steps that ease from
 rest into the cycle, then ``n_cycles`` repetitions of a cycle of ``n_cycle`` simulation steps;
-each motor's cycle is a periodic spline through ``n_keyframes`` keyframes; with ``symmetry``,
+each motor's cycle is a periodic spline through ``n_keyframes`` keyframes (``interpolation``:
+the paper's zero-tangent Hermite spline, or straight lines, :data:`INTERPOLATIONS`); with ``symmetry``,
 a motor's mirror motor plays the same signal half a period later. The paper: 24 + 2 x 72 steps
 (168 steps, 5.5 s at h = 0.033 s), 4 keyframes, symmetric walks and an asymmetric turn. A gait is
 evaluated over :data:`DEFAULT_EVAL_CYCLES` cycles after the prep phase.
@@ -25,7 +26,15 @@ from typing import Any
 
 from .tasks import TASKS, TURN_KEYFRAMES
 
-__all__ = ["GaitSpec", "DEFAULT_EVAL_CYCLES", "TURN_KEYFRAMES"]
+__all__ = ["GaitSpec", "DEFAULT_EVAL_CYCLES", "TURN_KEYFRAMES", "INTERPOLATIONS"]
+
+#: how a cycle passes through its keyframes (:func:`trajopt.parameterization.cycle_basis`):
+#: ``"hermite"``, the paper's zero-tangent cubic Hermite spline (eq. 12; the default); its
+#: slope peaks at 1.5 times its mean between keyframes, so under the motors' speed limit a
+#: cable averages at most 2/3 of the motor's speed; ``"linear"``, straight lines between
+#: keyframes: constant slope, so a cable can move at the motor's full speed (``trajopt optimize
+#: --speed max``, :mod:`trajopt.fastest`). Both stay within the range of their keyframes.
+INTERPOLATIONS = ("hermite", "linear")
 
 #: cycles played after the prep phase when a gait is evaluated (speed in BL/min, upright)
 DEFAULT_EVAL_CYCLES = 6
@@ -41,6 +50,7 @@ class GaitSpec:
     n_cycles: int = 2
     n_keyframes: int = 4
     symmetry: bool = True
+    interpolation: str = "hermite"
 
     def __post_init__(self):
         for name in ("n_prep", "n_cycle", "n_cycles", "n_keyframes"):
@@ -56,6 +66,8 @@ class GaitSpec:
                              f"and {self.n_cycle} cycle steps")
         if not isinstance(self.symmetry, bool):
             raise ValueError(f"GaitSpec.symmetry must be True or False, got {self.symmetry!r}")
+        if self.interpolation not in INTERPOLATIONS:
+            raise ValueError(f"GaitSpec.interpolation must be one of {INTERPOLATIONS}, got {self.interpolation!r}")
 
     @classmethod
     def for_task(cls, task: str, *, symmetry: bool | None = None, **fields: Any) -> "GaitSpec":
@@ -88,4 +100,5 @@ class GaitSpec:
                    n_cycle=int(settings.get("n_cycle", default.n_cycle)),
                    n_cycles=int(settings.get("n_cycles", default.n_cycles)),
                    n_keyframes=int(settings.get("n_keyframes", default.n_keyframes)),
-                   symmetry=bool(settings.get("symmetry", default.symmetry)))
+                   symmetry=bool(settings.get("symmetry", default.symmetry)),
+                   interpolation=str(settings.get("interpolation", default.interpolation)))

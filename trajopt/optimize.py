@@ -48,7 +48,7 @@ TASK_CONTACT = {name: t.contact for name, t in TASKS.items() if t.contact is not
 #: default target speeds [BL/min], a little above the paper's Table I (Tripod 6.1, Puppy 8.6)
 DEFAULT_SPEED = {"tripod": 8.0, "puppy": 10.0}
 #: the settings a resumed run must share with the interrupted one (besides the task)
-RESUME_KEYS = ("n_prep", "n_cycle", "n_cycles", "n_keyframes", "symmetry", "speed_bl_per_min", "heading_deg",
+RESUME_KEYS = ("n_prep", "n_cycle", "n_cycles", "n_keyframes", "symmetry", "interpolation", "speed_bl_per_min", "heading_deg",
                "turn", "incline_deg", "contact", "motor_limit")
 
 

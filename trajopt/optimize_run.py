@@ -12,6 +12,7 @@ the same name and folder is refused at once.
 from __future__ import annotations
 
 import dataclasses
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,16 +37,19 @@ _PAPER = GaitSpec()
 class OptimizeRun:
     """The options of one optimisation run (``trajopt optimize ROBOT --OPTION ...``): the robot
     (shipped name or robot.toml path), the task (:data:`trajopt.tasks.TASKS`), its target speed
-    [BL/min] (None: the robot's default), heading [deg], turn side, slope ``angle`` [deg] (a task
+    [BL/min] (None: the robot's default; ``"max"``: the fastest walk within the motors' limit,
+    :mod:`trajopt.fastest`, with its search table beside the result), heading [deg], turn side, slope ``angle`` [deg] (a task
     on a slope), contact law (None: the task's, else the robot file's), symmetry (None: the
     task's), warm start result, whether to optimise without the motors' speed limit
-    (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes (None: the task's), cycle and
-    prep steps, random seeds, evaluation cycles, output folder and result name (None:
+    (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes (None: the task's), cycle
+    steps (None: the paper's 72; with ``speed="max"``: searched) and prep steps, random seeds, evaluation cycles,
+    the ``speed="max"`` search's budget of simulation steps (``max_sim_steps``, None: none), output folder and
+    result name (None:
     ``ROBOT_TASK``), resume / overwrite, and quiet (no progress)."""
 
     robot: str
     task: str = "walk"
-    speed: float | None = None
+    speed: float | str | None = None
     heading: float = 0.0
     turn: str = "right"
     angle: float = 20.0
@@ -55,10 +59,11 @@ class OptimizeRun:
     no_motor_limit: bool = False
     iterations: int = 10
     keyframes: int | None = None
-    cycle_steps: int = _PAPER.n_cycle
+    cycle_steps: int | None = None
     prep_steps: int = _PAPER.n_prep
     seeds: int = 8
     cycles: int = DEFAULT_EVAL_CYCLES
+    max_sim_steps: int | None = None
     out: Path = RESULTS_DIR
     name: str | None = None
     resume: bool = False
@@ -132,11 +137,24 @@ def _load_checkpoint(path: Path) -> Result:
 
 
 def _gait(run: OptimizeRun) -> GaitSpec:
+    n_cycle = _PAPER.n_cycle if run.cycle_steps is None else run.cycle_steps
     try:
         return GaitSpec.for_task(run.task, symmetry=run.symmetry, n_prep=run.prep_steps,
-                                 n_cycle=run.cycle_steps, n_keyframes=run.keyframes)
+                                 n_cycle=n_cycle, n_keyframes=run.keyframes)
     except ValueError:
-        raise ValueError(f"--keyframes {run.keyframes} must be at most --cycle-steps {run.cycle_steps}") from None
+        raise ValueError(f"--keyframes {run.keyframes} must be at most --cycle-steps {n_cycle}") from None
+
+
+def _check_speed_max(run: OptimizeRun) -> None:
+    """``--speed max`` searches a walk within the motors' limit from scratch: other tasks, and
+    the options it cannot honour, are refused (ValueError, nothing written)."""
+    if run.task != "walk":
+        raise ValueError(f"--speed max finds the fastest walk: it needs --task walk, got --task {run.task}")
+    refused = [flag for flag, on in (("--resume", run.resume), ("--no-motor-limit", run.no_motor_limit),
+                                     ("--warm-start", run.warm_start is not None)) if on]
+    if refused:
+        raise ValueError(f"--speed max cannot be combined with {', '.join(refused)}: the search starts afresh "
+                         "within the motors' speed limit (run it again with --overwrite to replace its result)")
 
 
 def _finish_files(res: Result, out: Path, partial: Path) -> Path:
@@ -157,9 +175,44 @@ def run_optimization(run: OptimizeRun, progress: Callable[[int], Any] | None = N
     get_task(run.task)
     out = run.result_file()
     partial = partial_path(out)
+    if run.speed == "max":
+        _check_speed_max(run)
+        with reserve(lock_path(out), f"result {out.name}"):
+            return _fastest_reserved(run, out, partial)
     gait = _gait(run)
     with reserve(lock_path(out), f"result {out.name}"):   # a second run of this name is refused
         return _optimize_reserved(run, out, partial, gait, progress)
+
+
+def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Result, Path]:
+    """``--speed max`` (:func:`trajopt.fastest.fastest_gait`): the search's default settings
+    (``SOFT_ENVS_QUICK=1``: its quick ones), the cycle pinned by ``cycle_steps``, the keyframe
+    count by ``keyframes``; ``iterations`` and ``seeds`` cap each run's Gauss-Newton iterations
+    and random starts, ``cycles`` raises the evaluation's 10 cycles; the result and its table
+    (``NAME.search.csv`` / ``.md``) written when it finishes."""
+    from .fastest import SearchSettings, fastest_gait, write_search_table
+    _plan(out, partial, run)
+    quick = os.environ.get("SOFT_ENVS_QUICK", "") not in ("", "0")
+    settings = SearchSettings.quick() if quick else SearchSettings()
+    settings = dataclasses.replace(            # the options cap the search's effort
+        settings, coarse_iterations=min(settings.coarse_iterations, run.iterations),
+        fine_iterations=min(settings.fine_iterations, run.iterations), seeds=min(settings.seeds, run.seeds),
+        eval_cycles=max(settings.eval_cycles, run.cycles) if not quick else settings.eval_cycles,
+        n_prep=run.prep_steps if not quick else settings.n_prep,
+        keyframes=(run.keyframes,) if run.keyframes is not None else settings.keyframes,
+        symmetry=settings.symmetry if run.symmetry is None else run.symmetry,
+        max_sim_steps=run.max_sim_steps)
+    with compile_ahead(run.robot):
+        env = make_gradient_env(run.robot, heading_deg=run.heading, contact=run.contact)
+    print(f"{env.robot.summary()}; task walk at the highest speed within the motors' limit; {env.contact_model} "
+          f"contact law{'; quick search (SOFT_ENVS_QUICK)' if quick else ''}")
+    res, rows = fastest_gait(env, settings=settings, cycle_steps=run.cycle_steps, heading_deg=run.heading,
+                             robot_spec=run.robot, quiet=run.quiet)
+    path = _finish_files(res, out, partial)
+    csv_path, md_path = write_search_table(rows, out)
+    print(f"search: {len(rows)} optimisations, {res.evaluation['search_sim_steps']:,} simulation steps in total "
+          f"(optimisations and evaluations); table {csv_path} and {md_path.name}")
+    return res, path
 
 
 def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpec,

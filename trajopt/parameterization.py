@@ -2,9 +2,10 @@
 
 ``u = (u_prep, u_cycle, u_cycle)`` (the shape is a :class:`~trajopt.gait.GaitSpec`): each motor's
 cycle is a periodic zero-tangent cubic Hermite spline through ``n_keyframes`` equally spaced
-keyframes; the preparatory phase eases from the rest contraction ``u_rest`` (``robot.u_rest``:
+keyframes (or, with ``GaitSpec(interpolation="linear")``, straight lines between them:
+:func:`linear_cycle_basis`); the preparatory phase eases from the rest contraction ``u_rest`` (``robot.u_rest``:
 where the environments' rollouts start) into the cycle's first value. With zero tangents the
-spline never leaves the range of its keyframes, and the prep blends two in-range values, so
+spline (and the straight lines) never leave the range of its keyframes, and the prep blends two in-range values, so
 bounds on the keyframes z are bounds on u.
 
 Tendon pairs share a motor (that is what a motor is in :class:`soft_envs.envs.Robot`).
@@ -24,7 +25,7 @@ import numpy as np
 
 from .gait import GaitSpec
 
-__all__ = ["GaitParameterization", "hermite_cycle_basis", "prep_ease"]
+__all__ = ["GaitParameterization", "hermite_cycle_basis", "linear_cycle_basis", "cycle_basis", "prep_ease"]
 
 
 def _smoothstep(s: np.ndarray) -> np.ndarray:
@@ -32,19 +33,40 @@ def _smoothstep(s: np.ndarray) -> np.ndarray:
     return s * s * (3.0 - 2.0 * s)
 
 
-def hermite_cycle_basis(n_steps: int, n_keyframes: int) -> np.ndarray:
-    """(n_steps, n_keyframes) matrix B with ``u_cycle = B @ keyframes``: step i sits at spline
-    time ``i * n_keyframes / n_steps``; between keyframes j and j+1 (periodic) the value is
-    ``z_j + (z_{j+1} - z_j) (3 s^2 - 2 s^3)``."""
+def _periodic_basis(n_steps: int, n_keyframes: int, blend) -> np.ndarray:
+    """(n_steps, n_keyframes) matrix B: step i sits at spline time ``t = i * n_keyframes / n_steps``;
+    between keyframes j and j+1 (periodic) its value is ``z_j + (z_{j+1} - z_j) blend(t - j)``."""
     if n_keyframes < 1 or n_steps < n_keyframes:
         raise ValueError(f"need 1 <= n_keyframes <= n_steps, got {n_keyframes}, {n_steps}")
     t = np.arange(n_steps) * n_keyframes / n_steps
     j = np.floor(t).astype(int)
-    s = _smoothstep(t - j)
+    s = blend(t - j)
     B = np.zeros((n_steps, n_keyframes))
     B[np.arange(n_steps), j % n_keyframes] += 1.0 - s
     B[np.arange(n_steps), (j + 1) % n_keyframes] += s
     return B
+
+
+def hermite_cycle_basis(n_steps: int, n_keyframes: int) -> np.ndarray:
+    """(n_steps, n_keyframes) matrix B with ``u_cycle = B @ keyframes``: step i sits at spline
+    time ``i * n_keyframes / n_steps``; between keyframes j and j+1 (periodic) the value is
+    ``z_j + (z_{j+1} - z_j) (3 s^2 - 2 s^3)`` (paper eq. 12, zero tangents)."""
+    return _periodic_basis(n_steps, n_keyframes, _smoothstep)
+
+
+def linear_cycle_basis(n_steps: int, n_keyframes: int) -> np.ndarray:
+    """(n_steps, n_keyframes) matrix B with ``u_cycle = B @ keyframes`` for straight lines between
+    the keyframes (periodic): ``z_j + (z_{j+1} - z_j) s`` at spline time ``j + s``. The slope
+    between two keyframes is constant, so a motor can use its whole speed limit (the
+    zero-tangent spline's slope peaks at 1.5 times its mean)."""
+    return _periodic_basis(n_steps, n_keyframes, lambda s: s)
+
+
+def cycle_basis(gait: GaitSpec) -> np.ndarray:
+    """(n_cycle, n_keyframes) basis of ``gait``'s cycle, as its ``interpolation`` says
+    (:data:`trajopt.gait.INTERPOLATIONS`)."""
+    make = linear_cycle_basis if gait.interpolation == "linear" else hermite_cycle_basis
+    return make(gait.n_cycle, gait.n_keyframes)
 
 
 def prep_ease(n_prep: int) -> np.ndarray:
@@ -153,7 +175,7 @@ class GaitParameterization:
     def dudz(self, n_cycles: int | None = None) -> np.ndarray:
         """Exact, constant (K, n_motors, nz) Jacobian of :meth:`controls`."""
         n_cycles = self.gait.n_cycles if n_cycles is None else n_cycles
-        B = hermite_cycle_basis(self.n_cycle, self.n_keyframes)          # (C, Kf)
+        B = cycle_basis(self.gait)                                          # (C, Kf)
         ease = prep_ease(self.n_prep)[:, None] * B[0][None, :]             # prep eases to cycle[0]
         steps = np.concatenate([ease] + [B] * n_cycles)                     # (K, Kf)
         P = self._P.reshape(self.n_motors, self.n_keyframes, self.nz)

@@ -29,7 +29,7 @@ import numpy as np
 
 from .gait import GaitSpec
 from .motor_limit import STEP_ATOL, worst_step
-from .parameterization import GaitParameterization, hermite_cycle_basis, prep_ease
+from .parameterization import GaitParameterization, cycle_basis, prep_ease
 
 __all__ = ["check_controls", "check_zero_slack", "motors_of_fingerprint", "CONTROL_ATOL", "ZERO_SLACK_ATOL"]
 
@@ -90,7 +90,7 @@ def check_controls(res: Any, src: str) -> None:
     if rest is None and spec.n_prep and ease[0] < 1.0:         # the rest point the prep starts from
         rest = (res.u[0] - ease[0] * kf[:, 0]) / (1.0 - ease[0])
     rest = np.zeros(M) if rest is None else rest
-    cycle = hermite_cycle_basis(spec.n_cycle, spec.n_keyframes) @ kf.T           # (n_cycle, M)
+    cycle = cycle_basis(spec) @ kf.T           # (n_cycle, M)
     prep = ease[:, None] * kf[:, 0][None, :] + (1.0 - ease)[:, None] * rest[None, :]
     expected = np.concatenate([prep, *[cycle] * spec.n_cycles])
     if not np.allclose(res.u, expected, rtol=0, atol=CONTROL_ATOL):

@@ -28,8 +28,8 @@ import sys
 import warnings
 from pathlib import Path
 
-from ..argtypes import (contact_law, cycles, file_name, frame_size, integer, number, output_dir, output_file, positive_float,
-                       positive_int, slope_deg, steps)
+from ..argtypes import (contact_law, cycles, file_name, frame_size, integer, number, output_dir, output_file,
+                       positive_float, positive_int, slope_deg, speed, steps)
 from ..files import RESULTS_DIR
 from ..gait import DEFAULT_EVAL_CYCLES, GaitSpec
 from ..tasks import TURN_KEYFRAMES, command_line_tasks
@@ -46,7 +46,10 @@ def _add_optimize(sub) -> None:
     p.add_argument("--task", choices=command_line_tasks(), default="walk",
                    help="what the gait does (trajopt.tasks): walk straight, turn a quarter circle, incline: walk "
                         "up the --angle slope")
-    p.add_argument("--speed", type=positive_float, default=None, help="target speed [body lengths/min]")
+    p.add_argument("--speed", type=speed, default=None,
+                   help="target speed [body lengths/min], or max: the fastest upright walk within the motors' "
+                        "speed limit (searches the cycle length and keyframes; writes NAME.search.csv/.md beside "
+                        "the result; --cycle-steps pins the cycle)")
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--turn", choices=["right", "left"], default="right", help="turn direction (task turn)")
     p.add_argument("--angle", type=slope_deg, default=20.0, help="slope [deg] (task incline)")
@@ -69,13 +72,16 @@ def _add_optimize(sub) -> None:
     paper = GaitSpec()
     p.add_argument("--keyframes", type=steps, default=None,
                    help=f"spline keyframes per cycle (default {paper.n_keyframes}, the paper's; turn {TURN_KEYFRAMES})")
-    p.add_argument("--cycle-steps", type=steps, default=paper.n_cycle,
-                   help=f"simulation steps per gait cycle (default {paper.n_cycle}, the paper's)")
+    p.add_argument("--cycle-steps", type=steps, default=None,
+                   help=f"simulation steps per gait cycle (default {paper.n_cycle}, the paper's; with --speed max: "
+                        "searched unless given)")
     p.add_argument("--prep-steps", type=integer(0, 100_000), default=paper.n_prep,
                    help=f"simulation steps of the preparatory phase (default {paper.n_prep}, the paper's)")
     p.add_argument("--seeds", type=integer(0, 10_000), default=8,
                    help="random starting patterns tried (no warm start)")
     p.add_argument("--cycles", type=cycles, default=DEFAULT_EVAL_CYCLES, help="cycles played for the evaluation")
+    p.add_argument("--max-sim-steps", type=positive_int, default=None,
+                   help="--speed max: simulation steps the search may spend at most (default: no budget)")
     p.add_argument("--out", type=output_dir, default=RESULTS_DIR, help=f"output directory (default {RESULTS_DIR}/)")
     p.add_argument("--name", type=file_name, default=None, help="result file name (default ROBOT_TASK)")
     p.add_argument("--resume", action="store_true",

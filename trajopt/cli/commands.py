@@ -90,6 +90,11 @@ def _report(res: Result, path: Path, seconds: float) -> None:
             ("target speed", f"{res.settings['speed_bl_per_min']:g} BL/min")]
     rows += evaluation_rows(ev, res.task)
     rows.append(("simulation steps", str(ev["optimization_sim_steps"])))
+    if "search_sim_steps" in ev:          # --speed max: the whole search's
+        rows.append(("search", f"cycle {res.settings['n_cycle']} steps, {res.settings['n_keyframes']} keyframes "
+                               f"chosen of {res.settings['search']['runs']} optimisations; "
+                               f"{ev['search_sim_steps']:,} simulation steps in total, "
+                               f"{ev['search_wall_time_s']:.0f} s"))
     _print_table(rows)
     print(f"\nnext:\n  trajopt render {path}      # animation: {RESULTS_DIR / (path.stem + '.gif')}\n"
           f"  trajopt plot {path}        # COM path, controls, convergence: {RESULTS_DIR / 'plots'}/\n"

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
-from ..argtypes import contact_law, cycles, integer, nonnegative_float, number, positive_float, positive_int, slope_deg, steps
+from ..argtypes import contact_law, cycles, integer, nonnegative_float, number, positive_int, slope_deg, speed, steps
 from ..rl.envs import ROBOTS
 from ..rl.hyperparams import ALGOS
 from ..tasks import command_line_tasks
@@ -111,12 +111,12 @@ _SEED = Option(integer(0, 2**32 - 1))           # what NumPy's legacy seeding ac
 
 #: options of ``trajopt optimize`` (:class:`trajopt.optimize_run.OptimizeRun`)
 _OPTIMIZE = {
-    "task": Option(_task), "speed": Option(positive_float), "heading": Option(number()),
+    "task": Option(_task), "speed": Option(speed), "heading": Option(number()),
     "turn": Option(_choice("right", "left")), "angle": Option(slope_deg), "contact": Option(contact_law),
     "symmetry": _BOOL, "warm_start": Option(), "no_motor_limit": _BOOL, "iterations": Option(integer(0, 100_000)),
     "keyframes": Option(steps), "cycle_steps": Option(steps), "prep_steps": Option(integer(0, 100_000)),
-    "seeds": Option(integer(0, 10_000)), "cycles": Option(cycles), "out": Option(), "name": Option(),
-    "resume": _BOOL, "overwrite": _BOOL, "quiet": _BOOL,
+    "seeds": Option(integer(0, 10_000)), "cycles": Option(cycles), "max_sim_steps": Option(positive_int),
+    "out": Option(), "name": Option(), "resume": _BOOL, "overwrite": _BOOL, "quiet": _BOOL,
 }
 #: options of ``trajopt rl train`` (:func:`trajopt.rl.options.train_with_options`)
 _RL_TRAIN = {

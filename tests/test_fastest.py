@@ -1,0 +1,165 @@
+"""``trajopt optimize ROBOT --speed max`` (issue #28 item 3): the fastest upright walk within
+the motors' speed limit, searched over cycle length and keyframes (:mod:`trajopt.fastest`), and
+the straight-line keyframe interpolation it uses (``GaitSpec(interpolation="linear")``)."""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from soft_envs.sim import load_robot
+from trajopt import GaitSpec
+from trajopt.argtypes import speed
+from trajopt.cli import main
+from trajopt.fastest import SearchSettings, keyframes_at, search_table_paths
+from trajopt.motor_limit import speed_limit_constraints
+from trajopt.parameterization import (
+    GaitParameterization,
+    hermite_cycle_basis,
+    linear_cycle_basis,
+)
+from trajopt.results import Result
+
+from .test_motor_limit import STEP, _obeys_over_ten_cycles
+
+
+def test_straight_lines_between_keyframes_have_a_constant_slope():
+    B = linear_cycle_basis(12, 4)
+    kf = np.array([0.0, 3.0, 3.0, -3.0])
+    u = B @ kf
+    assert np.allclose(u[::3], kf) and np.allclose(np.diff(np.append(u, u[0])), [1, 1, 1, 0, 0, 0, -2, -2, -2, 1, 1, 1])
+    assert np.allclose(B.sum(axis=1), 1.0) and np.allclose(hermite_cycle_basis(12, 4)[::3], np.eye(4))
+
+
+@pytest.mark.parametrize("robot", ["tripod", "puppy"])
+def test_straight_lines_can_use_the_whole_limit_where_the_papers_spline_cannot(robot):
+    """Keyframes alternating between the ends of a range that the motor crosses in exactly one
+    keyframe interval at full speed: the straight lines obey the limit, the zero-tangent spline
+    (peak slope 1.5 times its mean) breaks it."""
+    r = load_robot(robot)
+    gait = GaitSpec(n_prep=24, n_cycle=24, n_keyframes=4)
+    lo, hi = r.u_bounds[:, 0], r.u_bounds[:, 0] + 6 * r.max_contraction_step(0.033)      # 6 steps per keyframe
+    kf = np.column_stack([lo, hi, lo, hi])
+    for interpolation, obeys in (("linear", True), ("hermite", False)):
+        param = GaitParameterization.for_robot(r, gait.replace(interpolation=interpolation))
+        c = speed_limit_constraints(param, r.max_contraction_step(0.033))
+        assert (c.violation(param.z_from_keyframes(kf)) <= 1e-12) == obeys, interpolation
+
+
+def test_the_papers_gait_is_the_default_and_older_results_read_as_it():
+    assert GaitSpec().interpolation == "hermite"
+    assert GaitSpec.from_settings({"n_cycle": 72}).interpolation == "hermite"
+    with pytest.raises(ValueError, match="GaitSpec.interpolation must be one of .*got 'cubic'"):
+        GaitSpec(interpolation="cubic")
+
+
+def test_keyframes_at_other_phases_keep_the_cycle():
+    kf = np.array([[0.0, 2.0, 4.0, 2.0]])
+    assert np.allclose(keyframes_at(kf, 8), [[0, 1, 2, 3, 4, 3, 2, 1]])
+    assert np.allclose(keyframes_at(kf, 4), kf) and keyframes_at(kf, 2).shape == (1, 2)
+
+
+def test_the_speed_option_takes_a_number_or_max():
+    import argparse
+    assert speed("max") == "max" and speed("12.5") == 12.5
+    with pytest.raises(argparse.ArgumentTypeError, match="must be a finite number > 0 \\[BL/min\\] or 'max', got 'fast'"):
+        speed("fast")
+
+
+def test_the_search_order_and_the_pinned_cycle():
+    s = SearchSettings()
+    assert s.candidates()[:4] == [(8, 4), (12, 4), (16, 4), (16, 8)]
+    assert s.candidates(24) == [(24, 4), (24, 8)]
+    assert s.gait(8, 4).n_cycles * 8 >= s.min_horizon_steps and s.gait(72, 4).n_cycles == 2
+    with pytest.raises(ValueError, match="no \\(cycle, keyframes\\) candidate"):
+        s.candidates(6)
+
+
+@pytest.fixture(scope="module")
+def speed_max(tmp_path_factory):
+    """``trajopt optimize tripod --speed max`` in quick mode (SOFT_ENVS_QUICK=1)."""
+    out = tmp_path_factory.mktemp("max")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("SOFT_ENVS_QUICK", "1")
+        assert main(["optimize", "tripod", "--speed", "max", "--contact", "coulomb", "--quiet", "--out", str(out)]) == 0
+    return out / "tripod_walk.npz"
+
+
+def test_speed_max_writes_the_fastest_upright_gait_of_its_table(speed_max):
+    res = Result.load(speed_max)
+    csv_path, md_path = search_table_paths(speed_max)
+    assert md_path.is_file()
+    rows = list(csv.DictReader(csv_path.open()))
+    upright = [r for r in rows if r["upright"] == "True"]
+    chosen = [r for r in rows if r["chosen"] == "True"]
+    assert len(rows) >= 2 and len(chosen) == 1
+    best = chosen[0]
+    assert float(best["speed_bl_per_min"]) == max(float(r["speed_bl_per_min"]) for r in upright)
+    assert (int(best["n_cycle"]), int(best["n_keyframes"])) == (res.settings["n_cycle"], res.settings["n_keyframes"])
+    assert res.evaluation["speed_bl_per_min"] == pytest.approx(float(best["speed_bl_per_min"]), rel=1e-12)
+    assert res.evaluation["upright"] and res.settings["interpolation"] == "linear"
+    assert res.evaluation["search_sim_steps"] == int(rows[-1]["total_sim_steps"]) == \
+        sum(int(r["optimization_sim_steps"]) + int(r["evaluation_sim_steps"]) for r in rows)
+
+
+def test_speed_max_obeys_the_limit_over_ten_cycles(speed_max):
+    res = Result.load(speed_max)
+    assert res.settings["motor_limit"]["max_step_m"] == pytest.approx([STEP, STEP], rel=1e-12)
+    assert _obeys_over_ten_cycles(res, np.zeros(2)) <= 1e-9
+
+
+def test_play_dry_run_accepts_the_speed_max_result(speed_max, capsys):
+    from trajopt.hardware import EXAMPLE_TRIPOD
+    capsys.readouterr()
+    code = main(["play", str(speed_max), "--hardware", str(EXAMPLE_TRIPOD), "--dry-run"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "warning" not in err
+
+
+def test_speed_max_pins_the_cycle(tmp_path, monkeypatch):
+    monkeypatch.setenv("SOFT_ENVS_QUICK", "1")
+    assert main(["optimize", "tripod", "--speed", "max", "--cycle-steps", "12", "--contact", "coulomb", "--quiet",
+                 "--out", str(tmp_path)]) == 0
+    rows = list(csv.DictReader(search_table_paths(tmp_path / "tripod_walk.npz")[0].open()))
+    assert {r["n_cycle"] for r in rows} == {"12"} and Result.load(tmp_path / "tripod_walk.npz").settings["n_cycle"] == 12
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--task", "turn"], "--speed max finds the fastest walk: it needs --task walk, got --task turn"),
+    (["--task", "incline"], "--speed max finds the fastest walk: it needs --task walk, got --task incline"),
+    (["--no-motor-limit"], "--speed max cannot be combined with --no-motor-limit"),
+    (["--resume"], "--speed max cannot be combined with --resume"),
+])
+def test_speed_max_refuses_what_it_cannot_do(tmp_path, capsys, args, message):
+    assert main(["optimize", "tripod", "--speed", "max", *args, "--quiet", "--out", str(tmp_path)]) == 2
+    assert message in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_search_keeps_within_its_budget():
+    """A budget of simulation steps is never passed: runs that would not fit are skipped
+    (listed), a run stops early rather than risk it."""
+    import dataclasses
+
+    from trajopt.fastest import fastest_gait
+    settings = dataclasses.replace(SearchSettings.quick(), coarse_iterations=3, max_sim_steps=600)
+    res, rows = fastest_gait("tripod", contact="coulomb", settings=settings, quiet=True)
+    assert rows[-1]["total_sim_steps"] == res.evaluation["search_sim_steps"] <= 600
+    assert any(r["status"] == "skipped: budget" for r in rows) or any(r["status"] == "callback" for r in rows)
+
+
+def test_the_command_takes_the_search_budget(tmp_path, monkeypatch):
+    monkeypatch.setenv("SOFT_ENVS_QUICK", "1")
+    assert main(["optimize", "tripod", "--speed", "max", "--max-sim-steps", "500", "--contact", "coulomb", "--quiet",
+                 "--out", str(tmp_path)]) == 0
+    res = Result.load(tmp_path / "tripod_walk.npz")
+    assert res.evaluation["search_sim_steps"] <= 500 and res.settings["search"]["settings"]["max_sim_steps"] == 500
+
+
+def test_a_budget_that_fits_no_candidate_is_refused(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("SOFT_ENVS_QUICK", "1")
+    assert main(["optimize", "tripod", "--speed", "max", "--max-sim-steps", "50", "--quiet", "--out", str(tmp_path)]) == 2
+    assert "--speed max: a budget of 50 simulation steps fits none of the 2 candidates" in capsys.readouterr().err
+    assert not (tmp_path / "tripod_walk.npz").exists()

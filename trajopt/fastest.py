@@ -1,0 +1,322 @@
+"""The fastest walk within the motors' speed limit: ``trajopt optimize ROBOT --speed max`` (issue #28 item 3).
+
+The paper fixes the cycle (72 steps, 2.4 s) by hand; the fastest gait under the motors' speed
+limit (:mod:`trajopt.motor_limit`) needs a shorter one. :func:`fastest_gait` searches the
+cycle length and the keyframe count discretely, with several starts, coarse to fine:
+
+1. **coarse**: every candidate ``(n_cycle, n_keyframes)`` of :class:`SearchSettings`
+   (shortest cycles first, then fewer keyframes first) gets ``coarse_iterations`` Gauss-Newton
+   iterations from the best of its starts: the previous candidate's keyframes (keyframes are
+   phases of the cycle, so a gait at one cycle length is a start at its neighbour; resampled
+   at the new phases for another keyframe count, :func:`keyframes_at`) and
+   ``param.seeds(seeds)`` (screened by cheap rollouts without sensitivities);
+2. **fine**: the ``n_fine`` fastest upright candidates continue for ``fine_iterations``
+   iterations from where they stopped.
+
+Every optimisation tracks a straight line (the walk's objective, paper eq. 5-7) at a target
+speed chosen above the fastest gait found so far: ``max(min_target, target_margin * best)``
+BL/min, so that the target always asks for more than is known to be possible. The keyframes
+are interpolated by straight lines (``GaitSpec(interpolation="linear")``, the
+``interpolation`` setting): the paper's zero-tangent spline peaks at 1.5 times its mean slope,
+so under the limit its cables average at most 2/3 of the motors' speed. The horizon holds at
+least ``min_horizon_steps`` cycle steps (two cycles at least), so a short cycle is tracked
+over several strides, not only its prep phase.
+
+Each candidate is evaluated with :func:`trajopt.evaluation.evaluate_controls` over
+``eval_cycles`` cycles (10) after the prep phase; the result is the fastest upright one.
+Every simulation step is counted: the optimisations' (``sim_steps`` of
+:class:`trajopt.optimize.GaitProblem`: rollouts with and without sensitivities,
+line-search trials, seed screening) and the evaluations'; the total is in
+``result.evaluation["search_sim_steps"]`` and the table. :func:`write_search_table` writes the
+table beside the result (``NAME.search.csv`` and ``.md``).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from soft_envs.envs import SimulationError, as_gradient_env
+
+from .files import atomic_write_bytes
+from .gait import GaitSpec
+from .gauss_newton import GaussNewtonOptions
+from .optimize import optimize_gait
+from .parameterization import GaitParameterization
+from .results import Result
+
+__all__ = [
+    "SEARCH_EVAL_CYCLES",
+    "TABLE_COLUMNS",
+    "SearchSettings",
+    "fastest_gait",
+    "keyframes_at",
+    "search_table_paths",
+    "write_search_table",
+]
+
+#: cycles played after the prep phase when a candidate is evaluated (the issue's "10 cycles")
+SEARCH_EVAL_CYCLES = 10
+
+
+@dataclass(frozen=True)
+class SearchSettings:
+    """What :func:`fastest_gait` searches (module docstring). ``cycle_steps``: the cycle lengths
+    [simulation steps]; ``keyframes``: keyframe counts per cycle (a count is tried on a cycle of
+    at least ``min_steps_per_keyframe`` steps per keyframe); ``seeds``: random starts screened
+    besides the mid-range and square-wave starts; Gauss-Newton iterations per stage;
+    ``n_fine``: candidates refined; the target speed rule; the interpolation of the keyframes; bilateral symmetry.
+    ``max_sim_steps``: a budget of simulation steps (None: none) the search never exceeds: the
+    coarse stage keeps within ``coarse_share`` of it, the fine stage within all of it; a run
+    that would not fit is skipped (listed in the table), and one that runs stops early rather
+    than risk its next iteration and evaluation passing the budget."""
+
+    cycle_steps: tuple[int, ...] = (8, 12, 16, 24, 36, 72)
+    keyframes: tuple[int, ...] = (4, 8)
+    min_steps_per_keyframe: int = 2
+    seeds: int = 1
+    coarse_iterations: int = 3
+    fine_iterations: int = 6
+    n_fine: int = 2
+    min_target: float = 20.0
+    target_margin: float = 1.25
+    min_horizon_steps: int = 48
+    n_prep: int = 24
+    interpolation: str = "linear"
+    symmetry: bool = True
+    eval_cycles: int = SEARCH_EVAL_CYCLES
+    max_sim_steps: int | None = None
+    coarse_share: float = 0.75
+
+    @classmethod
+    def quick(cls) -> SearchSettings:
+        """A search small enough for tests and CI (a few seconds)."""
+        return cls(cycle_steps=(8, 12), keyframes=(4,), seeds=0, coarse_iterations=1, fine_iterations=1,
+                   n_fine=1, min_horizon_steps=16, n_prep=4, eval_cycles=2)
+
+    def candidates(self, cycle_steps: int | None = None) -> list[tuple[int, int]]:
+        """``(n_cycle, n_keyframes)`` in search order: shortest cycle first, fewer keyframes first
+        (``cycle_steps``: that cycle only)."""
+        cycles = (int(cycle_steps),) if cycle_steps is not None else self.cycle_steps
+        out = [(c, k) for c in sorted(cycles) for k in sorted(self.keyframes) if c >= self.min_steps_per_keyframe * k]
+        if not out:
+            raise ValueError(f"no (cycle, keyframes) candidate: cycles {cycles} are shorter than "
+                             f"{self.min_steps_per_keyframe} steps per keyframe for keyframes {self.keyframes}")
+        return out
+
+    def gait(self, n_cycle: int, n_keyframes: int) -> GaitSpec:
+        """The gait of a candidate: horizon of at least ``min_horizon_steps`` cycle steps."""
+        n_cycles = max(2, math.ceil(self.min_horizon_steps / n_cycle))
+        return GaitSpec(n_prep=self.n_prep, n_cycle=n_cycle, n_cycles=n_cycles, n_keyframes=n_keyframes,
+                        symmetry=self.symmetry, interpolation=self.interpolation)
+
+    def target(self, best: float) -> float:
+        """The tracking target [BL/min] when the fastest upright gait so far makes ``best``."""
+        return max(self.min_target, self.target_margin * best)
+
+
+#: the columns of the search table (one row per optimisation)
+TABLE_COLUMNS = ("stage", "n_cycle", "n_keyframes", "horizon_cycles", "start", "target_bl_per_min", "iterations",
+                 "status", "speed_bl_per_min", "upright", "max_tilt_deg", "optimization_sim_steps",
+                 "evaluation_sim_steps", "total_sim_steps", "wall_time_s", "chosen")
+
+
+class _KeyframeStart:
+    """A warm start for :func:`trajopt.optimize.choose_start`: only its keyframes are read."""
+
+    def __init__(self, keyframes: np.ndarray, source: str):
+        self.settings = {"keyframes": np.asarray(keyframes).tolist(), "source": source}
+
+
+def keyframes_at(keyframes: np.ndarray, n_keyframes: int) -> np.ndarray:
+    """Keyframes (M, k) of a cycle as ``n_keyframes`` keyframes at the same phases of the cycle:
+    the periodic piecewise-linear cycle through them sampled at the new keyframes' phases (the
+    same cycle when k divides ``n_keyframes`` and the keyframes are joined by straight lines)."""
+    kf = np.asarray(keyframes, dtype=np.float64)
+    k = kf.shape[1]
+    phase = np.arange(n_keyframes) * k / n_keyframes
+    return np.array([np.interp(phase, np.arange(k + 1), np.append(row, row[0])) for row in kf])
+
+
+def _evaluation_steps(res: Result) -> int:
+    """The steps of a result's evaluation (prep + its cycles; a failed one counted in full)."""
+    s = res.settings
+    return int(s["n_prep"]) + int(s["eval_cycles"]) * int(s["n_cycle"])
+
+
+def _row(stage: str, res: Result | None, gait: GaitSpec, start: str, target: float, opt_steps: int,
+         eval_steps: int, total: int, seconds: float, failure: str = "") -> dict[str, Any]:
+    ev = res.evaluation if res is not None else {}
+    return {"stage": stage, "n_cycle": gait.n_cycle, "n_keyframes": gait.n_keyframes,
+            "horizon_cycles": gait.n_cycles, "start": start, "target_bl_per_min": round(target, 3),
+            "iterations": len(res.history) if res is not None else 0,
+            "status": res.status if res is not None else failure,
+            "speed_bl_per_min": float(ev.get("speed_bl_per_min", float("nan"))),
+            "upright": bool(ev.get("upright", False)), "max_tilt_deg": float(ev.get("max_tilt_deg", float("nan"))),
+            "optimization_sim_steps": opt_steps, "evaluation_sim_steps": eval_steps, "total_sim_steps": total,
+            "wall_time_s": round(seconds, 2), "chosen": False}
+
+
+def _progress(total: int, quiet: bool):
+    if quiet:
+        return None
+    from tqdm.auto import tqdm
+    return tqdm(total=total, desc="--speed max", unit="run", leave=True)
+
+
+class _Search:
+    """The state of a search: its rows, runs, step count and the fastest upright speed so far."""
+
+    def __init__(self, env, settings: SearchSettings, heading_deg: float, robot_spec: str | None, bar, say):
+        self.env, self.settings, self.heading_deg, self.robot_spec = env, settings, heading_deg, robot_spec
+        self.bar, self.say = bar, say
+        self.t_start = time.perf_counter()
+        self.rows: list[dict] = []
+        self.runs: list[tuple[dict, Result]] = []
+        self.total = 0
+        self.best = 0.0
+
+    def _cap(self, share: float) -> float:
+        budget = self.settings.max_sim_steps
+        return np.inf if budget is None else share * budget
+
+    def _n_starts(self, gait: GaitSpec, warm, z0, n_seeds: int) -> int:
+        """Rollouts :func:`~trajopt.optimize.choose_start` screens before Gauss-Newton."""
+        if z0 is not None:
+            return 0
+        n = (1 if warm is not None else 0) + (len(GaitParameterization.for_robot(self.env.robot, gait).seeds(n_seeds))
+                                              if (n_seeds > 0 or warm is None) else 0)
+        return n if n > 1 else 0
+
+    def run(self, stage: str, gait: GaitSpec, start: str, iterations: int, share: float, *, warm=None, z0=None,
+            n_seeds: int = 0) -> Result | None:
+        """One optimisation and its evaluation, within ``share`` of the budget: skipped when the
+        start, one iteration and the evaluation do not fit, and stopped after the iteration
+        beyond which the next (its line search at most ``max_backtracks + 1`` trials and a
+        Jacobian rollout) and the evaluation might not."""
+        cap, options = self._cap(share), GaussNewtonOptions(max_iter=iterations)
+        horizon, eval_steps = gait.n_steps(), gait.n_prep + self.settings.eval_cycles * gait.n_cycle
+        per_iteration = horizon * (options.max_backtracks + 2)
+        target = self.settings.target(self.best)
+        if self.total + (self._n_starts(gait, warm, z0, n_seeds) + 1) * horizon + per_iteration + eval_steps > cap:
+            self.rows.append(_row(stage, None, gait, start, target, 0, 0, self.total, 0.0, "skipped: budget"))
+            self._tick()
+            return None
+
+        def within_budget(entry: dict, _partial: Result) -> bool:
+            return self.total + entry["sim_steps_total"] + per_iteration + eval_steps > cap
+
+        t0 = time.perf_counter()
+        res, failure = None, ""
+        try:
+            res = optimize_gait(self.env, "walk", gait=gait, speed_bl_per_min=target, heading_deg=self.heading_deg,
+                                options=options, warm_start=warm, z0=z0, n_seeds=n_seeds,
+                                eval_cycles=self.settings.eval_cycles, robot_spec=self.robot_spec,
+                                callback=within_budget, motor_limit=True)
+            opt_steps, eval_steps = int(res.evaluation["optimization_sim_steps"]), _evaluation_steps(res)
+        except SimulationError as err:       # a start that cannot be simulated: the candidate fails
+            failure, opt_steps, eval_steps = f"failed: {err}", 0, 0
+        self.total += opt_steps + eval_steps
+        row = _row(stage, res, gait, start, target, opt_steps, eval_steps, self.total, time.perf_counter() - t0,
+                   failure)
+        self.rows.append(row)
+        if res is not None:
+            self.runs.append((row, res))
+            if row["upright"] and row["speed_bl_per_min"] > self.best:
+                self.best = row["speed_bl_per_min"]
+        self.say(f"{stage} cycle {gait.n_cycle} keyframes {gait.n_keyframes}: {row['speed_bl_per_min']:.2f} BL/min "
+                 f"({'upright' if row['upright'] else 'fell'}), {self.total:,} simulation steps so far")
+        self._tick()
+        return res
+
+    def _tick(self) -> None:
+        if self.bar is not None:
+            self.bar.set_postfix(best=f"{self.best:.2f} BL/min", steps=f"{self.total:,}")
+            self.bar.update(1)
+
+
+def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle_steps: int | None = None,
+                 contact: str | None = None, heading_deg: float = 0.0, robot_spec: str | None = None,
+                 quiet: bool = False, log: Callable[[str], Any] | None = None) -> tuple[Result, list[dict]]:
+    """The fastest upright walk within the motors' speed limit (module docstring): ``(result,
+    table)``. ``env``: a Gymnasium env offering :class:`~soft_envs.envs.GradientEnv`, or a robot
+    / name / robot.toml path (``contact``: its contact law). ``cycle_steps``: pin the cycle
+    (search keyframes and starts only). ``quiet``: no progress bar. The result is the chosen
+    run's :class:`Result` (evaluated over ``settings.eval_cycles`` cycles); its
+    ``settings["search"]`` and ``evaluation["search_sim_steps"]`` record the search; the table
+    has one row per optimisation (:data:`TABLE_COLUMNS`), the chosen one marked. Raises
+    :class:`~soft_envs.envs.SimulationError` when no candidate stays upright, ValueError when the
+    budget fits none."""
+    env = as_gradient_env(env, contact=contact)
+    candidates = settings.candidates(cycle_steps)
+    search = _Search(env, settings, heading_deg, robot_spec, _progress(len(candidates) + settings.n_fine, quiet),
+                     log or (lambda text: None))
+    try:
+        previous: Result | None = None          # the last candidate's result: the next one's warm start
+        for n_cycle, n_kf in candidates:
+            warm = None
+            if previous is not None:
+                warm = _KeyframeStart(keyframes_at(np.asarray(previous.settings["keyframes"]), n_kf),
+                                      f"cycle {previous.settings['n_cycle']}, "
+                                      f"{previous.settings['n_keyframes']} keyframes")
+            res = search.run("coarse", settings.gait(n_cycle, n_kf), warm.settings["source"] if warm else "seeds",
+                             settings.coarse_iterations, settings.coarse_share, warm=warm,
+                             n_seeds=settings.seeds if warm is not None else max(settings.seeds, 1))
+            previous = res if res is not None else previous
+        upright = sorted((p for p in search.runs if p[0]["upright"]), key=lambda p: -p[0]["speed_bl_per_min"])
+        for row, res in upright[:settings.n_fine]:
+            gait = GaitSpec.from_settings(res.settings)
+            search.run("fine", gait, f"coarse cycle {gait.n_cycle}, {gait.n_keyframes} keyframes",
+                       settings.fine_iterations, 1.0, z0=res.z)
+    finally:
+        if search.bar is not None:
+            search.bar.close()
+    rows, runs, total = search.rows, search.runs, search.total
+    upright = [p for p in runs if p[0]["upright"]]
+    if not runs:
+        raise ValueError(f"--speed max: a budget of {settings.max_sim_steps:,} simulation steps fits none of the "
+                         f"{len(rows)} candidates (a start, one Gauss-Newton iteration and the evaluation)")
+    if not upright:
+        raise SimulationError(f"--speed max: none of the {len(rows)} gaits tried stayed upright over "
+                              f"{settings.eval_cycles} cycles ({total:,} simulation steps)")
+    row, res = max(upright, key=lambda p: p[0]["speed_bl_per_min"])
+    row["chosen"] = True
+    res.settings["search"] = {"settings": asdict(settings), "cycle_steps_pinned": cycle_steps, "runs": len(rows),
+                              "sim_steps": total, "wall_time_s": time.perf_counter() - search.t_start}
+    res.evaluation["search_sim_steps"] = total
+    res.evaluation["search_wall_time_s"] = time.perf_counter() - search.t_start
+    return res, rows
+
+
+def search_table_paths(result_file: str | Path) -> tuple[Path, Path]:
+    """``(NAME.search.csv, NAME.search.md)`` beside the result ``NAME.npz``."""
+    p = Path(result_file)
+    stem = p.name.removesuffix(".npz")
+    return p.with_name(stem + ".search.csv"), p.with_name(stem + ".search.md")
+
+
+def _cell(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.3f}" if np.isfinite(v) else "nan"
+    return str(v)
+
+
+def write_search_table(rows: list[dict], result_file: str | Path) -> tuple[Path, Path]:
+    """Write the search table beside ``result_file`` as CSV and Markdown (atomically); the paths."""
+    csv_path, md_path = search_table_paths(result_file)
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=TABLE_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic_write_bytes(csv_path, buf.getvalue().encode())
+    lines = ["| " + " | ".join(TABLE_COLUMNS) + " |", "|" + "---|" * len(TABLE_COLUMNS)]
+    lines += ["| " + " | ".join(_cell(r[c]) for c in TABLE_COLUMNS) + " |" for r in rows]
+    atomic_write_bytes(md_path, ("\n".join(lines) + "\n").encode())
+    return csv_path, md_path
