@@ -65,8 +65,8 @@ def env_replay(res, contact: str, n_cycles: int) -> float:
     physics = make_gradient_env(res.robot, contact=contact)
     param = GaitParameterization.for_robot(physics.robot, GaitSpec.from_settings(res.settings))
     u = param.controls(res.z, n_cycles)
-    env = gym.make(env_id(res.robot, physics.contact_model), reset_noise_scale=0.0, terminate_when_unhealthy=False,
-                   max_episode_steps=len(u))
+    env = gym.make(env_id(res.robot), contact=physics.contact_model, reset_noise_scale=0.0,
+                   terminate_when_unhealthy=False, max_episode_steps=len(u))
     acts = env.unwrapped.control_to_action(u)
     rec = play_controls_in_env(env, lambda obs, k: acts[k], len(u), seed=0)
     m = run_metric(env, rec["u"], rec["x"], gait=GaitSpec.from_settings(res.settings))
