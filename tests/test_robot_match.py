@@ -189,3 +189,29 @@ def test_moved_mesh_nodes_with_the_same_connectivity_change_the_fingerprint(tmp_
     from trajopt.hardware import EXAMPLE_TRIPOD
     code, _, err = run(["play", path, "--dry-run", "--hardware", EXAMPLE_TRIPOD], capsys)
     assert code == 2 and "the mesh changed" in err, err
+
+
+def test_a_result_from_before_the_coulomb_default_is_still_the_same_robot(tmp_path, capsys):
+    """The shipped robot files changed `[contact] model` from "paper" to "coulomb" (issue #31);
+    a result records its own law and replays with it, so a result made for the file that said
+    "paper" is a result of the same robot. Any other change is still refused."""
+    from trajopt.robot_match import describe_difference
+    toml = copy_robot("tripod", tmp_path / "a")
+    now = robot_fingerprint(toml)
+    text = toml.read_text()
+    assert 'model = "coulomb"' in text
+    toml.write_text(text.replace('model = "coulomb"', 'model = "paper"', 1))
+    before = robot_fingerprint(toml)
+    assert before["sha256"] != now["sha256"]
+    assert describe_difference(before, now) is None
+    toml.write_text(text.replace('model = "coulomb"', 'model = "paper"', 1).replace("u_max = 0.02", "u_max = 0.015", 1))
+    edited = robot_fingerprint(toml)
+    assert "motors[0].u_max: 0.015 -> 0.02" in describe_difference(edited, now)
+    assert "[contact].model" not in describe_difference(edited, now)
+    toml.write_text(text)
+    res = gait_for(toml)
+    res.robot_fingerprint = before
+    res.settings["contact"] = "paper"
+    res.save(tmp_path / "old.npz")
+    code, out, err = run(["evaluate", tmp_path / "old.npz", "--cycles", "1"], capsys)
+    assert code == 0 and "was made for" not in err, err

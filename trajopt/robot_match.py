@@ -22,6 +22,11 @@ __all__ = ["RobotMismatchError", "IGNORE_FLAG", "fingerprint_of", "describe_diff
            "check_hardware_robot", "check_for_play"]
 
 IGNORE_FLAG = "--ignore-robot-mismatch"
+#: robot.toml fields a result records itself and replays with, whatever the file says now: the
+#: contact law (``settings["contact"]``; a result without it was made under the paper's law). The
+#: shipped robot files changed ``[contact] model`` from "paper" to "coulomb" (issue #31): a
+#: result made before is still a result of the same robot.
+RESULT_OWNED_FIELDS = frozenset({"[contact].model"})
 
 
 class RobotMismatchError(ValueError):
@@ -64,7 +69,10 @@ def describe_difference(saved: dict[str, Any], current: dict[str, Any], max_fiel
     parts = []
     if saved.get("toml_sha256") != current.get("toml_sha256"):
         old, new = _flatten(saved.get("toml", {}), "", {}), _flatten(current.get("toml", {}), "", {})
-        changed = [k for k in sorted(set(old) | set(new)) if old.get(k, _ABSENT) != new.get(k, _ABSENT)]
+        changed = [k for k in sorted(set(old) | set(new))
+                   if old.get(k, _ABSENT) != new.get(k, _ABSENT) and k not in RESULT_OWNED_FIELDS]
+        if not changed and "toml" in saved and saved.get("mesh_sha256") == current.get("mesh_sha256"):
+            return None         # only what the result records itself differs (its contact law)
         shown = [f"{k}: {_short(old.get(k, _ABSENT))} -> {_short(new.get(k, _ABSENT))}" for k in changed[:max_fields]]
         more = f" and {len(changed) - max_fields} more" if len(changed) > max_fields else ""
         parts.append("robot.toml changed" + (f" ({'; '.join(shown)}{more})" if shown else ""))
