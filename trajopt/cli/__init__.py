@@ -76,7 +76,7 @@ def _add_optimize(sub) -> None:
                    help="how a cycle passes through its keyframes: hermite, the paper's zero-tangent spline (its "
                         "slope peaks at 1.5x its mean, so under the motor limit a cable averages 2/3 of the motor's "
                         "speed), or linear, straight lines (the full speed); default: the task's (hermite; "
-                        "--speed max: linear)")
+                        "the turn and --speed max: linear)")
     p.add_argument("--cycle-steps", type=steps, default=None,
                    help=f"simulation steps per gait cycle (default {paper.n_cycle}, the paper's; with --speed max: "
                         "searched unless given)")
