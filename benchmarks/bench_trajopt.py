@@ -1,7 +1,7 @@
 """Gait optimisation benchmark and the paper's tasks under either contact law.
 
 Runs, in one go: Tripod walk; Puppy walk (symmetry on); Puppy turn right (symmetry off,
-12 keyframes, heading term, warm-started from the walk; its heading over the optimised horizon
+12 keyframes joined by straight lines, heading term, warm-started from the walk; its heading over the optimised horizon
 and its COM's distance from the quarter circle); Puppy incline at 10 and 20 degrees (re-optimised, starting from
 the best of the flat-ground gait and the seeds) and, for comparison, the flat-ground Puppy gait
 played on those slopes. ``--contact paper``

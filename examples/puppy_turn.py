@@ -6,7 +6,8 @@ The turn is the walk's problem with three changes (trajopt's defaults for ``task
 the COM target is a quarter circle over the horizon (prep + 2 cycles, 168 steps), the objective
 also tracks the body's heading (the yaw of the best-fit rotation of all nodes from the rest
 shape, with its exact derivative through the rollout's dx/dz), and each motor's cycle has 12
-keyframes without bilateral symmetry, so the legs on the two sides may differ. The Coulomb
+keyframes without bilateral symmetry, so the legs on the two sides may differ, joined by
+straight lines (under the motors' speed limit a cable then moves at the motor's full speed). The Coulomb
 contact law is the default (the robot files') and the turn's whatever the file says: the turn
 pivots on feet that stick, which the paper's viscous-like friction cannot hold. The starts are the walk (as three strides per cycle) and
 the walk with one side's motors played backwards (tank turns) and eight random patterns;

@@ -239,3 +239,31 @@ def test_an_output_folder_that_is_an_existing_file_is_refused_by_every_command(t
         assert code == 2 and len(lines) == 1 and f"argument {option}" in lines[0], (words, option, err)
         assert str(blocker) in lines[0] and "not a directory" in lines[0], (words, option, err)
     assert blocker.read_text() == "not a directory" and sorted(tmp_path.iterdir()) == [blocker]
+
+
+def test_interpolation_is_an_option_of_every_optimisation(tmp_path, capsys):
+    """``--interpolation {hermite,linear}`` (default: the task's) reaches the gait and is recorded;
+    a bad value is refused naming the option; ``--resume`` refuses a checkpoint of the other
+    interpolation (RESUME_KEYS) and continues one of the same."""
+    from trajopt.optimize_run import OptimizeRun
+    from trajopt.results import Result
+    parser = build_parser()
+    assert parser.parse_args(["optimize", "puppy"]).interpolation is None       # the task's
+    assert parser.parse_args(["optimize", "puppy", "--interpolation", "linear"]).interpolation == "linear"
+    assert OptimizeRun.from_mapping(vars(parser.parse_args(
+        ["optimize", "puppy", "--task", "turn", "--interpolation", "hermite"]))).interpolation == "hermite"
+    code, _, err = run(["optimize", "tripod", *TINY, "--out", tmp_path, "--interpolation", "cubic"], capsys)
+    assert code == 2 and "--interpolation" in err and not list(tmp_path.iterdir())
+
+    code, _, err = run(["optimize", "tripod", *TINY, "--out", tmp_path, "--interpolation", "linear"], capsys)
+    assert code == 0, err
+    res = Result.load(tmp_path / "tripod_walk.npz")
+    assert res.settings["interpolation"] == "linear"
+    res.status = "interrupted"
+    res.save(tmp_path / "other.partial.npz")
+    argv = ["optimize", "tripod", *TINY, "--out", tmp_path, "--name", "other", "--resume"]
+    code, _, err = run(argv, capsys)                                  # the default, hermite: refused
+    assert code == 2 and "interpolation" in err and not (tmp_path / "other.npz").exists()
+    code, _, err = run([*argv, "--interpolation", "linear"], capsys)
+    assert code == 0, err
+    assert Result.load(tmp_path / "other.npz").settings["interpolation"] == "linear"

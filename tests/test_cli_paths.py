@@ -64,6 +64,7 @@ def test_turn_task_targets_a_quarter_circle(tmp_path):
     assert optimize(tmp_path, "--task", "turn", "--iterations", "1") == 0
     res = Result.load(tmp_path / "tripod_turn.npz")
     assert res.task == "turn" and res.settings["symmetry"] is False and res.settings["turn"] == "right"
+    assert res.settings["interpolation"] == "linear"                 # the turn's default
     v, T = 8.0 * TRIPOD_BL / 60.0, K * DT
     R = 2.0 * v * T / math.pi
     np.testing.assert_allclose(res.target[-1] - res.target[0], [R, R], rtol=1e-12)
@@ -72,9 +73,10 @@ def test_turn_task_targets_a_quarter_circle(tmp_path):
 
 def test_warm_start_starts_from_the_given_keyframes(walk, tmp_path):
     """--warm-start with no seeds and no iterations: the turn starts (and so ends) exactly at the
-    walk's keyframes, converted from the symmetric to the asymmetric parameterisation."""
+    walk's keyframes, converted from the symmetric to the asymmetric parameterisation (joined as
+    the walk joins them, by the spline: the turn's default lines play other controls)."""
     assert optimize(tmp_path, "--task", "turn", "--warm-start", str(walk), "--iterations", "0", "--seeds", "0",
-                    "--name", "warm") == 0
+                    "--name", "warm", "--interpolation", "hermite") == 0
     res, src = Result.load(tmp_path / "warm.npz"), Result.load(walk)
     assert res.settings["warm_start"] == str(walk) and res.history == []
     np.testing.assert_allclose(res.settings["keyframes"], src.settings["keyframes"], rtol=0, atol=1e-15)

@@ -16,7 +16,9 @@ def test_the_paper_tasks_and_what_they_give():
     assert list(TASKS) == ["walk", "turn", "incline", "custom"] and command_line_tasks() == ["walk", "turn", "incline"]
     walk, turn, incline = TASKS["walk"], TASKS["turn"], TASKS["incline"]
     assert GaitSpec.for_task("walk") == GaitSpec() == GaitSpec.for_task("incline")
-    assert GaitSpec.for_task("turn") == GaitSpec(n_keyframes=12, symmetry=False)
+    assert GaitSpec.for_task("turn") == GaitSpec(n_keyframes=12, symmetry=False, interpolation="linear")
+    assert GaitSpec.for_task("turn", interpolation="hermite").interpolation == "hermite"
+    assert GaitSpec.for_task("walk").interpolation == GaitSpec.for_task("incline").interpolation == "hermite"
     assert GaitSpec.for_task("turn", symmetry=True).symmetry and not GaitSpec.for_task("walk", symmetry=False).symmetry
     assert ObjectiveWeights.for_task("turn").heading == 1.0 and ObjectiveWeights.for_task("walk") == ObjectiveWeights()
     assert (walk.contact, turn.contact, incline.contact) == (None, "coulomb", None)

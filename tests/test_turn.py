@@ -17,6 +17,7 @@ from trajopt.heading import HeadingMeasure
 from trajopt.objectives import HeadingTarget
 from trajopt.optimize import TASK_CONTACT, GaitProblem
 from trajopt.targets import quarter_circle, quarter_circle_heading, straight_line
+from trajopt.tasks import TURN_INTERPOLATION
 
 from .conftest import shipped
 
@@ -121,14 +122,16 @@ def test_measure_gait_reports_heading_per_cycle_and_over_the_horizon():
 
 
 def test_turn_defaults_and_warm_start_from_the_walk():
-    """The walk keeps the paper's gait and objective; the turn has 12 keyframes, no symmetry and
-    the heading term; a 4-keyframe walk warm-starts it as three strides per cycle."""
+    """The walk keeps the paper's gait and objective; the turn has 12 keyframes joined by straight
+    lines, no symmetry and the heading term; a 4-keyframe walk warm-starts it as three strides per
+    cycle."""
     assert GaitSpec.for_task("walk") == GaitSpec() and ObjectiveWeights.for_task("walk") == ObjectiveWeights()
     turn = GaitSpec.for_task("turn", n_keyframes=None, n_prep=30)
     assert (turn.n_keyframes, turn.symmetry, turn.n_prep) == (TURN_KEYFRAMES, False, 30)
+    assert turn.interpolation == TURN_INTERPOLATION == "linear" and GaitSpec().interpolation == "hermite"
     assert ObjectiveWeights.for_task("turn").heading > 0
     robot = shipped("puppy")[0]
-    walk = GaitParameterization.for_robot(robot, GaitSpec())
+    walk = GaitParameterization.for_robot(robot, GaitSpec(interpolation=turn.interpolation))  # same lines
     param = GaitParameterization.for_robot(robot, turn)
     kf = walk.keyframes(walk.initial_z(0.5, np.random.default_rng(1), noise=0.4))
     tiled = param.keyframes_from(kf)
@@ -149,9 +152,11 @@ PUPPY_WALK_MM = [[16, 16, 0, 1], [4, 0, 11, 16], [0, 1, 16, 16], [11, 16, 4, 0],
 @pytest.mark.parametrize("turn, sign", [("right", 1.0), ("left", -1.0)])
 def test_short_turn_optimisation_turns_the_body(turn, sign):
     """A short turn (prep + one cycle, two Gauss-Newton iterations) warm-started from the walk,
-    with the turn's defaults (12 keyframes, heading term, Coulomb law): the body's heading
+    with the turn's defaults (12 keyframes joined by lines, heading term, Coulomb law): the body's heading
     (best-fit rotation of all nodes) turns to the asked side over the horizon and keeps turning
-    at the same rate in the cycles after it."""
+    at the same rate in the cycles after it. Under the motors' limit (the default) it turns
+    about 26 degrees over the horizon and 25 per cycle to either side with the turn's straight
+    lines (the spline: 19; without the limit over 30)."""
     env = make_gradient_env("puppy", contact=TASK_CONTACT["turn"])
     kf = np.array(PUPPY_WALK_MM) * 1e-3
     walk = Result(robot="puppy", task="walk", motor_names=env.robot.motor_names, dt=env.timestep, z=kf.ravel(),
@@ -161,7 +166,7 @@ def test_short_turn_optimisation_turns_the_body(turn, sign):
                         n_seeds=0, options=GaussNewtonOptions(max_iter=2), eval_cycles=3)
     ev = res.evaluation
     assert res.history[-1]["objective_after"] < res.history[0]["objective"]
-    assert sign * ev["horizon_heading_change_deg"] > 30.0, ev
+    assert sign * ev["horizon_heading_change_deg"] > 20.0, ev
     per_cycle = sign * np.array(ev["heading_per_cycle_deg"])
-    assert per_cycle.min() > 25.0 and np.ptp(per_cycle[1:]) < 2.0, per_cycle
+    assert per_cycle.min() > 20.0 and np.ptp(per_cycle[1:]) < 2.0, per_cycle
     assert ev["horizon_rms_to_target_bl"] < 0.25 and ev["upright"]

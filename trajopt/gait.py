@@ -13,7 +13,9 @@ A task changes these defaults (``gait_defaults`` of :class:`trajopt.tasks.Task`)
 makes one stride per 72-step cycle, and the Puppy cannot both walk and turn a quarter circle in
 two such strides (the optimised turn reached 43-56 degrees in 10 cycles); 12 keyframes let
 each leg make up to three strides per cycle, and the walk's 4 keyframes warm-start it as three strides
-(:meth:`~trajopt.parameterization.GaitParameterization.keyframes_from`).
+(:meth:`~trajopt.parameterization.GaitParameterization.keyframes_from`); and its keyframes are
+joined by straight lines (:data:`~trajopt.tasks.TURN_INTERPOLATION`), which under the motors'
+speed limit turn further than the spline.
 
 This module imports nothing heavy: the command line reads its defaults from here.
 """

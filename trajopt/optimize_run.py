@@ -21,7 +21,7 @@ from typing import Any, Callable, Mapping
 from soft_envs.envs import compile_ahead, make_gradient_env
 
 from .files import RESULTS_DIR
-from .gait import DEFAULT_EVAL_CYCLES, GaitSpec
+from .gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
 from .gauss_newton import GaussNewtonOptions
 from .optimize import optimize_gait
 from .reservation import lock_path, reserve
@@ -41,7 +41,7 @@ class OptimizeRun:
     :mod:`trajopt.fastest`, with its search table beside the result), heading [deg], turn side, slope ``angle`` [deg] (a task
     on a slope), contact law (None: the task's, else the robot file's), symmetry (None: the
     task's), warm start result, whether to optimise without the motors' speed limit
-    (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes (None: the task's), cycle
+    (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes and their ``interpolation`` (None: the task's; :data:`trajopt.gait.INTERPOLATIONS`), cycle
     steps (None: the paper's 72; with ``speed="max"``: searched) and prep steps, random seeds, evaluation cycles,
     the ``speed="max"`` search's budget of simulation steps (``max_sim_steps``, None: none), output folder and
     result name (None:
@@ -59,6 +59,7 @@ class OptimizeRun:
     no_motor_limit: bool = False
     iterations: int = 10
     keyframes: int | None = None
+    interpolation: str | None = None
     cycle_steps: int | None = None
     prep_steps: int = _PAPER.n_prep
     seeds: int = 8
@@ -140,8 +141,10 @@ def _gait(run: OptimizeRun) -> GaitSpec:
     n_cycle = _PAPER.n_cycle if run.cycle_steps is None else run.cycle_steps
     try:
         return GaitSpec.for_task(run.task, symmetry=run.symmetry, n_prep=run.prep_steps,
-                                 n_cycle=n_cycle, n_keyframes=run.keyframes)
+                                 n_cycle=n_cycle, n_keyframes=run.keyframes, interpolation=run.interpolation)
     except ValueError:
+        if run.interpolation not in (None, *INTERPOLATIONS):
+            raise ValueError(f"--interpolation must be one of {INTERPOLATIONS}, got {run.interpolation!r}") from None
         raise ValueError(f"--keyframes {run.keyframes} must be at most --cycle-steps {n_cycle}") from None
 
 
@@ -187,7 +190,7 @@ def run_optimization(run: OptimizeRun, progress: Callable[[int], Any] | None = N
 def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Result, Path]:
     """``--speed max`` (:func:`trajopt.fastest.fastest_gait`): the search's default settings
     (``SOFT_ENVS_QUICK=1``: its quick ones), the cycle pinned by ``cycle_steps``, the keyframe
-    count by ``keyframes``; ``iterations`` and ``seeds`` cap each run's Gauss-Newton iterations
+    count by ``keyframes``, the interpolation by ``interpolation`` (default the search's, linear); ``iterations`` and ``seeds`` cap each run's Gauss-Newton iterations
     and random starts, ``cycles`` raises the evaluation's 10 cycles; the result and its table
     (``NAME.search.csv`` / ``.md``) written when it finishes."""
     from .fastest import SearchSettings, fastest_gait, write_search_table
@@ -201,6 +204,7 @@ def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Resul
         n_prep=run.prep_steps if not quick else settings.n_prep,
         keyframes=(run.keyframes,) if run.keyframes is not None else settings.keyframes,
         symmetry=settings.symmetry if run.symmetry is None else run.symmetry,
+        interpolation=settings.interpolation if run.interpolation is None else run.interpolation,
         max_sim_steps=run.max_sim_steps)
     with compile_ahead(run.robot):
         env = make_gradient_env(run.robot, heading_deg=run.heading, contact=run.contact)

@@ -31,7 +31,7 @@ from pathlib import Path
 from ..argtypes import (contact_law, cycles, file_name, frame_size, integer, number, output_dir, output_file,
                        positive_float, positive_int, slope_deg, speed, steps)
 from ..files import RESULTS_DIR
-from ..gait import DEFAULT_EVAL_CYCLES, GaitSpec
+from ..gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
 from ..tasks import TURN_KEYFRAMES, command_line_tasks
 
 __all__ = ["main", "build_parser", "RESULTS_DIR"]
@@ -72,6 +72,11 @@ def _add_optimize(sub) -> None:
     paper = GaitSpec()
     p.add_argument("--keyframes", type=steps, default=None,
                    help=f"spline keyframes per cycle (default {paper.n_keyframes}, the paper's; turn {TURN_KEYFRAMES})")
+    p.add_argument("--interpolation", choices=INTERPOLATIONS, default=None,
+                   help="how a cycle passes through its keyframes: hermite, the paper's zero-tangent spline (its "
+                        "slope peaks at 1.5x its mean, so under the motor limit a cable averages 2/3 of the motor's "
+                        "speed), or linear, straight lines (the full speed); default: the task's (hermite; "
+                        "the turn and --speed max: linear)")
     p.add_argument("--cycle-steps", type=steps, default=None,
                    help=f"simulation steps per gait cycle (default {paper.n_cycle}, the paper's; with --speed max: "
                         "searched unless given)")
