@@ -100,22 +100,22 @@ def test_the_environment_follows_the_robots_motors_and_the_override(tmp_path):
     slow = copy_robot("tripod", tmp_path, "max_speed_rpm = 50")
     step = 100 * 2 * math.pi / 60 * 0.005 * 0.033          # [m] 100 rpm, 5 mm spool, one paper step
     kw = dict(reset_noise_scale=0.0)
-    shipped = gym.make("SoftTripod-v0", **kw).unwrapped
+    shipped = gym.make("SoftTripod-v1", **kw).unwrapped
     assert shipped.motor_speed == pytest.approx([step / 0.033] * 2, rel=1e-12)
     assert _first_step_u(shipped) == pytest.approx([step] * 2, rel=1e-12)
-    env = gym.make("SoftTripod-v0", robot=str(slow), **kw).unwrapped
+    env = gym.make("SoftTripod-v1", robot=str(slow), **kw).unwrapped
     assert env.motor_speed == pytest.approx([step / 0.033 / 2] * 2, rel=1e-12)
     assert _first_step_u(env) == pytest.approx([step / 2] * 2, rel=1e-12)
-    override = gym.make("SoftTripod-v0", robot=str(slow), motor_speed_rpm=100, **kw).unwrapped
+    override = gym.make("SoftTripod-v1", robot=str(slow), motor_speed_rpm=100, **kw).unwrapped
     assert _first_step_u(override) == pytest.approx([step] * 2, rel=1e-12)
-    unlimited = gym.make("SoftTripod-v0", robot=str(slow), motor_speed_rpm=None, **kw).unwrapped
+    unlimited = gym.make("SoftTripod-v1", robot=str(slow), motor_speed_rpm=None, **kw).unwrapped
     assert _first_step_u(unlimited) == pytest.approx([0.02, 0.02], rel=1e-12)
 
 
 @pytest.mark.parametrize("bad", ["fast", "Robot", 0, -5.0, float("inf"), True])
 def test_a_bad_motor_speed_rpm_keyword_is_refused(bad):
     with pytest.raises(ValueError, match="motor_speed_rpm must be \"robot\""):
-        gym.make("SoftTripod-v0", motor_speed_rpm=bad)
+        gym.make("SoftTripod-v1", motor_speed_rpm=bad)
 
 
 def test_robustness_scales_the_robots_own_motor_speed(tmp_path):
@@ -323,9 +323,9 @@ def test_play_dry_run_accepts_what_optimize_writes(tmp_path, capsys, robot, args
 def test_an_environment_without_a_limit_gives_no_inequalities():
     """``motor_speed_rpm=None`` (no limit): the optimiser's limit is the environment's, so none."""
     from trajopt.motor_limit import max_step_of_env
-    env = gym.make("SoftTripod-v0", motor_speed_rpm=None).unwrapped
+    env = gym.make("SoftTripod-v1", motor_speed_rpm=None).unwrapped
     max_step = max_step_of_env(env)
     assert np.isinf(max_step).all()
     c = speed_limit_constraints(GaitParameterization.for_robot(env.robot, QUICK), max_step)
     assert c.G.shape == (0, 8) and c.feasible(np.zeros(8))
-    assert max_step_of_env(gym.make("SoftTripod-v0", motor_speed_rpm=50).unwrapped) == pytest.approx([STEP / 2] * 2)
+    assert max_step_of_env(gym.make("SoftTripod-v1", motor_speed_rpm=50).unwrapped) == pytest.approx([STEP / 2] * 2)

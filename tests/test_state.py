@@ -191,6 +191,7 @@ def test_the_deprecated_positions_step_is_the_state_step():
         sim.step(rest, np.zeros(0), 3)
 
 
+@pytest.mark.filterwarnings("ignore:.*SoftTripod-v0 is out of date:DeprecationWarning")   # -v0 on purpose: both laws
 @pytest.mark.parametrize("env_id", ["SoftTripod-v0", "SoftTripod-v1"])
 def test_the_environment_steps_through_the_same_loop(env_id):
     gym = pytest.importorskip("gymnasium")
