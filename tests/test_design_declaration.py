@@ -8,7 +8,7 @@ import pytest
 
 from soft_envs.sim import Simulator, load_robot
 from soft_envs.sim.design import MIN_CLEARANCE, TendonRouting, load_design, region_from_boxes, write_designed_robot
-from soft_envs.sim.robot_file import robot_fingerprint
+from soft_envs.sim.fingerprint import robot_fingerprint
 
 DESIGN = """
 [design]

@@ -14,7 +14,8 @@ import pytest
 import soft_envs  # noqa: F401  (registers the environments)
 from soft_envs.sim import load_robot
 from soft_envs.sim.robot import DEFAULT_MAX_SPEED_RPM
-from soft_envs.sim.robot_file import asset_path, robot_fingerprint
+from soft_envs.sim.fingerprint import robot_fingerprint
+from soft_envs.sim.robot_file import asset_path
 
 from .conftest import small_robot
 

@@ -13,7 +13,7 @@ It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`
 """
 from ..sim import Robot, SimulationError, Trajectory, load_robot
 from ..sim.contact import CONTACT_LAWS
-from ..sim.robot_file import robot_fingerprint
+from ..sim.fingerprint import robot_fingerprint
 from ..sim.warmup import compile_ahead
 from .base import MOTOR_NO_LOAD_RPM, PAPER_GAIT_PERIOD, PAPER_TIMESTEP, SoftRobotEnv, with_contact_law
 from .domain import DEFAULT_DOMAIN_RANDOMIZATION

@@ -72,14 +72,13 @@ Every error is a ``ValueError`` that names the file and the field: a file that i
 not TOML, an unknown or missing key, a value of the wrong type, and any number that is not
 finite (TOML's ``inf`` and ``nan``).
 
-:func:`robot_fingerprint` identifies a robot description (its ``robot.toml`` and mesh, normalised)
-so that a gait can be tied to the robot it was made for.
+:func:`~soft_envs.sim.fingerprint.robot_fingerprint` (its own module) identifies a robot
+description (its ``robot.toml`` and mesh, normalised) so that a gait can be tied to the robot it
+was made for.
 """
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 import math
 import tomllib
 from pathlib import Path
@@ -90,7 +89,7 @@ import numpy as np
 from .mesh import TetMesh, load_mesh
 from .robot import DEFAULT_MAX_SPEED_RPM, ContactParams, Marker, Motor, Robot, Tendon
 
-__all__ = ["load_robot", "asset_path", "robot_fingerprint", "robot_file_path", "robot_document", "SHIPPED_ROBOTS"]
+__all__ = ["load_robot", "asset_path", "robot_file_path", "robot_document", "read_robot_toml", "SHIPPED_ROBOTS"]
 
 SHIPPED_ROBOTS = ("tripod", "puppy")
 
@@ -178,7 +177,7 @@ def robot_document(name_or_path: str | Path) -> tuple[dict[str, Any], Any]:
     """The parsed robot.toml of ``name_or_path`` and its map from file coordinates to the
     simulation frame (for tables read outside :func:`load_robot`, e.g. ``[design]``)."""
     path = robot_file_path(name_or_path)
-    doc = _read_toml(path)
+    doc = read_robot_toml(path)
     return doc, _to_sim(doc.get("robot", {}), str(path))[0]
 
 
@@ -191,8 +190,8 @@ def robot_file_path(name_or_path: str | Path) -> Path:
     return path
 
 
-def _read_toml(path: Path) -> dict[str, Any]:
-    """The parsed document; not UTF-8, unreadable, not TOML or a non-finite number: a
+def read_robot_toml(path: Path) -> dict[str, Any]:
+    """The parsed document of the robot.toml ``path``; not UTF-8, unreadable, not TOML or a non-finite number: a
     ValueError naming the file (and the field)."""
     src = str(path)
     try:
@@ -229,64 +228,12 @@ def _check_finite(doc: dict[str, Any], src: str) -> None:
             walk(value, key)
 
 
-def _normalised(v: Any) -> Any:
-    """Numbers as floats (``1`` and ``1.0`` are one value), everything else as parsed."""
-    if isinstance(v, dict):
-        return {k: _normalised(x) for k, x in v.items()}
-    if isinstance(v, list):
-        return [_normalised(x) for x in v]
-    if isinstance(v, int) and not isinstance(v, bool):
-        return float(v)
-    return v
-
-
-def robot_fingerprint(source: str | Path | Robot) -> dict[str, Any] | None:
-    """What identifies a robot description, to tie a result to the robot it was made for.
-
-    ``source``: a shipped name, a ``robot.toml`` path, or a :class:`Robot` (its ``source``
-    file; None for a robot built in Python). Returns ``{"name", "source", "sha256",
-    "toml_sha256", "mesh_sha256", "toml"}``: the ``[robot].name``, the file, and SHA-256 hashes
-    of the whole, of the ``robot.toml`` as parsed (comments, layout, key order, ``1`` vs ``1.0``,
-    ``[robot].mesh`` and ``description`` do not count, nor a motor's ``max_speed_rpm`` written
-    out at its default; ``toml`` is that normalised document, so a
-    mismatch can name the fields that changed) and of the mesh as read (node positions rounded to
-    1e-9 of the mesh's size, and tets; the file format does not count)."""
-    if isinstance(source, Robot):
-        if not Path(source.source).is_file():
-            return None
-        path = Path(source.source)
-    else:
-        path = robot_file_path(source)
-    doc = _read_toml(path)
-    robot_tbl = doc.get("robot", {}) if isinstance(doc.get("robot"), dict) else {}
-    mesh_name = robot_tbl.get("mesh")
-    if not isinstance(mesh_name, str):
-        raise ValueError(f"{path}: [robot].mesh is missing")
-    mesh = load_mesh(path.parent / mesh_name)
-    norm = _normalised(doc)
-    norm.get("robot", {}).pop("mesh", None)
-    norm.get("robot", {}).pop("description", None)
-    for motor in norm.get("motors", []) if isinstance(norm.get("motors"), list) else []:
-        if isinstance(motor, dict) and motor.get("max_speed_rpm") == DEFAULT_MAX_SPEED_RPM:
-            del motor["max_speed_rpm"]      # the default written out is the same robot (older files)
-    toml_text = json.dumps(norm, sort_keys=True, separators=(",", ":"), default=str)
-    size = float(np.ptp(mesh.points, axis=0).max()) or 1.0
-    h = hashlib.sha256()
-    h.update(np.round(mesh.points / size * 1e9).astype(np.int64).tobytes())
-    h.update(mesh.tets.astype(np.int64).tobytes())
-    mesh_hash = h.hexdigest()
-    toml_hash = hashlib.sha256(toml_text.encode()).hexdigest()
-    return {"name": str(robot_tbl.get("name", "")), "source": str(path),
-            "sha256": hashlib.sha256(f"{toml_hash}:{mesh_hash}".encode()).hexdigest(),
-            "toml_sha256": toml_hash, "mesh_sha256": mesh_hash, "toml": json.loads(toml_text)}
-
-
 def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
     """Load ``"tripod"``/``"puppy"`` or a ``robot.toml`` path. ``overrides`` replace Robot
     fields afterwards (e.g. ``youngs_modulus=2e5``)."""
     path = robot_file_path(name_or_path)
     src = str(path)
-    doc = _read_toml(path)
+    doc = read_robot_toml(path)
     allowed = set(_SCHEMA) | {"tendons", "motors", "markers", "design"}   # [design]: soft_envs.sim.design
     for key in doc:
         if key not in allowed:

@@ -12,7 +12,7 @@ units:
 
 The written folder is loaded back and compared with ``design.robot_at(theta)`` (node positions,
 tendon points, element moduli, masses): a mismatch is a RuntimeError. A different robot file
-means a different :func:`~soft_envs.sim.robot_file.robot_fingerprint`, so results made on one
+means a different :func:`~soft_envs.sim.fingerprint.robot_fingerprint`, so results made on one
 robot refuse the other.
 """
 from __future__ import annotations
