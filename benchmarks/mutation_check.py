@@ -292,7 +292,7 @@ FAULTS = [
           "return turns * (2 * math.pi) * self.spool_radius", RULES,
           "encoder counts -> cable length ignores the motor's direction -1"),
     # (5) integrity checks with one edited field
-    Fault("mesh_hash_ignores_nodes", "soft_envs/sim/robot_file.py",
+    Fault("mesh_hash_ignores_nodes", "soft_envs/sim/fingerprint.py",
           "    h.update(np.round(mesh.points / size * 1e9).astype(np.int64).tobytes())\n", "", INTEGRITY,
           "robot fingerprint's mesh hash ignores node positions (moved nodes, same tets, pass)"),
     Fault("content_hash_ignores_meta", "trajopt/results.py",
