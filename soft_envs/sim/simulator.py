@@ -54,6 +54,7 @@ class Simulator:
         self.gravity = self.system.gravity
         self.control = control
         self._rest_cache: dict = {}
+        self._history_layout: tuple | None = None
         self._rest_sens_cache: dict = {}
 
     @property
@@ -129,18 +130,26 @@ class Simulator:
     def check_history(self, history, x: np.ndarray, name: str = "history") -> tuple:
         """``history`` as the energy terms' tuple (None: at rest at ``x``, :meth:`initial_history`),
         checked against the terms (ValueError naming ``name`` and the entry otherwise)."""
-        expected = self.system.initial_history(x)
         if history is None:
-            return expected
+            return self.system.initial_history(x)
+        expected = self._history_shapes()
         if not isinstance(history, (tuple, list)) or len(history) != len(expected):
             raise ValueError(f"{name} must be a tuple of {len(expected)} entries (one per energy term), "
                              f"got {type(history).__name__} of length {len(history) if hasattr(history, '__len__') else '?'}")
         for i, (h, e) in enumerate(zip(history, expected)):
             if (h is None) != (e is None):
                 raise ValueError(f"{name}[{i}] must be {'None' if e is None else 'an array'} for this contact law")
-            if h is not None and (np.shape(h) != e.shape or not np.isfinite(h).all()):
-                raise ValueError(f"{name}[{i}] must be a finite array of shape {e.shape}, got shape {np.shape(h)}")
+            if h is not None and (np.shape(h) != e or not np.isfinite(h).all()):
+                raise ValueError(f"{name}[{i}] must be a finite array of shape {e}, got shape {np.shape(h)}")
         return tuple(history)
+
+    def _history_shapes(self) -> tuple:
+        """The shape of each energy term's history (None for terms without one): fixed by the
+        robot and its terms, so worked out once (a step's check of its State reads it)."""
+        if self._history_layout is None:
+            self._history_layout = tuple(None if h is None else h.shape
+                                         for h in self.system.initial_history(self.initial_placement()))
+        return self._history_layout
 
     def _check_state(self, state: State, name: str = "state") -> State:
         """A :class:`State` of this simulator (node count, finite positions, the terms' history)."""
