@@ -25,7 +25,12 @@ Gauss-Newton subproblem as a QP, ``min 0.5 dz'(J'J + lambda (diag(J'J) + mu I)) 
 subject to ``G (z + dz) <= h`` and the bounds (cvxopt's interior-point solver,
 :func:`trajopt.qp.solve_qp`, shortened until it is exactly feasible), and step 4 backtracks
 along ``z + alpha dz``: convex combinations of two feasible points, so every trial is feasible.
-The start must be feasible (:func:`trajopt.motor_limit.project_start`).
+The start must be feasible (:func:`trajopt.motor_limit.project_start`). ``constraints`` may
+also be a function of z returning the linear inequalities to keep from z on: the linearisation
+of nonlinear constraints (co-design's clearance and mass floor, :mod:`trajopt.codesign`), taken
+again after every accepted step (after ``fun(z, True)``); ``fun`` then refuses trial points that
+break the nonlinear constraints themselves (raises :class:`~soft_envs.envs.SimulationError`: a
+rejected trial).
 
 Stopping criteria (the first that holds; ``status`` in the result names it):
   * ``"max_iter"``: ``max_iter`` iterations done;
@@ -135,11 +140,19 @@ def _line_search(fun: Callable, z: np.ndarray, dz: np.ndarray, g: np.ndarray, f:
     return False, alpha, z_try, trials, info
 
 
+def _require_feasible(constraints: LinearConstraints | None, z: np.ndarray) -> None:
+    if constraints is not None and not constraints.feasible(z):
+        raise ValueError(f"the start breaks the constraints (worst G z - h = {constraints.violation(z):.3g}); "
+                         "project it first (trajopt.motor_limit.project_start)")
+
+
 def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                  options: GaussNewtonOptions = GaussNewtonOptions(), *,
                  callback: Callable[[dict], bool | None] | None = None,
                  lam: float | None = None, first_iteration: int = 1,
-                 rejections: int = 0, constraints: LinearConstraints | None = None) -> GaussNewtonResult:
+                 rejections: int = 0,
+                 constraints: LinearConstraints | Callable[[np.ndarray], LinearConstraints] | None = None
+                 ) -> GaussNewtonResult:
     """Run the solver from ``z0`` (projected onto the bounds). ``callback(entry)`` is called
     after every iteration with its history entry (plus ``"z"``); returning True stops.
     ``lam``, ``first_iteration`` and ``rejections`` (consecutive rejected steps so far) let an
@@ -150,14 +163,17 @@ def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.nda
     lower = np.asarray(lower, dtype=np.float64)
     upper = np.asarray(upper, dtype=np.float64)
     z = np.clip(np.asarray(z0, dtype=np.float64), lower, upper)
-    if constraints is not None and not constraints.feasible(z):
-        raise ValueError(f"the start breaks the constraints (worst G z - h = {constraints.violation(z):.3g}); "
-                         "project it first (trajopt.motor_limit.project_start)")
-    scale = np.where(upper > lower, upper - lower, 1.0)
-    lam = opt.lambda0 if lam is None else float(lam)
+    linearise = constraints if callable(constraints) else None
+    if linearise is None:
+        _require_feasible(constraints, z)
     f, r, J, info = _evaluate(fun, z, True)
     if not np.isfinite(f):
         raise SimulationError(f"the starting point cannot be simulated: {info['sim_failure']}")
+    if linearise is not None:
+        constraints = linearise(z)
+        _require_feasible(constraints, z)
+    scale = np.where(upper > lower, upper - lower, 1.0)
+    lam = opt.lambda0 if lam is None else float(lam)
     history: list[dict] = []
     status = "max_iter"
     rejections = int(rejections)
@@ -189,6 +205,8 @@ def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.nda
             f, r, J, info = _evaluate(fun, z, True)
             if not np.isfinite(f):          # cannot happen: z_try was just simulated
                 raise SimulationError(f"re-evaluation failed: {info['sim_failure']}")
+            if linearise is not None:
+                constraints = linearise(z)
             entry.update(objective_after=f, terms_after=info.get("terms", {}))
         else:
             lam *= opt.lambda_increase

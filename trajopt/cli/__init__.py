@@ -14,6 +14,7 @@
     trajopt sweep examples/sweep_speeds.toml --out results/sweeps/speeds [--workers N] [--address auto]
     trajopt calibrate tripod --markers examples/data/tripod_tracks.csv --controls examples/data/tripod_gait.npz --marker-points examples/data/tripod_markers.csv --fit youngs_modulus --contact paper --out results/calib
     trajopt robustness results/tripod_walk.npz --samples 64 --cycles 4 --out results/robustness [--overwrite]
+    trajopt codesign tripod --vary routing,stiffness,legs --out results/tripod_codesign   # robot + gait + report
 
 The package holds the command line only (parsing, printing, exit codes): each command calls
 library functions (optimize_run, evaluation, replay, robustness_report, sweep, rl, hardware).
@@ -237,6 +238,8 @@ def build_parser() -> argparse.ArgumentParser:
     except ImportError:
         pass
     _add_sweep(sub)
+    from .codesign import add_codesign_parser
+    add_codesign_parser(sub)
     return parser
 
 

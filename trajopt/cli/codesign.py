@@ -1,0 +1,68 @@
+"""``trajopt codesign ROBOT --vary routing,stiffness,legs --out DIR``: the command line of
+co-design (issue #29); what it does is :func:`trajopt.codesign.run.run_codesign`."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..argtypes import contact_law, integer, output_dir
+
+__all__ = ["add_codesign_parser", "vary_kinds"]
+
+#: the design kinds, in the order of their columns (soft_envs.envs.design.KINDS, without importing it)
+_KINDS = ("stiffness", "routing", "legs")
+
+
+def vary_kinds(text: str) -> tuple[str, ...]:
+    """``--vary``: comma-separated design kinds (routing, stiffness, legs)."""
+    import argparse
+    kinds = tuple(dict.fromkeys(k.strip() for k in text.split(",") if k.strip()))
+    bad = [k for k in kinds if k not in _KINDS]
+    if not kinds or bad:
+        raise argparse.ArgumentTypeError(f"{text!r}: give design kinds, comma-separated, from {', '.join(_KINDS)}")
+    return tuple(k for k in _KINDS if k in kinds)
+
+
+def add_codesign_parser(sub) -> None:
+    p = sub.add_parser("codesign", help="optimise a robot's design and its gait together (writes a new robot folder)")
+    p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml with a [design] table")
+    p.add_argument("--vary", type=vary_kinds, default=_KINDS, metavar="KINDS",
+                   help="what may change, comma-separated: routing (via points), stiffness (Young's modulus per "
+                        "region), legs (leg lengths); as the robot's [design] table declares them (default: all)")
+    p.add_argument("--out", type=output_dir, required=True,
+                   help="output directory: the designed robot (robot.toml, mesh.vtu), its gait NAME_walk.npz, "
+                        "codesign.md / .png / .json")
+    p.add_argument("--contact", type=contact_law, default=None, metavar="LAW",
+                   help="ground contact law, as for optimize (default: the robot file's)")
+    p.add_argument("--baseline", type=Path, default=None,
+                   help="the shipped design's fastest gait (a result of optimize --speed max on the same robot and "
+                        "law); default: run that search first")
+    p.add_argument("--stages", type=integer(1, 100), default=None, help="co-design stages (rising targets; default 4)")
+    p.add_argument("--iterations", type=integer(1, 10_000), default=None,
+                   help="Gauss-Newton iterations per stage at most (default 8)")
+    p.add_argument("--no-reoptimise", action="store_true",
+                   help="skip re-optimising the gait of the written robot from scratch (--speed max)")
+    p.add_argument("--quick", action="store_true", help="a tiny run (tests, CI; also SOFT_ENVS_QUICK=1)")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
+    p.add_argument("--overwrite", action="store_true", help="replace a finished co-design in --out")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(func=_cmd_codesign)
+
+
+def _cmd_codesign(args) -> int:
+    import dataclasses
+
+    from ..codesign.run import CodesignRun, run_codesign
+    from ..sweep import quick_requested
+    kw = dict(vary=args.vary, contact=args.contact, baseline=args.baseline, reoptimise=not args.no_reoptimise,
+              resume=args.resume, overwrite=args.overwrite, quiet=args.quiet)
+    run = (CodesignRun.quick(args.robot, Path(args.out), **kw) if quick_requested(args.quick)
+           else CodesignRun(args.robot, Path(args.out), **kw))
+    joint = {k: v for k, v in (("stages", args.stages), ("iterations", args.iterations)) if v is not None}
+    if joint:
+        run.joint = dataclasses.replace(run.joint, **joint)
+    outcome = run_codesign(run)
+    s = outcome.summary
+    print(f"{outcome.robot_file}: {s['before_bl_per_min']:.2f} -> {s['after_bl_per_min']:.2f} BL/min "
+          f"({s['ratio']:.2f}x the shipped design's fastest gait); gait {outcome.result_file}; "
+          f"report {outcome.report_file}")
+    return 0

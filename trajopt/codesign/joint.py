@@ -1,0 +1,199 @@
+"""Gauss-Newton on gait and design together, in stages with a rising target (issue #29 item 3).
+
+:func:`optimise_jointly` runs :func:`trajopt.gauss_newton.gauss_newton` on a
+:class:`~trajopt.codesign.problem.CodesignProblem` in ``stages``: each stage tracks a straight
+line at ``max(min_target, target_margin * best)`` BL/min, where ``best`` is the fastest upright
+gait found so far (the shipped design's fastest gait at first: co-design asks for more than is
+known to be possible, as ``--speed max`` does), for at most ``iterations`` iterations under the
+motors' limit, the bounds and the linearised clearance and mass constraints. After each stage the
+gait on the current design is evaluated (:func:`trajopt.evaluation.evaluate_controls`, 10 cycles
+after the prep phase, upright required); the next stage starts from the best evaluated point.
+The search stops after ``stages`` stages, or when a stage gains less than ``min_gain`` (relative).
+
+Resumable: the :class:`JointState` (JSON) is handed to ``checkpoint`` after every iteration. It
+holds the designs Gauss-Newton linearised at, in order (``path``): a design block's derivatives
+hold at its own robot and :meth:`DesignParameters.moved_to` rebuilds the block at the next one,
+so replaying the path (:func:`replay_path`) rebuilds the exact block of the interrupted run.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from soft_envs.envs import SimulationError
+
+from ..evaluation import evaluate_controls
+from ..fastest import SEARCH_EVAL_CYCLES
+from ..gauss_newton import GaussNewtonOptions, gauss_newton
+from .problem import CodesignProblem
+
+__all__ = ["JointSettings", "JointState", "optimise_jointly", "replay_path", "evaluate_design"]
+
+
+@dataclass(frozen=True)
+class JointSettings:
+    """The stages of :func:`optimise_jointly` (module docstring)."""
+
+    stages: int = 4
+    iterations: int = 8
+    target_margin: float = 1.25
+    min_target: float = 20.0
+    min_gain: float = 0.01
+    eval_cycles: int = SEARCH_EVAL_CYCLES
+
+    def target(self, best: float) -> float:
+        return max(self.min_target, self.target_margin * best)
+
+    @classmethod
+    def quick(cls) -> "JointSettings":
+        """Small enough for tests and CI."""
+        return cls(stages=1, iterations=2, min_target=0.0, eval_cycles=2)
+
+
+@dataclass
+class JointState:
+    """Where a joint optimisation stands (JSON-able: :meth:`to_dict` / :meth:`from_dict`)."""
+
+    w: list[float]
+    stage: int = 0
+    iteration: int = 0                       # Gauss-Newton iterations done in this stage
+    lam: float | None = None
+    rejections: int = 0
+    path: list[list[float]] = field(default_factory=list)     # designs linearised at, in order
+    best_speed: float = 0.0
+    best_w: list[float] | None = None
+    best_evaluation: dict[str, Any] | None = None
+    best_path_len: int = 0                   # the best point's design is path[:best_path_len]'s last
+    stage_rows: list[dict] = field(default_factory=list)
+    history: list[dict] = field(default_factory=list)
+    sim_steps: int = 0
+    wall_time_s: float = 0.0
+    done: bool = False
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "JointState":
+        return cls(**d)
+
+
+def replay_path(problem: CodesignProblem, path: list[list[float]]):
+    """The design block at the end of ``path`` (the designs an interrupted run linearised at),
+    moved there from the shipped design one design at a time, as the run did."""
+    block = problem.shipped
+    for theta in path:
+        theta = np.asarray(theta, dtype=np.float64)
+        if not np.array_equal(theta, block.values):
+            block = block.moved_to(theta)
+    return block
+
+
+def evaluate_design(problem: CodesignProblem, w: np.ndarray, eval_cycles: int) -> dict[str, Any]:
+    """The gait ``w``'s keyframes on ``w``'s design, played for ``eval_cycles`` cycles after the
+    prep phase (:func:`trajopt.evaluation.evaluate_controls`); counts its simulation steps."""
+    z, theta = problem.split(w)
+    env = problem.env_of(problem.robot_at(theta))
+    u = problem.controls(z, eval_cycles)
+    gait = problem.gait
+    try:
+        ev = evaluate_controls(env, u, n_prep=gait.n_prep, n_cycle=gait.n_cycle)
+    except SimulationError as err:
+        ev = {"speed_bl_per_min": float("nan"), "upright": False, "sim_failure": str(err)}
+    problem.sim_steps += len(u)
+    return ev
+
+
+def _json_entry(entry: dict) -> dict:
+    out = {}
+    for k, v in entry.items():
+        if k in ("z", "lam"):
+            continue
+        if isinstance(v, (np.floating, np.integer, np.bool_)):
+            v = v.item()
+        out[k] = v
+    return out
+
+
+def optimise_jointly(problem: CodesignProblem, state: JointState, settings: JointSettings = JointSettings(), *,
+                     checkpoint: Callable[[JointState], None] | None = None,
+                     progress: Callable[[dict], None] | None = None,
+                     log: Callable[[str], Any] = lambda text: None) -> JointState:
+    """Run (or continue) the stages from ``state`` (a fresh one: ``JointState(w=list(w0),
+    best_speed=speed of the start)``); returns the final state, ``best_w`` the fastest upright
+    point. ``checkpoint(state)`` after every iteration and stage; ``progress(entry)`` after
+    every iteration."""
+    t0 = time.perf_counter() - state.wall_time_s
+    steps0 = problem.sim_steps - state.sim_steps
+    lo, hi = problem.bounds()
+    if state.best_w is None:
+        state.best_w, state.best_path_len = list(state.w), len(state.path)
+    problem.block = replay_path(problem, state.path)
+    best_block = replay_path(problem, state.path[:state.best_path_len])
+
+    def sync() -> None:
+        state.sim_steps = problem.sim_steps - steps0
+        state.wall_time_s = time.perf_counter() - t0
+
+    def moved() -> None:
+        theta = problem.block.values.tolist()
+        if not state.path or state.path[-1] != theta:
+            state.path.append(theta)
+
+    while state.stage < settings.stages and not state.done:
+        target = settings.target(state.best_speed)
+        problem.set_target(target)
+        remaining = settings.iterations - state.iteration
+
+        def on_iteration(entry: dict) -> bool | None:
+            state.w = [float(v) for v in entry["z"]]
+            state.lam, state.iteration = float(entry["lam"]), state.iteration + 1
+            state.rejections = 0 if entry["accepted"] else state.rejections + 1
+            state.history.append(_json_entry({**entry, "stage": state.stage, "target_bl_per_min": target}))
+            moved()
+            sync()
+            if progress is not None:
+                progress(entry)
+            if checkpoint is not None:
+                checkpoint(state)
+            return None
+
+        if remaining > 0:
+            gn = gauss_newton(problem, np.asarray(state.w), lo, hi, GaussNewtonOptions(max_iter=remaining),
+                              callback=on_iteration, lam=state.lam, first_iteration=state.iteration + 1,
+                              rejections=state.rejections, constraints=problem.linearised_constraints)
+            moved()
+            state.w = gn.z.tolist()
+            status = gn.status
+        else:
+            status = "resumed"
+        w = np.asarray(state.w)
+        ev = evaluate_design(problem, w, settings.eval_cycles)
+        speed, upright = float(ev.get("speed_bl_per_min", float("nan"))), bool(ev.get("upright", False))
+        gain = (speed - state.best_speed) / max(state.best_speed, 1e-12)
+        row = {"stage": state.stage + 1, "target_bl_per_min": target, "iterations": state.iteration,
+               "status": status, "speed_bl_per_min": speed, "upright": upright, "gain": gain}
+        state.stage_rows.append(row)
+        log(f"co-design stage {state.stage + 1}/{settings.stages}: target {target:.1f} BL/min, "
+            f"{state.iteration} iterations ({status}): {speed:.2f} BL/min"
+            f"{'' if upright else ' (fell over)'}, best so far {max(state.best_speed, speed if upright else 0):.2f}")
+        improved = upright and np.isfinite(speed) and speed > state.best_speed
+        if improved:
+            state.best_speed, state.best_w, state.best_evaluation = speed, list(state.w), ev
+            state.best_path_len, best_block = len(state.path), problem.block
+        else:                                    # the next stage starts from the best point
+            state.w, state.path = list(state.best_w), state.path[:state.best_path_len]
+            problem.block = best_block
+        state.stage += 1
+        state.iteration, state.lam, state.rejections = 0, None, 0
+        if not improved or gain < settings.min_gain:
+            state.done = True
+        sync()
+        if checkpoint is not None:
+            checkpoint(state)
+    state.done = True
+    sync()
+    return state

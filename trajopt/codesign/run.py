@@ -1,0 +1,268 @@
+"""``trajopt codesign ROBOT --vary routing,stiffness,legs --out DIR``: one co-design run into files.
+
+The steps (each file written atomically; ``DIR`` is created):
+
+1. **baseline**: the shipped design's fastest gait within the motors' limit, as ``trajopt
+   optimize ROBOT --speed max`` finds it (:func:`trajopt.fastest.fastest_gait`), or a given one
+   (``baseline=``, made by ``--speed max`` on the same robot and law): ``DIR/baseline_walk.npz``;
+2. **joint optimisation** of its keyframes and the design parameters ``vary`` declares
+   (:mod:`trajopt.codesign.joint`), checkpointed to ``DIR/codesign.partial.json`` after every
+   iteration; ``resume`` continues an interrupted run;
+3. **the designed robot**: ``DIR/robot.toml`` (and ``DIR/mesh.vtu`` when the legs changed),
+   written by :func:`soft_envs.envs.design.write_designed_robot`, a robot folder every command
+   loads unchanged, checked independently of the optimiser (:mod:`trajopt.design_checks`);
+4. **its gait**: ``DIR/NAME_walk.npz``, the co-designed keyframes on the robot reloaded from
+   ``DIR/robot.toml`` (a few more Gauss-Newton iterations there, kept when faster), tied to the
+   written robot (its fingerprint: the shipped robot refuses it);
+5. **re-optimised from scratch** (``reoptimise``): ``--speed max`` on the reloaded robot,
+   ``DIR/NAME_walk_reoptimised.npz``: the gain belongs to the design, not to a lucky gait;
+6. **the report**: ``DIR/codesign.md`` (speeds before and after, every design change, the
+   constraint checks) and ``DIR/codesign.png`` (the shipped and the designed robot side by side,
+   tendons drawn), and ``DIR/codesign.json`` (the figures).
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from soft_envs.envs import make_gradient_env, robot_fingerprint
+from soft_envs.envs.design import KINDS, load_design, write_designed_robot
+
+from ..fastest import SearchSettings, fastest_gait, write_search_table
+from ..files import atomic_write_bytes
+from ..gait import GaitSpec
+from ..gauss_newton import GaussNewtonOptions
+from ..motor_limit import max_step_of_env
+from ..optimize import optimize_gait
+from ..results import Result
+from ..robot_match import describe_difference
+from .joint import JointSettings, JointState, optimise_jointly
+from .problem import CodesignProblem, CodesignWeights
+
+__all__ = ["CodesignRun", "CodesignOutcome", "run_codesign", "design_changes"]
+
+PARTIAL = "codesign.partial.json"
+
+
+@dataclass
+class CodesignRun:
+    """The options of one ``trajopt codesign`` run (the command line's, module docstring)."""
+
+    robot: str
+    out: Path
+    vary: tuple[str, ...] = KINDS
+    contact: str | None = None
+    baseline: Path | None = None
+    joint: JointSettings = JointSettings()
+    search: SearchSettings = SearchSettings()
+    weights: CodesignWeights = CodesignWeights()
+    polish_iterations: int = 3
+    reoptimise: bool = True
+    resume: bool = False
+    overwrite: bool = False
+    quiet: bool = False
+    name: str | None = None
+
+    @classmethod
+    def quick(cls, robot: str, out: Path, **kw) -> "CodesignRun":
+        """Small enough for tests and CI (a minute or two)."""
+        return cls(robot, Path(out), joint=JointSettings.quick(), search=SearchSettings.quick(),
+                   polish_iterations=1, **kw)
+
+
+@dataclass
+class CodesignOutcome:
+    robot_file: Path
+    result_file: Path
+    report_file: Path
+    summary: dict[str, Any] = field(default_factory=dict)
+
+
+def design_changes(design, before: np.ndarray, after: np.ndarray) -> list[dict]:
+    """Every design parameter that changed: name, before, after, unit."""
+    if hasattr(design, "describe_changes"):
+        return design.describe_changes(before, after)
+    out = []
+    for name, b, a in zip(design.names, before, after):
+        if not np.isclose(a, b, rtol=0, atol=1e-9 * max(1.0, abs(b))):
+            unit = "Pa" if name.startswith("stiffness:") else "m"
+            out.append({"name": name, "before": float(b), "after": float(a), "unit": unit})
+    return out
+
+
+def _say(run: CodesignRun):
+    return (lambda text: None) if run.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
+
+
+def _check_out(run: CodesignRun) -> None:
+    out = run.out
+    if (out / PARTIAL).is_file() and not (run.resume or run.overwrite):
+        raise ValueError(f"{out / PARTIAL} holds an interrupted co-design run: continue it with --resume, "
+                         "or start afresh with --overwrite")
+    if (out / "robot.toml").is_file() and not (run.overwrite or run.resume):
+        raise ValueError(f"{out / 'robot.toml'} exists: a finished co-design is never replaced without "
+                         "--overwrite (or choose another --out)")
+
+
+def _baseline(run: CodesignRun, env, say) -> Result:
+    """The shipped design's fastest gait: the given one (checked) or a ``--speed max`` search."""
+    path = run.out / "baseline_walk.npz"
+    if run.baseline is not None or (run.resume and path.is_file()):
+        res = Result.load(run.baseline if run.baseline is not None else path)
+        src = str(run.baseline or path)
+        changed = describe_difference(res.robot_fingerprint, robot_fingerprint(env.robot)) \
+            if res.robot_fingerprint else "it records no robot"
+        if changed:
+            raise ValueError(f"{src}: the baseline was not made on {run.robot} ({changed})")
+        if res.settings.get("contact") != env.contact_model:
+            raise ValueError(f"{src}: the baseline was made under the {res.settings.get('contact')!r} contact law, "
+                             f"the co-design runs under {env.contact_model!r} (--contact)")
+        if not res.settings.get("motor_limit"):
+            raise ValueError(f"{src}: the baseline was made without the motors' speed limit")
+        if run.baseline is not None:
+            res.save(path)
+        return res
+    say(f"baseline: the shipped {env.robot.name}'s fastest gait within the motors' limit (--speed max)")
+    res, rows = fastest_gait(env, settings=run.search, robot_spec=run.robot, quiet=run.quiet, log=say)
+    res.save(path)
+    write_search_table(rows, path)
+    return res
+
+
+def _write_json(path: Path, data: dict) -> None:
+    atomic_write_bytes(path, (json.dumps(data, indent=1, default=float) + "\n").encode())
+
+
+def run_codesign(run: CodesignRun) -> CodesignOutcome:
+    """Run the steps of the module docstring; returns where the files are and the figures."""
+    say = _say(run)
+    t_start = time.perf_counter()
+    run.out.mkdir(parents=True, exist_ok=True)
+    _check_out(run)
+    env = make_gradient_env(run.robot, contact=run.contact)
+    shipped = env.robot
+    design = load_design(shipped, run.vary)
+    if not len(design):
+        raise ValueError(f"{shipped.source}: [design] declares no parameter of the kinds {', '.join(run.vary)}")
+    baseline = _baseline(run, env, say)
+    gait = GaitSpec.from_settings(baseline.settings)
+    base_speed = float(baseline.evaluation["speed_bl_per_min"])
+    settings = {"robot": run.robot, "vary": list(run.vary), "contact": env.contact_model, "gait": gait.to_settings(),
+                "joint": asdict(run.joint), "weights": run.weights.to_dict(), "parameters": list(design.names),
+                "baseline_speed_bl_per_min": base_speed}
+    problem = CodesignProblem(env, design, gait, run.joint.target(base_speed), run.weights, max_step_of_env(env))
+    partial = run.out / PARTIAL
+    state = None
+    if run.resume and partial.is_file():
+        saved = json.loads(partial.read_text())
+        if saved.get("settings") != json.loads(json.dumps(settings, default=float)):
+            raise ValueError(f"{partial}: cannot resume: the settings differ from the interrupted run's")
+        state = JointState.from_dict(saved["state"])
+        say(f"resuming {partial}: stage {state.stage + 1}, iteration {state.iteration}")
+    if state is None:
+        state = JointState(w=problem.start(baseline.z).tolist(), best_speed=base_speed)
+
+    def checkpoint(s: JointState) -> None:
+        _write_json(partial, {"settings": settings, "state": s.to_dict()})
+
+    total = run.joint.stages * run.joint.iterations
+    bar = None
+    if not run.quiet:
+        from ..progress import IterationProgress
+        bar = IterationProgress(total, first=state.stage * run.joint.iterations + state.iteration + 1)
+    try:
+        state = optimise_jointly(problem, state, run.joint, checkpoint=checkpoint,
+                                 progress=None if bar is None else bar.update, log=say)
+    finally:
+        if bar is not None:
+            bar.close()
+    block = problem.block
+    z_best, theta_best = problem.split(np.asarray(state.best_w))
+    assert np.array_equal(theta_best, block.values)
+    robot_file = write_designed_robot(block, theta_best, run.out)
+    say(f"wrote the designed robot {robot_file}")
+    from ..design_checks import check_designed_robot, format_checks
+    checks = check_designed_robot(shipped.source, robot_file)
+    new_env = make_gradient_env(str(robot_file), contact=env.contact_model)
+    name = run.name or f"{shipped.name}_walk"
+    result = _gait_on_written_robot(run, new_env, gait, z_best, state, robot_file)
+    result_file = run.out / f"{name}.npz"
+    result.save(result_file)
+    reopt = None
+    if run.reoptimise:
+        say(f"re-optimising the gait of {robot_file} from scratch (--speed max)")
+        reopt, rows = fastest_gait(new_env, settings=run.search, robot_spec=str(robot_file), quiet=run.quiet, log=say)
+        reopt_file = run.out / f"{name}_reoptimised.npz"
+        reopt.save(reopt_file)
+        write_search_table(rows, reopt_file)
+    changes = design_changes(design, design.values, theta_best)
+    summary = _summary(run, env, baseline, result, reopt, state, changes, checks, time.perf_counter() - t_start)
+    report_file = _report(run, shipped, new_env.robot, summary, changes, checks, settings)
+    _write_json(run.out / "codesign.json", summary)
+    partial.unlink(missing_ok=True)
+    again = "" if reopt is None else (f"; re-optimised from scratch {summary['reoptimised_bl_per_min']:.2f} "
+                                      f"({summary['reoptimised_ratio']:.2f}x)")
+    say(f"co-design: {summary['before_bl_per_min']:.2f} -> {summary['after_bl_per_min']:.2f} BL/min "
+        f"({summary['ratio']:.2f}x){again}; {summary['iterations']} Gauss-Newton iterations, "
+        f"{summary['wall_time_s']:.0f} s; report {report_file}")
+    failed = [c for c in checks if not c.passed]
+    if failed:
+        raise ValueError(f"{robot_file}: the designed robot breaks its constraints:\n{format_checks(checks)}")
+    return CodesignOutcome(robot_file, result_file, report_file, summary)
+
+
+def _gait_on_written_robot(run: CodesignRun, env, gait: GaitSpec, z: np.ndarray, state: JointState,
+                           robot_file: Path) -> Result:
+    """The co-designed keyframes on the reloaded robot: ``polish_iterations`` more Gauss-Newton
+    iterations of the walk there (the motors' limit on), kept when faster than none."""
+    target = run.joint.target(state.best_speed)
+    kw = dict(gait=gait, speed_bl_per_min=target, z0=z, n_seeds=0, eval_cycles=run.joint.eval_cycles,
+              robot_spec=str(robot_file))
+    plain = optimize_gait(env, "walk", options=GaussNewtonOptions(max_iter=0), **kw)
+    if run.polish_iterations <= 0:
+        return plain
+    polished = optimize_gait(env, "walk", options=GaussNewtonOptions(max_iter=run.polish_iterations), **kw)
+    speed = lambda r: r.evaluation["speed_bl_per_min"] if r.evaluation.get("upright") else -np.inf  # noqa: E731
+    return polished if speed(polished) > speed(plain) else plain
+
+
+def _summary(run, env, baseline, result, reopt, state, changes, checks, wall) -> dict:
+    before = float(baseline.evaluation["speed_bl_per_min"])
+    after = float(result.evaluation["speed_bl_per_min"])
+    out = {"robot": env.robot.name, "contact": env.contact_model, "vary": list(run.vary),
+           "n_cycle": baseline.settings["n_cycle"], "n_keyframes": baseline.settings["n_keyframes"],
+           "before_bl_per_min": before, "after_bl_per_min": after, "ratio": after / before,
+           "after_upright": bool(result.evaluation.get("upright")),
+           "iterations": len(state.history), "stages": state.stage_rows,
+           "codesign_sim_steps": state.sim_steps, "codesign_wall_time_s": state.wall_time_s,
+           "wall_time_s": wall, "changes": len(changes), "checks_passed": all(c.passed for c in checks)}
+    if reopt is not None:
+        v = float(reopt.evaluation["speed_bl_per_min"])
+        out.update(reoptimised_bl_per_min=v, reoptimised_ratio=v / before,
+                   reoptimised_cycle=[reopt.settings["n_cycle"], reopt.settings["n_keyframes"]])
+    return out
+
+
+def _report(run, shipped, designed, summary, changes, checks, settings) -> Path:
+    from ..design_report import plot_robots_side_by_side, write_codesign_report
+    picture = run.out / "codesign.png"
+    plot_robots_side_by_side(shipped, designed, picture)
+    before = {"speed_bl_per_min": summary["before_bl_per_min"], "n_cycle": summary["n_cycle"],
+              "n_keyframes": summary["n_keyframes"]}
+    after = {"speed_bl_per_min": summary["after_bl_per_min"], "n_cycle": summary["n_cycle"],
+             "n_keyframes": summary["n_keyframes"], "upright": summary["after_upright"],
+             "simulation_steps": summary["codesign_sim_steps"], "wall_time_s": summary["codesign_wall_time_s"],
+             "iterations": summary["iterations"]}
+    reopt = None if "reoptimised_bl_per_min" not in summary else {
+        "speed_bl_per_min": summary["reoptimised_bl_per_min"], "n_cycle": summary["reoptimised_cycle"][0],
+        "n_keyframes": summary["reoptimised_cycle"][1]}
+    path = run.out / "codesign.md"
+    write_codesign_report(path, robot_name=shipped.name, before=before, after=after, reoptimised=reopt,
+                          changes=changes, checks=checks, picture=picture.name, settings=settings)
+    return path
