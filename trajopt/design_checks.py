@@ -22,8 +22,8 @@ quantity here:
   the point projected onto each triangle's plane (inside the triangle: the distance to the
   plane, else the nearest of its three edges), inside or outside by a containing tet
   (barycentric coordinates);
-* **loads and simulates**: :func:`~soft_envs.sim.load_robot` reads the folder and a few
-  simulation steps run.
+* **loads and simulates**: the folder loads (:func:`~soft_envs.sim.load_robot`, through
+  :func:`~soft_envs.envs.make_gradient_env`) and a few environment steps run.
 
 :func:`format_checks` gives the markdown table, :func:`require_design_checks` raises
 :class:`DesignCheckError` listing the failures.
@@ -279,13 +279,12 @@ def _clearance_checks(out: _Body, min_clearance: float) -> list[DesignCheck]:
 
 
 def _simulation_check(file: Path, steps: int) -> DesignCheck:
-    from soft_envs.sim import Simulator, load_robot
+    from soft_envs.envs import make_gradient_env
     try:
-        robot = load_robot(file)
-        b = robot.u_bounds
-        u = np.repeat((b[:, 0] + 0.25 * (b[:, 1] - b[:, 0]))[None], steps, axis=0)
-        traj = Simulator(robot).rollout(u)
-        ok = bool(np.isfinite(traj.com).all())
+        env = make_gradient_env(file)        # load_robot, the rest state
+        low, high = env.action_space.low, env.action_space.high
+        obs = [env.step(low + 0.25 * (high - low))[0] for _ in range(steps)]
+        ok = bool(np.isfinite(np.asarray(obs, dtype=np.float64)).all())
         detail = f"load_robot and {steps} steps at a quarter of each motor's range" if ok else "non-finite states"
     except Exception as exc:     # noqa: BLE001 -- any failure to load or step is the finding
         ok, detail = False, f"{type(exc).__name__}: {exc}"
