@@ -39,7 +39,7 @@ import meshio
 import numpy as np
 
 __all__ = ["DesignCheck", "DesignCheckError", "check_designed_robot", "format_checks", "require_design_checks",
-           "signed_clearance", "CLEARANCE_TOL", "DEFAULT_MODULUS_BOUNDS"]
+           "signed_clearance", "boundary_triangles", "CLEARANCE_TOL", "DEFAULT_MODULUS_BOUNDS"]
 
 #: slack of the clearance check [m]: the shipped robots' via points sit at exactly 2 mm
 CLEARANCE_TOL = 1e-9
@@ -124,11 +124,12 @@ class _Body:
             float(self.doc.get("payload", {}).get("mass", 0.0))
 
 
-def _boundary_triangles(tets: np.ndarray) -> np.ndarray:
-    """The tet faces used by one tet only (f, 3)."""
-    faces = tets[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3)
+def boundary_triangles(tets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The tet faces used by one tet only (f, 3), and that tet of each (f,)."""
+    faces = np.asarray(tets)[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3)
     _, first, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
-    return faces[first[counts == 1]]
+    once = np.sort(first[counts == 1])
+    return faces[once], once // 4
 
 
 def _segment_distances(q: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -152,7 +153,7 @@ def signed_clearance(points: np.ndarray, tets: np.ndarray, q: np.ndarray,
     """Distance of ``q`` to the boundary surface of the tet mesh (``points``, ``tets``), positive
     inside, in the mesh's units: the point projected onto each boundary triangle's plane; inside
     the triangle the distance to the plane, else the nearest of the triangle's three edges."""
-    tri = _boundary_triangles(tets) if triangles is None else triangles
+    tri = boundary_triangles(tets)[0] if triangles is None else triangles
     a, b, c = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
     n = np.cross(b - a, c - a)
     n /= np.linalg.norm(n, axis=1)[:, None]
@@ -257,7 +258,7 @@ def _material_checks(src: _Body, out: _Body, bounds) -> list[DesignCheck]:
 
 def _clearance_checks(out: _Body, min_clearance: float) -> list[DesignCheck]:
     fixed = out.doc.get("design", {}).get("fixed_points", [-1])
-    tri = _boundary_triangles(out.tets)
+    tri = boundary_triangles(out.tets)[0]
     free, ends = [], []
     for t in out.doc.get("tendons", []):
         pts = np.asarray(t["points"], dtype=np.float64)
