@@ -72,7 +72,11 @@ class DesignCheckError(ValueError):
 
 
 def _robot_toml(path: str | Path) -> Path:
+    """The robot.toml of a path, a folder or a shipped robot's name."""
     p = Path(path)
+    if not p.exists() and p.suffix == "" and len(p.parts) == 1:
+        from soft_envs.envs import load_robot        # a shipped robot's name (else its ValueError)
+        return Path(load_robot(str(path)).source)
     if p.is_dir():
         p = p / "robot.toml"
     if not p.is_file():
@@ -172,7 +176,7 @@ def check_designed_robot(source: str | Path, designed: str | Path, *, min_cleara
                          mass_floor: float = 0.98, modulus_bounds: tuple[float, float] | None = None,
                          simulate_steps: int = 3) -> list[DesignCheck]:
     """Every co-design constraint checked on the written files of ``designed`` (a robot.toml or
-    its folder) against ``source`` (the robot it was designed from)."""
+    its folder) against ``source`` (the robot it was designed from: also a shipped robot's name)."""
     src, out = _Body.read(_robot_toml(source)), _Body.read(_robot_toml(designed))
     if modulus_bounds is None:
         modulus_bounds = tuple(src.doc.get("design", {}).get("modulus_bounds", DEFAULT_MODULUS_BOUNDS))

@@ -39,7 +39,8 @@ def _robot(robot_or_path):
     if hasattr(robot_or_path, "mesh") and hasattr(robot_or_path, "tendons"):
         return robot_or_path
     from soft_envs.envs import load_robot
-    return load_robot(robot_or_path)
+    folder = Path(robot_or_path)
+    return load_robot(folder / "robot.toml" if folder.is_dir() else robot_or_path)
 
 
 def _views(robot) -> dict[str, np.ndarray]:
@@ -52,8 +53,8 @@ def _views(robot) -> dict[str, np.ndarray]:
 
 def plot_robots_side_by_side(old_robot, new_robot, path: str | os.PathLike,
                              titles: Sequence[str] = ("shipped", "co-designed"), *, dpi: int = 120) -> Path:
-    """Draw ``old_robot`` and ``new_robot`` (Robots, names or robot.toml paths) side by side at
-    rest (module docstring) into the PNG ``path`` (written atomically); returns the path."""
+    """Draw ``old_robot`` and ``new_robot`` (Robots, names, robot.toml paths or folders) side by
+    side at rest (module docstring) into the PNG ``path`` (written atomically); returns the path."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
