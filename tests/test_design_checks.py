@@ -24,7 +24,7 @@ def _copy(tmp_path: Path, edit, name: str = "tripod") -> Path:
     doc["robot"]["mesh"] = str(src.parent / str(doc["robot"]["mesh"]))
     edit(doc)
     out = tmp_path / "designed"
-    out.mkdir()
+    out.mkdir(parents=True)
     (out / "robot.toml").write_text(tomlkit.dumps(doc), encoding="utf-8")
     return out
 
@@ -153,3 +153,37 @@ def test_a_folder_that_does_not_load_fails_the_last_check(tmp_path):
     failed = _failed(check_designed_robot(TRIPOD, _copy(tmp_path, edit)))
     assert set(failed) == {"loads and simulates"}
     assert "colour" in failed["loads and simulates"].detail
+
+
+def test_malformed_files_are_clear_errors_or_failed_checks(tmp_path):
+    def no_density(doc):
+        del doc["material"]["density"]
+    with pytest.raises(ValueError, match=r"designed/robot\.toml: \[material\]\.density is missing"):
+        check_designed_robot(TRIPOD, _copy(tmp_path / "a", no_density))
+
+    def bad_region(doc):
+        regions = tomlkit.aot()
+        t = tomlkit.table()
+        t["name"], t["tets"] = "no_modulus", [0]
+        regions.append(t)
+        doc["material"]["regions"] = regions
+        doc["tendons"][1]["stiffness"] = 2e5
+    failed = _failed(check_designed_robot(TRIPOD, _copy(tmp_path / "b", bad_region)))
+    assert "region 'no_modulus': needs a youngs_modulus" in failed["moduli within bounds"].detail
+    assert "tendon 'front_b': stiffness 200000.0 instead of 100000.0" in failed["same tendons"].detail
+    assert "loads and simulates" in failed
+
+
+def test_the_fixed_points_the_design_table_names_may_sit_on_the_surface(tmp_path):
+    def edit(doc):
+        doc["tendons"][0]["points"][0][1] = 0.0                  # front_a[0] on the foot's sole
+    out = _copy(tmp_path / "a", edit)
+    failed = _failed(check_designed_robot(TRIPOD, out))
+    assert failed["via points inside by the clearance"].value == pytest.approx(0.0, abs=1e-12)
+
+    def fixed_first(doc):
+        edit(doc)
+        doc["design"] = {"fixed_points": [0, -1]}
+    checks = check_designed_robot(TRIPOD, _copy(tmp_path / "b", fixed_first))
+    assert not _failed(checks)
+    assert next(c for c in checks if c.name == "fixed points in the body").value == pytest.approx(0.0, abs=1e-12)

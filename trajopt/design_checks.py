@@ -16,12 +16,12 @@ quantity here:
   ``[design].modulus_bounds``, else 0.3 to 3), each tet in at most one region, and the base
   material (modulus, Poisson ratio, density) and the payload unchanged;
 * **clearance**: every tendon via point at least ``min_clearance`` inside the body (to
-  :data:`CLEARANCE_TOL`), except the points ``[design].fixed_points`` names (default: the last,
-  where the tendon leaves the body to its motor), which must lie inside or on the surface. The
-  distance is this module's own: boundary triangles of the written mesh (tet faces used once),
-  the point projected onto each triangle's plane (inside the triangle: the distance to the
-  plane, else the nearest of its three edges), inside or outside by a containing tet
-  (barycentric coordinates);
+  :data:`CLEARANCE_TOL`), except the points ``[design].fixed_points`` names (the designed
+  file's, else the source's; default: the last, where the tendon leaves the body to its motor),
+  which must lie inside or on the surface. The distance is this module's own: boundary
+  triangles of the written mesh (tet faces used once), the point projected onto each triangle's
+  plane (inside the triangle: the distance to the plane, else the nearest of its three edges),
+  inside or outside by a containing tet (barycentric coordinates);
 * **loads and simulates**: the folder loads (:func:`~soft_envs.sim.load_robot`, through
   :func:`~soft_envs.envs.make_gradient_env`) and a few environment steps run.
 
@@ -104,7 +104,15 @@ class _Body:
     @classmethod
     def read(cls, file: Path) -> "_Body":
         doc = _read(file)
-        mesh_file = file.parent / str(doc.get("robot", {}).get("mesh", ""))
+        for table, key in (("robot", "mesh"), ("material", "youngs_modulus"), ("material", "density")):
+            if not isinstance(doc.get(table), dict) or key not in doc[table]:
+                raise ValueError(f"{file}: [{table}].{key} is missing")
+        for table, key in (("material", "youngs_modulus"), ("material", "density"), ("robot", "scale"),
+                           ("payload", "mass")):
+            v = doc.get(table, {}).get(key, 1.0)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
+                raise ValueError(f"{file}: [{table}].{key} must be a non-negative number, got {v!r}")
+        mesh_file = file.parent / str(doc["robot"]["mesh"])
         try:
             m = meshio.read(mesh_file)
         except Exception as exc:    # meshio raises many types
@@ -181,7 +189,18 @@ def check_designed_robot(source: str | Path, designed: str | Path, *, min_cleara
     if modulus_bounds is None:
         modulus_bounds = tuple(src.doc.get("design", {}).get("modulus_bounds", DEFAULT_MODULUS_BOUNDS))
     return [*_motor_checks(src, out), _mass_check(src, out, mass_floor), *_material_checks(src, out, modulus_bounds),
-            *_clearance_checks(out, min_clearance), _simulation_check(out.file, simulate_steps)]
+            *_clearance_checks(out, _fixed_points(out, src), min_clearance), _simulation_check(out.file, simulate_steps)]
+
+
+def _fixed_points(*bodies: _Body) -> list[int]:
+    """``[design].fixed_points`` of the first body that states it, else ``[-1]`` (the last point)."""
+    for body in bodies:
+        fixed = body.doc.get("design", {}).get("fixed_points")
+        if fixed is not None:
+            if not (isinstance(fixed, list) and all(isinstance(i, int) and not isinstance(i, bool) for i in fixed)):
+                raise ValueError(f"{body.file}: [design].fixed_points must be a list of point indices, got {fixed!r}")
+            return fixed
+    return [-1]
 
 
 def _motor_checks(src: _Body, out: _Body) -> list[DesignCheck]:
@@ -190,8 +209,8 @@ def _motor_checks(src: _Body, out: _Body) -> list[DesignCheck]:
 
     a, b = motors(src), motors(out)
     problems = []
-    if [m["name"] for m in a] != [m["name"] for m in b]:
-        problems.append(f"motors {[m['name'] for m in b]} instead of {[m['name'] for m in a]}")
+    if [m.get("name") for m in a] != [m.get("name") for m in b]:
+        problems.append(f"motors {[m.get('name') for m in b]} instead of {[m.get('name') for m in a]}")
     else:
         for ma, mb in zip(a, b):
             for key in sorted(set(ma) | set(mb)):
@@ -199,12 +218,16 @@ def _motor_checks(src: _Body, out: _Body) -> list[DesignCheck]:
                     problems.append(f"motor {ma['name']!r}: {key} = {mb.get(key)!r} instead of {ma.get(key)!r}")
     tendon_problems = []
     ta, tb = src.doc.get("tendons", []), out.doc.get("tendons", [])
-    if [t["name"] for t in ta] != [t["name"] for t in tb]:
-        tendon_problems.append(f"tendons {[t['name'] for t in tb]} instead of {[t['name'] for t in ta]}")
+    if [t.get("name") for t in ta] != [t.get("name") for t in tb]:
+        tendon_problems.append(f"tendons {[t.get('name') for t in tb]} instead of {[t.get('name') for t in ta]}")
     else:
         for x, y in zip(ta, tb):
-            if x.get("stiffness", 1e5) != y.get("stiffness", 1e5) or len(x["points"]) != len(y["points"]):
-                tendon_problems.append(f"tendon {x['name']!r}: stiffness or number of points changed")
+            if x.get("stiffness", 1e5) != y.get("stiffness", 1e5):
+                tendon_problems.append(f"tendon {x['name']!r}: stiffness {y.get('stiffness', 1e5)!r} instead of "
+                                       f"{x.get('stiffness', 1e5)!r}")
+            if len(x.get("points", [])) != len(y.get("points", [])):
+                tendon_problems.append(f"tendon {x['name']!r}: {len(y.get('points', []))} points instead of "
+                                       f"{len(x.get('points', []))}")
     return [DesignCheck("same motors", not problems, len(b), len(a),
                         f"{out.file}: " + "; ".join(problems) if problems else f"{len(b)} motors as in {src.file}"),
             DesignCheck("same tendons", not tendon_problems, len(tb), len(ta),
@@ -229,13 +252,18 @@ def _material_checks(src: _Body, out: _Body, bounds) -> list[DesignCheck]:
     owner = np.full(len(out.tets), -1)
     overlap = []
     for i, r in enumerate(regions):
-        name = r.get("name", f"#{i}")
-        f = float(r["youngs_modulus"]) / E0
+        name = r.get("name", f"#{i}") if isinstance(r, dict) else f"#{i}"
+        E, tets = (r.get("youngs_modulus"), r.get("tets")) if isinstance(r, dict) else (None, None)
+        if isinstance(E, bool) or not isinstance(E, (int, float)) or not (isinstance(tets, list) and all(
+                isinstance(t, int) and not isinstance(t, bool) for t in tets)):
+            bad.append(f"region {name!r}: needs a youngs_modulus (number) and tets (list of tet indices)")
+            continue
+        f = float(E) / E0
         factors.append(f)
         if not (lo * (1 - _REL_TOL) <= f <= hi * (1 + _REL_TOL)):
             bad.append(f"region {name!r}: youngs_modulus {float(r['youngs_modulus']):.6g} Pa = {f:.4g} x "
                        f"{E0:.6g} Pa outside [{lo:g}, {hi:g}]")
-        tets = np.asarray(r.get("tets", []), dtype=np.int64)
+        tets = np.asarray(tets, dtype=np.int64)
         if tets.size and (tets.min() < 0 or tets.max() >= len(out.tets)):
             overlap.append(f"region {name!r}: tet indices outside 0..{len(out.tets) - 1}")
             continue
@@ -260,12 +288,14 @@ def _material_checks(src: _Body, out: _Body, bounds) -> list[DesignCheck]:
                         else f"E = {E0:.6g} Pa, density {mat0['density']} kg/m^3, payload as in {src.file}")]
 
 
-def _clearance_checks(out: _Body, min_clearance: float) -> list[DesignCheck]:
-    fixed = out.doc.get("design", {}).get("fixed_points", [-1])
+def _clearance_checks(out: _Body, fixed: list[int], min_clearance: float) -> list[DesignCheck]:
     tri = boundary_triangles(out.tets)[0]
     free, ends = [], []
-    for t in out.doc.get("tendons", []):
-        pts = np.asarray(t["points"], dtype=np.float64)
+    for i, t in enumerate(out.doc.get("tendons", [])):
+        try:
+            pts = np.asarray(t["points"], dtype=np.float64).reshape(-1, 3)
+        except (KeyError, TypeError, ValueError):
+            raise ValueError(f"{out.file}: tendons[{i}].points must be a list of [x, y, z]") from None
         keep = {i % len(pts) for i in fixed}
         for s, q in enumerate(pts):
             d = out.scale * signed_clearance(out.points, out.tets, q, tri)
