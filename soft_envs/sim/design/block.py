@@ -13,8 +13,8 @@ histories' dependence (none: the Coulomb anchors' update depends on positions on
 
 runs the same forward sensitivities as ``calibrate``'s physical parameters, the rest state's
 derivative included (:meth:`~soft_envs.sim.Simulator.rest_sensitivity`), under either contact
-law. The derivatives hold at the robot the block was built for; build a new block at
-``robot_at(theta)`` to differentiate there.
+law. The derivatives hold at the robot the block was built for; :meth:`moved_to` rebuilds the
+block at ``robot_at(theta)`` to differentiate there.
 
 Total mass: moduli and routing do not change the masses, leg morphs do (the masses follow the
 volumes); :meth:`total_mass` and :meth:`total_mass_jacobian` are the constraint's value and
@@ -75,6 +75,17 @@ class DesignParameters(ParameterBlock):
         for i in sorted(range(len(self.kinds)), key=lambda i: self.kinds[i].kind == "legs"):
             robot = robot.replace(**self.kinds[i].apply(robot, theta[self._slices[i]]))
         return robot
+
+    def moved_to(self, theta) -> "DesignParameters":
+        """The same declaration rebuilt at ``robot_at(theta)``, to linearise there: the same
+        names and (global) bounds, ``values`` equal to theta (routing: the via points as they
+        are in the moved robot, which a leg morph carries with their tets; legs: the cumulative
+        added lengths), the same regions' tets, leg tets and absolute hip height, and
+        ``new.robot_at(new.values)`` is ``new.robot``; its derivatives are those of
+        ``new.robot_at`` at ``new.values``."""
+        theta = np.asarray(theta, dtype=np.float64)
+        robot = self.robot_at(theta)
+        return DesignParameters(robot, [k.moved_to(robot, theta[sl]) for k, sl in zip(self.kinds, self._slices)])
 
     # ------------------------------------------------------------------ parameter block
     def check(self, system) -> "DesignParameters":
