@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..parameter_block import ParameterBlock
+from .clearance import signed_distance
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -87,6 +88,27 @@ class DesignParameters(ParameterBlock):
         robot = self.robot_at(theta)
         return DesignParameters(robot, [k.moved_to(robot, theta[sl]) for k, sl in zip(self.kinds, self._slices)])
 
+    def describe_changes(self, theta_before, theta_after) -> list[dict]:
+        """Every parameter that differs between ``theta_before`` and ``theta_after``: a dict of
+        ``name``, ``before``, ``after``, ``unit`` and a plain ``description`` ("Young's modulus
+        of middle_leg x1.50", "via point 1 of front_a moved 1.2 mm inwards (x)", "leg1 3.0 mm
+        longer"), for the co-design report. Inwards/outwards: along the clearance gradient at
+        the point before (else forward/backward, up/down, left/right)."""
+        before, after = (np.asarray(t, dtype=np.float64) for t in (theta_before, theta_after))
+        for t in (before, after):
+            if t.shape != (len(self),):
+                raise ValueError(f"a design vector of {self.robot.name!r} has {len(self)} entries, got shape {t.shape}")
+        robot = None
+        out = []
+        for k, sl in zip(self.kinds, self._slices):
+            for i in np.flatnonzero(before[sl] != after[sl]):
+                if k.kind == "routing" and robot is None:
+                    robot = self.robot_at(before)
+                b, a = float(before[sl][i]), float(after[sl][i])
+                out.append({"name": k.names[i], "before": b, "after": a, "unit": "Pa" if k.kind == "stiffness" else "m",
+                            "description": _describe(k, int(i), b, a, robot)})
+        return out
+
     # ------------------------------------------------------------------ parameter block
     def check(self, system) -> "DesignParameters":
         if system.robot is not self.robot:
@@ -131,3 +153,26 @@ class DesignParameters(ParameterBlock):
     def total_mass_jacobian(self) -> np.ndarray:
         """``d total_mass / dtheta`` (len,)."""
         return self.node_mass_jacobian().sum(axis=0)
+
+
+def _describe(kind, i: int, before: float, after: float, robot) -> str:
+    """A plain sentence for the change of ``kind``'s parameter i (:meth:`DesignParameters.describe_changes`)."""
+    name = kind.names[i].split(":", 1)[1]
+    if kind.kind == "stiffness":
+        return f"Young's modulus of {name} x{after / before:.2f} ({before:.3g} -> {after:.3g} Pa)"
+    if kind.kind == "legs":
+        return f"{name.replace('+', ' and ')} {1e3 * abs(after - before):.1f} mm {'longer' if after > before else 'shorter'}"
+    t, s = kind.free[i // 3]
+    axis = i % 3
+    delta = after - before
+    _, grad = signed_distance(robot.mesh, np.asarray(robot.tendons[t].points[s]))
+    if abs(grad[axis]) > 0.5:
+        way = "inwards" if grad[axis] * delta > 0 else "outwards"
+    else:
+        fwd, up = np.asarray(robot.forward_axis, float), np.asarray(robot.up_axis, float)
+        words = {tuple(fwd): ("forward", "backward"), tuple(up): ("up", "down"),
+                 tuple(np.cross(fwd, up)): ("right", "left")}      # left is -lateral (docs/robots.md)
+        e = np.eye(3)[axis]
+        way = next((pos if delta * (e @ np.asarray(v)) > 0 else neg) for v, (pos, neg) in words.items()
+                   if abs(e @ np.asarray(v)) > 0.5)
+    return f"via point {s} of {robot.tendon_names[t]} moved {1e3 * abs(delta):.1f} mm {way} ({'xyz'[axis]})"
