@@ -204,6 +204,10 @@ def test_a_written_moved_design_declares_the_same_parameters(name, tmp_path):
     assert np.allclose(back.values[others], new.values[others], rtol=1e-12, atol=1e-15)
     assert not back.values[legs].any()
     assert np.allclose(back.robot.mesh.points, new.robot.mesh.points, rtol=0, atol=1e-15)
+    again = write_designed_robot(new, new.values, tmp_path / "again")     # the moved block writes its robot
+    assert (again.parent / "mesh.vtu").is_file()
+    assert np.allclose(load_robot(again).mesh.points, new.robot.mesh.points, rtol=0, atol=1e-15)
+    assert load_design(load_robot(again)).names == new.names
 
 
 def test_describe_changes_names_every_change_plainly():

@@ -80,7 +80,7 @@ def write_designed_robot(design: DesignParameters, theta, out_dir: str | Path) -
         near = os.path.commonpath([mesh, out.resolve()]) != os.path.sep
         doc["robot"]["mesh"] = os.path.relpath(mesh, out.resolve()) if near else str(mesh)
     else:
-        tags = _design_regions_as_tags(design, doc, source)
+        tags = _design_regions_as_tags(design.robot.mesh.n_tets, doc, source)
         meshio.write(out / "mesh.vtu", _moved_mesh(mesh, robot.mesh, to_file(robot.mesh.points), tags))
         doc["robot"]["mesh"] = "mesh.vtu"
         _move_hip_height(design, doc, robot, float(np.linalg.norm(M[0])))
@@ -96,16 +96,15 @@ def write_designed_robot(design: DesignParameters, theta, out_dir: str | Path) -
 REGION_CELL_DATA = "design_region"
 
 
-def _design_regions_as_tags(design: DesignParameters, doc, source: Path) -> np.ndarray | None:
+def _design_regions_as_tags(n_tets: int, doc, source: Path) -> np.ndarray | None:
     """When the source declares ``[[design.regions]]``: one tag per tet (region i: i + 1, else 0),
     and the regions rewritten as ``cell_tag`` of :data:`REGION_CELL_DATA` (boxes would pick other
     tets of a morphed mesh)."""
     table = doc.get("design")
     if not isinstance(table, dict) or not table.get("regions"):
         return None
-    moduli = [k for k in design.kinds if k.kind == "stiffness"]
-    regions = (moduli[0] if moduli else load_design(load_robot(source), ["stiffness"]).kinds[0]).regions
-    tags = np.zeros(design.robot.mesh.n_tets, dtype=np.int64)
+    regions = load_design(load_robot(source), ["stiffness"]).kinds[0].regions     # the tets never change
+    tags = np.zeros(n_tets, dtype=np.int64)
     for i, (region, entry) in enumerate(zip(regions, table["regions"])):
         tags[region.elements] = i + 1
         for key in ("boxes", "cell_tag", "cell_data"):
