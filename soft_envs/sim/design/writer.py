@@ -10,9 +10,9 @@ units:
 * leg lengths: a new mesh file ``mesh.vtu`` (``[robot].mesh`` points at it) and the markers'
   points; otherwise ``[robot].mesh`` points at the source's mesh file. The ``[design]`` table
   is kept (the written robot can be co-designed again) with, when the mesh moved, its
-  ``hip_height`` measured from the new lowest node at the legs' absolute hip height and its
-  ``[[design.regions]]`` as cell tags of the mesh (cell data ``design_region``): ``load_design``
-  on the written folder finds the same legs and regions.
+  ``hip_height`` measured from the new lowest node at the absolute hip height the source's
+  declares, and its ``[[design.regions]]`` as cell tags of the mesh (cell data
+  ``design_region``): ``load_design`` on the written folder finds the same legs and regions.
 
 The written folder is loaded back and compared with ``design.robot_at(theta)`` (node positions,
 tendon points, element moduli, masses): a mismatch is a RuntimeError. A different robot file
@@ -76,14 +76,15 @@ def write_designed_robot(design: DesignParameters, theta, out_dir: str | Path) -
         mat["regions"] = array
 
     mesh = (source.parent / str(doc["robot"]["mesh"])).resolve()
-    if np.array_equal(robot.mesh.points, load_robot(source).mesh.points):
+    shipped = load_robot(source)
+    if np.array_equal(robot.mesh.points, shipped.mesh.points):
         near = os.path.commonpath([mesh, out.resolve()]) != os.path.sep
         doc["robot"]["mesh"] = os.path.relpath(mesh, out.resolve()) if near else str(mesh)
     else:
         tags = _design_regions_as_tags(design.robot.mesh.n_tets, doc, source)
         meshio.write(out / "mesh.vtu", _moved_mesh(mesh, robot.mesh, to_file(robot.mesh.points), tags))
         doc["robot"]["mesh"] = "mesh.vtu"
-        _move_hip_height(design, doc, robot, float(np.linalg.norm(M[0])))
+        _move_hip_height(doc, shipped, robot, float(np.linalg.norm(M[0])))
 
     changed = ", ".join(f"{n} = {float(v):.6g}" for n, v, v0 in zip(design.names, theta, design.values) if v != v0)
     text = f"{HEADER} from {source} on {time.strftime('%Y-%m-%d %H:%M')}: {changed or 'no change'}\n"
@@ -114,14 +115,16 @@ def _design_regions_as_tags(n_tets: int, doc, source: Path) -> np.ndarray | None
     return tags
 
 
-def _move_hip_height(design: DesignParameters, doc, robot, scale: float) -> None:
-    """``[design].hip_height`` (file units, above the lowest node) of the moved mesh at the legs'
-    absolute hip height, so that ``load_design`` finds the same legs."""
+def _move_hip_height(doc, shipped, robot, scale: float) -> None:
+    """``[design].hip_height`` (file units, above the lowest node) of the moved mesh at the
+    absolute height the source's declares (above the ``shipped`` robot's lowest node), so that
+    ``load_design`` finds the same legs."""
     table = doc.get("design")
-    morphs = [k for k in design.kinds if k.kind == "legs"]
-    if isinstance(table, dict) and "hip_height" in table and morphs:
-        lowest = float((robot.mesh.points @ robot.up_axis).min())
-        table["hip_height"] = (morphs[0].hip_height - lowest) / scale
+    hip = table.get("hip_height") if isinstance(table, dict) else None
+    if isinstance(hip, (int, float)) and not isinstance(hip, bool):
+        up = robot.up_axis
+        absolute = float((shipped.mesh.points @ up).min()) + scale * float(hip)
+        table["hip_height"] = (absolute - float((robot.mesh.points @ up).min())) / scale
 
 
 def _moved_mesh(source_file: Path, mesh, points: np.ndarray, tags: np.ndarray | None = None) -> meshio.Mesh:
