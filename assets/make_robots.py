@@ -64,8 +64,20 @@ def leg_tendons(prefix: str, x_face: float, z0: float, z1: float, heights) -> li
     return out
 
 
+def design_table(hip_height: float, regions: dict) -> list[str]:
+    """The ``[design]`` table (docs/codesign.md): every tendon routed (mirrors and pairs follow
+    their leaders), legs below ``hip_height`` (where they meet the body), and a Young's modulus
+    per region (``regions``: name -> boxes, each ``((x0, x1), (y0, y1), (z0, z1))``)."""
+    lines = ["[design]   # what co-design may vary (docs/codesign.md); the fingerprint ignores it",
+             'routing = "all"', f"hip_height = {hip_height:.4g}", ""]
+    for rname, rboxes in regions.items():
+        flat = [[x0, y0, z0, x1, y1, z1] for (x0, x1), (y0, y1), (z0, z1) in rboxes]
+        lines += ["[[design.regions]]", f'name = "{rname}"', f"boxes = {toml_points(flat)}", ""]
+    return lines
+
+
 def write(name: str, description: str, body_length: float, xs, ys, zs, boxes, body_mass: float,
-          payload_mass: float, motors: list[dict], u_max: float) -> None:
+          payload_mass: float, motors: list[dict], u_max: float, design: list[str]) -> None:
     folder = HERE / name
     folder.mkdir(exist_ok=True)
     density = body_mass / volume(boxes)
@@ -112,6 +124,7 @@ def write(name: str, description: str, body_length: float, xs, ys, zs, boxes, bo
                 lines.append(f'mirror = "{m["mirror"]}"')
             lines += ["u_min = 0.0", f"u_max = {u_max}", "spool_radius = 0.005",
                       f"max_speed_rpm = {DEFAULT_MAX_SPEED_RPM}   # [rpm] Pololu 298:1, no load at 6 V", ""]
+        lines += design
         (folder / ("robot_fine.toml" if fine else "robot.toml")).write_text("\n".join(lines))
         print(f"{name}{' (fine)' if fine else ''}: {len(points)} nodes, {len(tets)} tets, density {density:.1f}")
 
@@ -137,7 +150,9 @@ def tripod() -> None:
     write("tripod", "Tripod (paper IV-A): 14 cm, body 24 g, motor assembly 44 g; the middle leg "
           f"({1000 * drop:.0f} mm longer than the outer ones) is bent forward by 'front', backward by "
           "'back', and lifted by both.",
-          L, xs, ys, zs, [body, *legs], 0.024, 0.044, motors, u_max=0.020)
+          L, xs, ys, zs, [body, *legs], 0.024, 0.044, motors, u_max=0.020,
+          design=design_table(top, {"back_leg": [legs[0]], "middle_leg": [legs[1]], "front_leg": [legs[2]],
+                                    "body": [body]}))
 
 
 def puppy() -> None:
@@ -161,7 +176,8 @@ def puppy() -> None:
                                    tendons=leg_tendons(name, xf, z0, z1, heights)))
     write("puppy", "Puppy (paper IV-B): 13 cm, body 90 g, motor assembly 140 g (top-heavy); four "
           "legs, two motors each (front and back face), each motor a tendon pair; left/right mirrored.",
-          L, xs, ys, zs, [body, *legs], 0.090, 0.140, motors, u_max=0.016)
+          L, xs, ys, zs, [body, *legs], 0.090, 0.140, motors, u_max=0.016,
+          design=design_table(H_leg, {"hind_legs": legs[:2], "fore_legs": legs[2:], "body": [body]}))
 
 
 if __name__ == "__main__":

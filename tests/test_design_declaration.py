@@ -2,6 +2,9 @@
 frame, and the errors that name the file and the field; a design written as a robot folder."""
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import meshio
 import numpy as np
 import pytest
@@ -9,6 +12,7 @@ import pytest
 from soft_envs.sim import Simulator, load_robot
 from soft_envs.sim.design import MIN_CLEARANCE, TendonRouting, load_design, region_from_boxes, write_designed_robot
 from soft_envs.sim.fingerprint import robot_fingerprint
+from soft_envs.sim.robot_file import read_robot_toml
 
 DESIGN = """
 [design]
@@ -27,9 +31,14 @@ cell_data = "region"
 """
 
 
+def without_design(text: str) -> str:
+    """A shipped robot.toml without its ``[design]`` table (the generator writes it last)."""
+    return text.split("\n[design]")[0]
+
+
 def with_design(robot_dir, text=DESIGN):
     path = robot_dir / "robot.toml"
-    path.write_text(path.read_text() + text)
+    path.write_text(without_design(path.read_text()) + text)
     mesh = meshio.read(robot_dir / "tripod.vtu")
     centroid = mesh.points[mesh.cells_dict["tetra"]].mean(axis=1)
     tags = np.where(centroid[:, 1] > 0.046, 7, 0)             # the top layer of the body
@@ -74,9 +83,52 @@ def test_design_table_errors_name_the_file_and_field(robot_dir, text, match):
     assert str(robot_dir / "robot.toml") in str(err.value)
 
 
-def test_a_robot_without_design_table_is_fixed():
+def test_a_robot_without_design_table_is_fixed(robot_dir):
+    path = robot_dir / "robot.toml"
+    path.write_text(without_design(path.read_text()))
     with pytest.raises(ValueError, match=r"no \[design\] table"):
-        load_design(load_robot("tripod"))
+        load_design(load_robot(path))
+
+
+@pytest.mark.parametrize("file", ["robot.toml", "robot_fine.toml"])
+def test_the_shipped_robots_declare_their_design(file):
+    """The generator's ``[design]`` tables (assets/make_robots.py): every tendon routed (Tripod: 2
+    leaders, each motor's _b mirrors its _a; Puppy: 4 leaders of 16), the legs below the hip
+    (3 and 4, mirror legs tied on the Puppy), and regions that cover every tet once."""
+    for name, regions, leaders, legs in (
+            ("tripod", ["back_leg", "middle_leg", "front_leg", "body"], ["front_a", "back_a"],
+             ["legs:leg0", "legs:leg1", "legs:leg2"]),
+            ("puppy", ["hind_legs", "fore_legs", "body"], ["hind_left_front_a", "hind_left_back_a",
+                                                             "fore_left_front_a", "fore_left_back_a"],
+             ["legs:leg0+leg1", "legs:leg2+leg3"])):
+        robot = load_robot(f"assets/{name}/{file}" if file != "robot.toml" else name)
+        design = load_design(robot)
+        moduli, routing, morph = design.kinds
+        assert [r.name for r in moduli.regions] == regions
+        covered = np.concatenate([r.elements for r in moduli.regions])
+        assert np.array_equal(np.sort(covered), np.arange(robot.mesh.n_tets))
+        assert [robot.tendon_names[t] for t in routing.leaders] == leaders
+        assert len(routing.leaders) + len(routing.followers) == len(robot.tendons)
+        assert morph.names == tuple(legs) and len(morph.legs) == (3 if name == "tripod" else 4)
+        assert np.allclose(design.robot_at(design.values).mesh.points, robot.mesh.points)
+
+
+@pytest.mark.parametrize("name", ["tripod", "puppy"])
+def test_the_fingerprint_ignores_the_design_table(name, tmp_path):
+    """Declaring what co-design may vary does not change the robot: the same fingerprint with the
+    ``[design]`` table, without it or with another one (results made before still match)."""
+    src = Path(load_robot(name).source)
+    fingerprints = []
+    for i, text in enumerate(["", "\n[design]\nrouting = [\"front_a\"]\n"]):
+        folder = tmp_path / str(i)
+        shutil.copytree(src.parent, folder)
+        (folder / "robot.toml").write_text(without_design(src.read_text()) + text)
+        fingerprints.append(robot_fingerprint(folder / "robot.toml"))
+    shipped = robot_fingerprint(name)
+    assert "design" in read_robot_toml(src) and "design" not in shipped["toml"]
+    for fp in fingerprints:
+        assert (fp["sha256"], fp["toml_sha256"], fp["mesh_sha256"]) == \
+            (shipped["sha256"], shipped["toml_sha256"], shipped["mesh_sha256"])
 
 
 def test_a_written_design_loads_back_and_is_another_robot(robot_dir, tmp_path):

@@ -1,7 +1,7 @@
 """The fingerprint of a robot description: what ties a result to the robot it was made for.
 
 :func:`robot_fingerprint` hashes a ``robot.toml`` as parsed and normalised (comments, layout, key
-order and ``1`` vs ``1.0`` do not count) and its mesh as read (positions rounded to 1e-9 of the
+order, ``1`` vs ``1.0`` and the ``[design]`` table do not count) and its mesh as read (positions rounded to 1e-9 of the
 mesh's size, and tets; the file format does not count). ``trajopt.robot_match`` compares two
 fingerprints and names the fields that changed.
 """
@@ -39,7 +39,8 @@ def robot_fingerprint(source: str | Path | Robot) -> dict[str, Any] | None:
     file; None for a robot built in Python). Returns ``{"name", "source", "sha256",
     "toml_sha256", "mesh_sha256", "toml"}``: the ``[robot].name``, the file, and SHA-256 hashes
     of the whole, of the ``robot.toml`` as parsed (comments, layout, key order, ``1`` vs ``1.0``,
-    ``[robot].mesh`` and ``description`` do not count, nor a motor's ``max_speed_rpm`` written
+    ``[robot].mesh`` and ``description`` do not count, nor the ``[design]`` table (what co-design
+    may vary does not change the robot), nor a motor's ``max_speed_rpm`` written
     out at its default; ``toml`` is that normalised document, so a
     mismatch can name the fields that changed) and of the mesh as read (node positions rounded to
     1e-9 of the mesh's size, and tets; the file format does not count)."""
@@ -58,6 +59,7 @@ def robot_fingerprint(source: str | Path | Robot) -> dict[str, Any] | None:
     norm = _normalised(doc)
     norm.get("robot", {}).pop("mesh", None)
     norm.get("robot", {}).pop("description", None)
+    norm.pop("design", None)     # what co-design may vary is no part of the robot (docs/codesign.md)
     for motor in norm.get("motors", []) if isinstance(norm.get("motors"), list) else []:
         if isinstance(motor, dict) and motor.get("max_speed_rpm") == DEFAULT_MAX_SPEED_RPM:
             del motor["max_speed_rpm"]      # the default written out is the same robot (older files)

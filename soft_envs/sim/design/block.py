@@ -13,8 +13,8 @@ histories' dependence (none: the Coulomb anchors' update depends on positions on
 
 runs the same forward sensitivities as ``calibrate``'s physical parameters, the rest state's
 derivative included (:meth:`~soft_envs.sim.Simulator.rest_sensitivity`), under either contact
-law. The derivatives hold at the robot the block was built for; build a new block at
-``robot_at(theta)`` to differentiate there.
+law. The derivatives hold at the robot the block was built for; :meth:`moved_to` rebuilds the
+block at ``robot_at(theta)`` to differentiate there.
 
 Total mass: moduli and routing do not change the masses, leg morphs do (the masses follow the
 volumes); :meth:`total_mass` and :meth:`total_mass_jacobian` are the constraint's value and
@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..parameter_block import ParameterBlock
+from .clearance import signed_distance
 
 if TYPE_CHECKING:
     from ..robot import Robot
@@ -76,6 +77,38 @@ class DesignParameters(ParameterBlock):
             robot = robot.replace(**self.kinds[i].apply(robot, theta[self._slices[i]]))
         return robot
 
+    def moved_to(self, theta) -> "DesignParameters":
+        """The same declaration rebuilt at ``robot_at(theta)``, to linearise there: the same
+        names and (global) bounds, ``values`` equal to theta (routing: the via points as they
+        are in the moved robot, which a leg morph carries with their tets; legs: the cumulative
+        added lengths), the same regions' tets, leg tets and absolute hip height, and
+        ``new.robot_at(new.values)`` is ``new.robot``; its derivatives are those of
+        ``new.robot_at`` at ``new.values``."""
+        theta = np.asarray(theta, dtype=np.float64)
+        robot = self.robot_at(theta)
+        return DesignParameters(robot, [k.moved_to(robot, theta[sl]) for k, sl in zip(self.kinds, self._slices)])
+
+    def describe_changes(self, theta_before, theta_after) -> list[dict]:
+        """Every parameter that differs between ``theta_before`` and ``theta_after``: a dict of
+        ``name``, ``before``, ``after``, ``unit`` and a plain ``description`` ("Young's modulus
+        of middle_leg x1.50", "via point 1 of front_a moved 1.2 mm inwards (x)", "leg1 3.0 mm
+        longer"), for the co-design report. Inwards/outwards: along the clearance gradient at
+        the point before (else forward/backward, up/down, left/right)."""
+        before, after = (np.asarray(t, dtype=np.float64) for t in (theta_before, theta_after))
+        for t in (before, after):
+            if t.shape != (len(self),):
+                raise ValueError(f"a design vector of {self.robot.name!r} has {len(self)} entries, got shape {t.shape}")
+        robot = None
+        out = []
+        for k, sl in zip(self.kinds, self._slices):
+            for i in np.flatnonzero(before[sl] != after[sl]):
+                if k.kind == "routing" and robot is None:
+                    robot = self.robot_at(before)
+                b, a = float(before[sl][i]), float(after[sl][i])
+                out.append({"name": k.names[i], "before": b, "after": a, "unit": "Pa" if k.kind == "stiffness" else "m",
+                            "description": _describe(k, int(i), b, a, robot)})
+        return out
+
     # ------------------------------------------------------------------ parameter block
     def check(self, system) -> "DesignParameters":
         if system.robot is not self.robot:
@@ -120,3 +153,26 @@ class DesignParameters(ParameterBlock):
     def total_mass_jacobian(self) -> np.ndarray:
         """``d total_mass / dtheta`` (len,)."""
         return self.node_mass_jacobian().sum(axis=0)
+
+
+def _describe(kind, i: int, before: float, after: float, robot) -> str:
+    """A plain sentence for the change of ``kind``'s parameter i (:meth:`DesignParameters.describe_changes`)."""
+    name = kind.names[i].split(":", 1)[1]
+    if kind.kind == "stiffness":
+        return f"Young's modulus of {name} x{after / before:.2f} ({before:.3g} -> {after:.3g} Pa)"
+    if kind.kind == "legs":
+        return f"{name.replace('+', ' and ')} {1e3 * abs(after - before):.1f} mm {'longer' if after > before else 'shorter'}"
+    t, s = kind.free[i // 3]
+    axis = i % 3
+    delta = after - before
+    _, grad = signed_distance(robot.mesh, np.asarray(robot.tendons[t].points[s]))
+    if abs(grad[axis]) > 0.5:
+        way = "inwards" if grad[axis] * delta > 0 else "outwards"
+    else:
+        fwd, up = np.asarray(robot.forward_axis, float), np.asarray(robot.up_axis, float)
+        words = {tuple(fwd): ("forward", "backward"), tuple(up): ("up", "down"),
+                 tuple(np.cross(fwd, up)): ("right", "left")}      # left is -lateral (docs/robots.md)
+        e = np.eye(3)[axis]
+        way = next((pos if delta * (e @ np.asarray(v)) > 0 else neg) for v, (pos, neg) in words.items()
+                   if abs(e @ np.asarray(v)) > 0.5)
+    return f"via point {s} of {robot.tendon_names[t]} moved {1e3 * abs(delta):.1f} mm {way} ({'xyz'[axis]})"

@@ -91,6 +91,7 @@ class RegionalModuli:
         if not (0 < lo <= 1 <= hi and np.isfinite(hi)):
             raise ValueError(f"{robot.source}: design modulus bounds must satisfy 0 < low <= 1 <= high, got {bounds}")
         self.regions = tuple(regions)
+        self.factor_bounds = (lo, hi)
         self.names = tuple(f"stiffness:{r.name}" for r in regions)
         scale = robot.element_modulus_scale
         for r in regions:
@@ -100,6 +101,15 @@ class RegionalModuli:
         self.values = np.array([E * scale[r.elements[0]] for r in regions])
         self.bounds = np.array([[lo * E, hi * E]] * len(regions)).reshape(-1, 2)
         self._dlame = lame_jacobian(E, robot.poisson_ratio)["youngs_modulus"]    # (dmu/dE, dlam/dE)
+
+    def moved_to(self, robot, values: np.ndarray) -> "RegionalModuli":
+        """These regions at ``robot`` (the design at ``values``): the same tets, values ``values``
+        (robot's moduli), bounds relative to the original fitted modulus (``youngs_modulus``,
+        which no design changes)."""
+        new = RegionalModuli(robot, self.regions, self.factor_bounds)
+        if not np.allclose(new.values, values, rtol=1e-12, atol=0):
+            raise ValueError(f"{robot.source}: the moduli of the moved robot are not the design's")
+        return new
 
     def apply(self, robot, theta: np.ndarray) -> dict:
         """The :class:`~soft_envs.sim.robot.Robot` field changes of moduli ``theta`` (Pa)."""

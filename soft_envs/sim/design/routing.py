@@ -43,6 +43,7 @@ not move.
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections.abc import Sequence
 
@@ -191,7 +192,8 @@ class TendonRouting:
         self.offset[lateral] = lo[lateral] + hi[lateral]
         motor = robot.tendon_motor
         self.leaders = []
-        #: follower tendon -> (leader, R, c): its points are ``R q_leader + c``
+        #: follower tendon -> (leader, R, c): its points are ``R q_leader + c`` (c: (3,) or one
+        #: offset per point, (P, 3), after :meth:`moved_to`)
         self.followers: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}
         placed: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}     # every routed tendon's map to its leader
         for n in tendons:
@@ -225,6 +227,19 @@ class TendonRouting:
             else np.zeros(0)
         self.bounds = np.column_stack([np.repeat(lo[None], len(self.free), 0).ravel(),
                                        np.repeat(hi[None], len(self.free), 0).ravel()]).reshape(-1, 2)
+
+    def moved_to(self, robot, values: np.ndarray) -> "TendonRouting":
+        """This routing at ``robot`` (the design at ``values``): the same leaders, free points,
+        follower maps' linear parts and bounds; the values are ``robot``'s via points and each
+        follower's offsets ``c_s = q'_s - R q_s`` (one per point) are read from ``robot``, so the
+        relations hold as they do there (a leg morph moves a pair's points by slightly different
+        amounts: with per-point offsets the moved robot is reproduced exactly)."""
+        new = copy.copy(self)
+        pts = [np.asarray(t.points, dtype=np.float64) for t in robot.tendons]
+        new.followers = {f: (lead, R, pts[f] - pts[lead] @ R.T) for f, (lead, R, _) in self.followers.items()}
+        new.values = np.concatenate([pts[t][s] for t, s in self.free]) if self.free else np.zeros(0)
+        new.bounds = self.bounds.copy()
+        return new
 
     def points(self, robot, theta: np.ndarray) -> list[np.ndarray]:
         """Every tendon's rest points for routing ``theta``."""

@@ -8,7 +8,11 @@ units:
 * moduli: ``[[material.regions]]`` tables (``name``, ``youngs_modulus``, ``tets``), read back by
   :func:`~soft_envs.sim.robot_file.load_robot` into ``Robot.modulus_scale``;
 * leg lengths: a new mesh file ``mesh.vtu`` (``[robot].mesh`` points at it) and the markers'
-  points; otherwise ``[robot].mesh`` points at the source's mesh file.
+  points; otherwise ``[robot].mesh`` points at the source's mesh file. The ``[design]`` table
+  is kept (the written robot can be co-designed again) with, when the mesh moved, its
+  ``hip_height`` measured from the new lowest node at the absolute hip height the source's
+  declares, and its ``[[design.regions]]`` as cell tags of the mesh (cell data
+  ``design_region``): ``load_design`` on the written folder finds the same legs and regions.
 
 The written folder is loaded back and compared with ``design.robot_at(theta)`` (node positions,
 tendon points, element moduli, masses): a mismatch is a RuntimeError. A different robot file
@@ -26,6 +30,7 @@ import numpy as np
 
 from ..robot_file import load_robot, robot_document
 from .block import DesignParameters
+from .declaration import load_design
 
 __all__ = ["write_designed_robot", "HEADER"]
 
@@ -71,12 +76,15 @@ def write_designed_robot(design: DesignParameters, theta, out_dir: str | Path) -
         mat["regions"] = array
 
     mesh = (source.parent / str(doc["robot"]["mesh"])).resolve()
-    if np.array_equal(robot.mesh.points, design.robot.mesh.points):
+    shipped = load_robot(source)
+    if np.array_equal(robot.mesh.points, shipped.mesh.points):
         near = os.path.commonpath([mesh, out.resolve()]) != os.path.sep
         doc["robot"]["mesh"] = os.path.relpath(mesh, out.resolve()) if near else str(mesh)
     else:
-        meshio.write(out / "mesh.vtu", _moved_mesh(mesh, robot.mesh, to_file(robot.mesh.points)))
+        tags = _design_regions_as_tags(design.robot.mesh.n_tets, doc, source)
+        meshio.write(out / "mesh.vtu", _moved_mesh(mesh, robot.mesh, to_file(robot.mesh.points), tags))
         doc["robot"]["mesh"] = "mesh.vtu"
+        _move_hip_height(doc, shipped, robot, float(np.linalg.norm(M[0])))
 
     changed = ", ".join(f"{n} = {float(v):.6g}" for n, v, v0 in zip(design.names, theta, design.values) if v != v0)
     text = f"{HEADER} from {source} on {time.strftime('%Y-%m-%d %H:%M')}: {changed or 'no change'}\n"
@@ -85,14 +93,58 @@ def write_designed_robot(design: DesignParameters, theta, out_dir: str | Path) -
     return target
 
 
-def _moved_mesh(source_file: Path, mesh, points: np.ndarray) -> meshio.Mesh:
+#: the written mesh's cell-data array of the ``[[design.regions]]`` (when the mesh moved)
+REGION_CELL_DATA = "design_region"
+
+
+def _design_regions_as_tags(n_tets: int, doc, source: Path) -> np.ndarray | None:
+    """When the source declares ``[[design.regions]]``: one tag per tet (region i: i + 1, else 0),
+    and the regions rewritten as ``cell_tag`` of :data:`REGION_CELL_DATA` (boxes would pick other
+    tets of a morphed mesh)."""
+    table = doc.get("design")
+    if not isinstance(table, dict) or not table.get("regions"):
+        return None
+    regions = load_design(load_robot(source), ["stiffness"]).kinds[0].regions     # the tets never change
+    tags = np.zeros(n_tets, dtype=np.int64)
+    for i, (region, entry) in enumerate(zip(regions, table["regions"])):
+        tags[region.elements] = i + 1
+        for key in ("boxes", "cell_tag", "cell_data"):
+            entry.pop(key, None)
+        entry["cell_tag"] = i + 1
+        entry["cell_data"] = REGION_CELL_DATA
+    return tags
+
+
+def _move_hip_height(doc, shipped, robot, scale: float) -> None:
+    """``[design].hip_height`` (file units, above the lowest node) of the moved mesh at the
+    absolute height the source's declares (above the ``shipped`` robot's lowest node), so that
+    ``load_design`` finds the same legs."""
+    table = doc.get("design")
+    hip = table.get("hip_height") if isinstance(table, dict) else None
+    if isinstance(hip, (int, float)) and not isinstance(hip, bool):
+        up = robot.up_axis
+        absolute = float((shipped.mesh.points @ up).min()) + scale * float(hip)
+        table["hip_height"] = (absolute - float((robot.mesh.points @ up).min())) / scale
+
+
+def _moved_mesh(source_file: Path, mesh, points: np.ndarray, tags: np.ndarray | None = None) -> meshio.Mesh:
     """The source mesh file's content (cells, cell data such as region tags) with new
-    ``points``, when its tets are the robot's; otherwise the bare tets."""
+    ``points``, when its tets are the robot's; otherwise the bare tets. ``tags``: one integer
+    per tet, written as the cell data :data:`REGION_CELL_DATA`."""
     original = meshio.read(source_file)
     tetra = [c.data for c in original.cells if c.type == "tetra"]
     if original.points.shape[0] == len(points) and tetra and np.array_equal(np.concatenate(tetra), mesh.tets):
-        return meshio.Mesh(points, original.cells, cell_data=original.cell_data)
-    return meshio.Mesh(points, [("tetra", np.array(mesh.tets))])
+        cells, cell_data = original.cells, dict(original.cell_data)
+    else:
+        cells, cell_data = [meshio.CellBlock("tetra", np.array(mesh.tets))], {}
+    if tags is not None:
+        blocks, start = [], 0
+        for c in cells:
+            n = len(c.data)
+            blocks.append(tags[start:start + n] if c.type == "tetra" else np.zeros(n, dtype=np.int64))
+            start += n if c.type == "tetra" else 0
+        cell_data[REGION_CELL_DATA] = blocks
+    return meshio.Mesh(points, cells, cell_data=cell_data)
 
 
 def _check_written(target: Path, robot) -> None:
