@@ -72,6 +72,8 @@ class JointState:
     sim_steps: int = 0
     wall_time_s: float = 0.0
     done: bool = False
+    screened: bool = False                   # the screening stage (trajopt.codesign.screen) is done
+    screen_rows: list[dict] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -82,14 +84,12 @@ class JointState:
 
 
 def replay_path(problem: CodesignProblem, path: list[list[float]]):
-    """The design block at the end of ``path`` (the designs an interrupted run linearised at),
+    """``(block, anchor)`` at the end of ``path`` (the designs an interrupted run linearised at),
     moved there from the shipped design one design at a time, as the run did."""
-    block = problem.shipped
+    block, anchor = problem.shipped, problem.shipped.values.copy()
     for theta in path:
-        theta = np.asarray(theta, dtype=np.float64)
-        if not np.array_equal(theta, block.values):
-            block = block.moved_to(theta)
-    return block
+        block, anchor = problem.moved(block, anchor, theta)
+    return block, anchor
 
 
 def evaluate_design(problem: CodesignProblem, w: np.ndarray, eval_cycles: int) -> dict[str, Any]:
@@ -131,7 +131,7 @@ def optimise_jointly(problem: CodesignProblem, state: JointState, settings: Join
     lo, hi = problem.bounds()
     if state.best_w is None:
         state.best_w, state.best_path_len = list(state.w), len(state.path)
-    problem.block = replay_path(problem, state.path)
+    problem.block, problem.anchor = replay_path(problem, state.path)
     best_block = replay_path(problem, state.path[:state.best_path_len])
 
     def sync() -> None:
@@ -139,7 +139,7 @@ def optimise_jointly(problem: CodesignProblem, state: JointState, settings: Join
         state.wall_time_s = time.perf_counter() - t0
 
     def moved() -> None:
-        theta = problem.block.values.tolist()
+        theta = problem.anchor.tolist()
         if not state.path or state.path[-1] != theta:
             state.path.append(theta)
 
@@ -183,10 +183,10 @@ def optimise_jointly(problem: CodesignProblem, state: JointState, settings: Join
         improved = upright and np.isfinite(speed) and speed > state.best_speed
         if improved:
             state.best_speed, state.best_w, state.best_evaluation = speed, list(state.w), ev
-            state.best_path_len, best_block = len(state.path), problem.block
+            state.best_path_len, best_block = len(state.path), (problem.block, problem.anchor)
         else:                                    # the next stage starts from the best point
             state.w, state.path = list(state.best_w), state.path[:state.best_path_len]
-            problem.block = best_block
+            problem.block, problem.anchor = best_block
         state.stage += 1
         state.iteration, state.lam, state.rejections = 0, None, 0
         if not improved or gain < settings.min_gain:

@@ -50,13 +50,34 @@ from ..parameterization import GaitParameterization
 from ..qp import LinearConstraints
 from ..targets import bl_per_min_to_mps
 
-__all__ = ["CodesignWeights", "CodesignProblem", "InfeasibleDesign", "CLEARANCE_MARGIN"]
+__all__ = ["CodesignWeights", "CodesignProblem", "InfeasibleDesign", "TrustRegion", "CLEARANCE_MARGIN"]
 
 #: [m] the linearised clearance keeps this much above the limit where it can (the exact check
 #: then refuses fewer trials: the signed distance inside a body is concave near its edges)
 CLEARANCE_MARGIN = 2e-5
 #: [m] rounding allowed on the exact clearance check (the shipped via points sit at 2 mm to 1e-17 m)
 CLEARANCE_ATOL = 1e-12
+
+
+@dataclass(frozen=True)
+class TrustRegion:
+    """How far one Gauss-Newton step may move the design: via points and leg lengths by
+    ``routing`` and ``legs`` [m] per coordinate, moduli by ``stiffness`` times their value. The
+    linearised clearance only knows the faces nearest each point (a point sliding along a face is
+    not held by it), and the objective of a via point is piecewise smooth on the mesh's
+    elements: steps of a few millimetres keep the linear model honest."""
+
+    routing: float = 3e-3
+    legs: float = 3e-3
+    stiffness: float = 0.5
+
+    def radius(self, names, values: np.ndarray) -> np.ndarray:
+        """(len,) the largest move of each design parameter in one step."""
+        out = np.empty(len(names))
+        for i, (n, v) in enumerate(zip(names, values)):
+            kind = n.split(":", 1)[0]
+            out[i] = self.stiffness * abs(v) if kind == "stiffness" else getattr(self, kind)
+        return out
 
 
 class InfeasibleDesign(SimulationError):
@@ -90,9 +111,10 @@ class CodesignProblem:
     def __init__(self, env, design: DesignParameters, gait: GaitSpec, speed_bl_per_min: float,
                  weights: CodesignWeights = CodesignWeights(), max_step: np.ndarray | None = None,
                  min_clearance: float = MIN_CLEARANCE, mass_floor: float = 1.0 - MAX_MASS_LOSS,
-                 newton: Any = None):
+                 newton: Any = None, trust: "TrustRegion | None" = None):
         self.env = as_gradient_env(env)
         self.newton = newton
+        self.trust = TrustRegion() if trust is None else trust
         if newton is not None:
             self.env.simulator.newton.options = newton
         if design.robot is not self.env.robot:
@@ -101,6 +123,7 @@ class CodesignProblem:
         self.contact = self.env.contact_model
         self.shipped = design
         self.block = design
+        self.anchor = design.values.copy()         # the optimiser's theta of the block (move_to)
         self.gait = gait
         self.param = GaitParameterization.for_robot(self.env.robot, gait)
         self.dudz = self.param.dudz()
@@ -132,7 +155,7 @@ class CodesignProblem:
 
     def start(self, z: np.ndarray) -> np.ndarray:
         """w of keyframes ``z`` on the current design."""
-        return np.concatenate([np.asarray(z, dtype=np.float64), self.block.values])
+        return np.concatenate([np.asarray(z, dtype=np.float64), self.anchor])
 
     def set_target(self, speed_bl_per_min: float) -> None:
         """Track a straight line along +x at ``speed_bl_per_min``."""
@@ -156,13 +179,25 @@ class CodesignProblem:
     def robot_at(self, theta: np.ndarray):
         """The robot of design ``theta`` from the current block."""
         theta = np.asarray(theta, dtype=np.float64)
-        return self.block.robot if np.array_equal(theta, self.block.values) else self.block.robot_at(theta)
+        if np.array_equal(theta, self.anchor):
+            return self.block.robot
+        return self.block.robot_at(self.block.values + (theta - self.anchor))
 
     def move_to(self, theta: np.ndarray) -> None:
         """Linearise at design ``theta`` from now on (:meth:`DesignParameters.moved_to`)."""
+        self.block, self.anchor = self.moved(self.block, self.anchor, theta)
+
+    @staticmethod
+    def moved(block, anchor: np.ndarray, theta: np.ndarray):
+        """``(block, anchor)`` moved from the optimiser's design ``anchor`` to ``theta``. A block's
+        values are the design as its robot has it: a leg morph carries the via points in the leg
+        with it, so a moved block's routing values may differ from the optimiser's theta; the
+        block maps ``theta`` to its values ``block.values + (theta - anchor)`` (the Jacobians are
+        the same in both)."""
         theta = np.asarray(theta, dtype=np.float64)
-        if not np.array_equal(theta, self.block.values):
-            self.block = self.block.moved_to(theta)
+        if np.array_equal(theta, anchor):
+            return block, anchor
+        return block.moved_to(block.values + (theta - anchor)), theta.copy()
 
     def _routing(self):
         for kind, sl in zip(self.block.kinds, self.block._slices):
@@ -197,6 +232,11 @@ class CodesignProblem:
             G[:, self.nz + sl.start:self.nz + sl.stop] = -J
             rows.append(G)
             rhs.append(allowed + G[:, self.nz:] @ theta)
+        if self.ntheta:                       # the trust region around the current design
+            radius = self.trust.radius(self.block.names, theta)
+            eye = np.hstack([np.zeros((self.ntheta, self.nz)), np.eye(self.ntheta)])
+            rows += [eye, -eye]
+            rhs += [theta + radius, -(theta - radius)]
         dm = self.block.total_mass_jacobian()
         if np.any(dm != 0):
             g = np.concatenate([np.zeros(self.nz), -dm])
@@ -213,7 +253,10 @@ class CodesignProblem:
             self.move_to(theta)
             robot = self.block.robot
         else:
-            robot = self.robot_at(theta)
+            try:
+                robot = self.robot_at(theta)
+            except ValueError as err:              # e.g. a via point outside the body
+                raise InfeasibleDesign(str(err)) from None
             why = self.design_violation(robot)
             if why is not None:
                 raise InfeasibleDesign(why)

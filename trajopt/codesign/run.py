@@ -44,6 +44,7 @@ from ..results import Result
 from ..robot_match import describe_difference
 from .joint import JointSettings, JointState, optimise_jointly
 from .problem import CodesignProblem, CodesignWeights
+from .screen import ScreenSettings, screen_designs
 
 __all__ = ["CodesignRun", "CodesignOutcome", "run_codesign", "design_changes"]
 
@@ -60,6 +61,7 @@ class CodesignRun:
     contact: str | None = None
     baseline: Path | None = None
     joint: JointSettings = JointSettings()
+    screen: ScreenSettings = ScreenSettings()
     search: SearchSettings = SearchSettings()
     weights: CodesignWeights = CodesignWeights()
     polish_iterations: int = 3
@@ -73,7 +75,7 @@ class CodesignRun:
     def quick(cls, robot: str, out: Path, **kw) -> "CodesignRun":
         """Small enough for tests and CI (a minute or two)."""
         return cls(robot, Path(out), joint=JointSettings.quick(), search=SearchSettings.quick(),
-                   polish_iterations=1, **kw)
+                   screen=ScreenSettings.quick(), polish_iterations=1, **kw)
 
 
 @dataclass
@@ -154,7 +156,7 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     gait = GaitSpec.from_settings(baseline.settings)
     base_speed = float(baseline.evaluation["speed_bl_per_min"])
     settings = {"robot": run.robot, "vary": list(run.vary), "contact": env.contact_model, "gait": gait.to_settings(),
-                "joint": asdict(run.joint), "weights": run.weights.to_dict(), "parameters": list(design.names),
+                "joint": asdict(run.joint), "screen": asdict(run.screen), "weights": run.weights.to_dict(), "parameters": list(design.names),
                 "baseline_speed_bl_per_min": base_speed}
     problem = CodesignProblem(env, design, gait, run.joint.target(base_speed), run.weights, max_step_of_env(env))
     partial = run.out / PARTIAL
@@ -171,6 +173,20 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     def checkpoint(s: JointState) -> None:
         _write_json(partial, {"settings": settings, "state": s.to_dict()})
 
+    if not state.screened:                   # the coarse stage (an interrupted screening starts again)
+        t0 = time.perf_counter()
+        theta0 = problem.anchor.copy()
+        say(f"screening designs around the shipped one ({run.screen.rounds} rounds at most)")
+        theta, z, speed, rows = screen_designs(problem, theta0, np.asarray(baseline.z), base_speed,
+                                               run.joint.target(base_speed), run.screen, log=say)
+        problem.move_to(theta)
+        state.path = [] if np.array_equal(theta, theta0) else [theta.tolist()]
+        state.w = state.best_w = np.concatenate([z, theta]).tolist()
+        state.best_speed, state.best_path_len = speed, len(state.path)
+        state.screen_rows, state.screened = rows, True
+        state.sim_steps, state.wall_time_s = problem.sim_steps, time.perf_counter() - t0
+        checkpoint(state)
+
     total = run.joint.stages * run.joint.iterations
     bar = None
     if not run.quiet:
@@ -184,8 +200,9 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
             bar.close()
     block = problem.block
     z_best, theta_best = problem.split(np.asarray(state.best_w))
-    assert np.array_equal(theta_best, block.values)
-    robot_file = write_designed_robot(block, theta_best, run.out)
+    if not np.array_equal(theta_best, problem.anchor):
+        raise RuntimeError("co-design: the best design's block was lost (a bug)")
+    robot_file = write_designed_robot(block, block.values, run.out)
     say(f"wrote the designed robot {robot_file}")
     from ..design_checks import check_designed_robot, format_checks
     checks = check_designed_robot(shipped.source, robot_file)
@@ -201,7 +218,7 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
         reopt_file = run.out / f"{name}_reoptimised.npz"
         reopt.save(reopt_file)
         write_search_table(rows, reopt_file)
-    changes = design_changes(design, design.values, theta_best)
+    changes = design_changes(design, design.values, block.values)
     summary = _summary(run, env, baseline, result, reopt, state, changes, checks, time.perf_counter() - t_start)
     report_file = _report(run, shipped, new_env.robot, summary, changes, checks, settings)
     _write_json(run.out / "codesign.json", summary)
@@ -264,5 +281,5 @@ def _report(run, shipped, designed, summary, changes, checks, settings) -> Path:
         "n_keyframes": summary["reoptimised_cycle"][1]}
     path = run.out / "codesign.md"
     write_codesign_report(path, robot_name=shipped.name, before=before, after=after, reoptimised=reopt,
-                          changes=changes, checks=checks, picture=picture.name, settings=settings)
+                          changes=changes, checks=checks, picture=str(picture), settings=settings)
     return path
