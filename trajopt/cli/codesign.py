@@ -39,6 +39,10 @@ def add_codesign_parser(sub) -> None:
     p.add_argument("--stages", type=integer(1, 100), default=None, help="co-design stages (rising targets; default 4)")
     p.add_argument("--iterations", type=integer(1, 10_000), default=None,
                    help="Gauss-Newton iterations per stage at most (default 8)")
+    p.add_argument("--screen", choices=("warm", "scratch"), default=None,
+                   help="how the screening scores a candidate design: warm, its gait warm-started from the current "
+                        "keyframes (default; the fastest pairs), or scratch, as --speed max finds a gait for it "
+                        "on the same cycle (the design's own merit; slower to run)")
     p.add_argument("--no-reoptimise", action="store_true",
                    help="skip re-optimising the gait of the written robot from scratch (--speed max)")
     p.add_argument("--quick", action="store_true", help="a tiny run (tests, CI; also SOFT_ENVS_QUICK=1)")
@@ -60,6 +64,8 @@ def _cmd_codesign(args) -> int:
     joint = {k: v for k, v in (("stages", args.stages), ("iterations", args.iterations)) if v is not None}
     if joint:
         run.joint = dataclasses.replace(run.joint, **joint)
+    if args.screen is not None:
+        run.screen = dataclasses.replace(run.screen, score=args.screen)
     outcome = run_codesign(run)
     s = outcome.summary
     print(f"{outcome.robot_file}: {s['before_bl_per_min']:.2f} -> {s['after_bl_per_min']:.2f} BL/min "

@@ -38,8 +38,8 @@ class JointSettings:
     """The stages of :func:`optimise_jointly` (module docstring)."""
 
     stages: int = 4
-    iterations: int = 8
-    target_margin: float = 1.25
+    iterations: int = 6
+    target_margin: float = 1.1
     min_target: float = 20.0
     min_gain: float = 0.01
     eval_cycles: int = SEARCH_EVAL_CYCLES

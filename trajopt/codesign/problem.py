@@ -67,9 +67,9 @@ class TrustRegion:
     not held by it), and the objective of a via point is piecewise smooth on the mesh's
     elements: steps of a few millimetres keep the linear model honest."""
 
-    routing: float = 3e-3
-    legs: float = 3e-3
-    stiffness: float = 0.5
+    routing: float = 5e-4
+    legs: float = 5e-4
+    stiffness: float = 0.05
 
     def radius(self, names, values: np.ndarray) -> np.ndarray:
         """(len,) the largest move of each design parameter in one step."""
@@ -216,9 +216,10 @@ class CodesignProblem:
             return f"total mass {1e3 * robot.total_mass:.3f} g below the floor {1e3 * self.min_mass:.3f} g"
         return None
 
-    def linearised_constraints(self, w: np.ndarray) -> LinearConstraints:
+    def linearised_constraints(self, w: np.ndarray, trust: bool = True) -> LinearConstraints:
         """``G w <= h`` at the current design: the motors' limit (on z), every via point's clearance
-        and the mass floor, linearised (module docstring). Call after ``self(w, True)``."""
+        and the mass floor, linearised (module docstring), and the trust region (``trust``). Call
+        after ``self(w, True)``."""
         _, theta = self.split(w)
         rows, rhs = [], []
         if self.motor_rows is not None:
@@ -232,7 +233,7 @@ class CodesignProblem:
             G[:, self.nz + sl.start:self.nz + sl.stop] = -J
             rows.append(G)
             rhs.append(allowed + G[:, self.nz:] @ theta)
-        if self.ntheta:                       # the trust region around the current design
+        if self.ntheta and trust:             # the trust region around the current design
             radius = self.trust.radius(self.block.names, theta)
             eye = np.hstack([np.zeros((self.ntheta, self.nz)), np.eye(self.ntheta)])
             rows += [eye, -eye]

@@ -178,7 +178,7 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
         theta0 = problem.anchor.copy()
         say(f"screening designs around the shipped one ({run.screen.rounds} rounds at most)")
         theta, z, speed, rows = screen_designs(problem, theta0, np.asarray(baseline.z), base_speed,
-                                               run.joint.target(base_speed), run.screen, log=say)
+                                               run.joint.target(base_speed), run.screen, search=run.search, log=say)
         problem.move_to(theta)
         state.path = [] if np.array_equal(theta, theta0) else [theta.tolist()]
         state.w = state.best_w = np.concatenate([z, theta]).tolist()

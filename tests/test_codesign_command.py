@@ -1,0 +1,93 @@
+"""``trajopt codesign`` end to end in quick mode (issue #29 item 3): the files it writes, the
+written robot loads and simulates and its constraints hold (checked from the files), a result made
+on the written robot refuses the shipped one, resume after an interruption, and the refusals."""
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from soft_envs.envs import load_robot
+from trajopt import Result
+from trajopt.cli import main
+from trajopt.codesign.run import CodesignRun, run_codesign
+from trajopt.design_checks import check_designed_robot
+from trajopt.evaluation import evaluate_result
+
+
+@pytest.fixture(scope="module")
+def done(tmp_path_factory):
+    out = tmp_path_factory.mktemp("codesign") / "tripod"
+    assert main(["codesign", "tripod", "--quick", "--quiet", "--out", str(out)]) == 0
+    return out
+
+
+def test_writes_a_robot_folder_its_gait_and_a_report(done):
+    for name in ("robot.toml", "tripod_walk.npz", "tripod_walk_reoptimised.npz", "baseline_walk.npz",
+                 "codesign.md", "codesign.png", "codesign.json"):
+        assert (done / name).is_file() and (done / name).stat().st_size > 0, name
+    assert not (done / "codesign.partial.json").exists()
+    summary = json.loads((done / "codesign.json").read_text())
+    assert summary["checks_passed"] and summary["after_upright"]
+    assert summary["after_bl_per_min"] >= summary["before_bl_per_min"]        # the screening keeps the best
+    text = (done / "codesign.md").read_text()
+    assert "Design changes" in text and "codesign.png" in text
+
+
+def test_written_robot_loads_simulates_and_holds_its_constraints(done):
+    robot = load_robot(done / "robot.toml")
+    assert robot.motor_names == load_robot("tripod").motor_names
+    assert all(c.passed for c in check_designed_robot("tripod", done / "robot.toml"))
+    res = Result.load(done / "tripod_walk.npz")
+    ev = evaluate_result(res, 2)
+    assert np.isclose(ev["speed_bl_per_min"], json.loads((done / "codesign.json").read_text())["after_bl_per_min"])
+
+
+def test_a_result_made_on_the_written_robot_refuses_the_shipped_one(done):
+    res = Result.load(done / "tripod_walk.npz")
+    res.robot = "tripod"
+    with pytest.raises(ValueError, match="robot"):
+        evaluate_result(res, 1)
+
+
+def test_refuses_to_replace_a_finished_run_and_unknown_kinds(done, capsys):
+    assert main(["codesign", "tripod", "--quick", "--quiet", "--out", str(done)]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["codesign", "tripod", "--vary", "wings", "--out", str(done)])
+    assert exc.value.code == 2
+
+
+def test_resume_continues_an_interrupted_run(tmp_path, done):
+    """Interrupted at its first joint checkpoint, resumed: the same design and speed as a run
+    that was never interrupted."""
+    import trajopt.codesign.run as run_module
+    out = tmp_path / "again"
+    shutil.copytree(done, out)
+    for name in ("robot.toml", "codesign.json", "codesign.md", "tripod_walk.npz"):
+        (out / name).unlink()
+    original = run_module._write_json
+    calls = []
+
+    def interrupt(path, data):
+        original(path, data)
+        calls.append(path.name)
+        if path.name == "codesign.partial.json" and data["state"]["history"]:
+            raise KeyboardInterrupt
+
+    run_module._write_json = interrupt
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_codesign(CodesignRun.quick("tripod", out, quiet=True, reoptimise=False, overwrite=True,
+                                           baseline=done / "baseline_walk.npz"))
+    finally:
+        run_module._write_json = original
+    assert (out / "codesign.partial.json").is_file()
+    outcome = run_codesign(CodesignRun.quick("tripod", out, quiet=True, reoptimise=False, resume=True,
+                                             baseline=done / "baseline_walk.npz"))
+    reference = json.loads((done / "codesign.json").read_text())
+    assert outcome.summary["after_bl_per_min"] == pytest.approx(reference["after_bl_per_min"], rel=1e-9)
+    body = lambda p: [line for line in p.read_text().splitlines() if not line.startswith("# Designed")]  # noqa: E731
+    assert body(out / "robot.toml") == body(done / "robot.toml")          # the header has the date
