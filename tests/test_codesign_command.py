@@ -91,3 +91,12 @@ def test_resume_continues_an_interrupted_run(tmp_path, done):
     assert outcome.summary["after_bl_per_min"] == pytest.approx(reference["after_bl_per_min"], rel=1e-9)
     body = lambda p: [line for line in p.read_text().splitlines() if not line.startswith("# Designed")]  # noqa: E731
     assert body(out / "robot.toml") == body(done / "robot.toml")          # the header has the date
+
+
+def test_scratch_scored_screening_runs(tmp_path, done):
+    """--screen scratch: each candidate's gait found as --speed max finds it (quick search)."""
+    out = tmp_path / "scratch"
+    assert main(["codesign", "tripod", "--quick", "--quiet", "--screen", "scratch", "--no-reoptimise",
+                 "--baseline", str(done / "baseline_walk.npz"), "--out", str(out)]) == 0
+    summary = json.loads((out / "codesign.json").read_text())
+    assert summary["checks_passed"] and summary["after_bl_per_min"] > 0

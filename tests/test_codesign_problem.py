@@ -101,3 +101,24 @@ def test_gauss_newton_keeps_constraints_linearised_at_every_iterate():
                        GaussNewtonOptions(max_iter=60, ftol=0.0, xtol=0.0), constraints=linearise)
     assert np.linalg.norm(out.z) <= 1.0 + 1e-12
     np.testing.assert_allclose(out.z, a / np.linalg.norm(a), atol=1e-3)
+
+
+def test_screening_candidates_stay_inside_the_bounds_and_the_clearance():
+    """The screening's candidates around the shipped Tripod (its [design] table): two moduli per
+    region, each leg longer and shorter, the via points along the projected steepest descent;
+    every one within the bounds, the routing ones outside by no more than the rounding."""
+    from soft_envs.envs.design import load_design
+    from trajopt.codesign.screen import ScreenSettings, candidates
+    env = make_gradient_env("tripod", contact="coulomb")
+    design = load_design(env.robot)
+    p = CodesignProblem(env, design, GAIT, 20.0, max_step=max_step_of_env(env))
+    z0 = np.clip(p.param.initial_z(0.5), *p.param.bounds())
+    z0, _ = project_start(z0, p.param, gait_constraints(p.param, p.max_step))
+    cands = candidates(p, p.anchor.copy(), z0, ScreenSettings())
+    labels = [c[0] for c in cands]
+    assert sum("modulus" in lb for lb in labels) == 8 and sum(" mm" in lb and "leg" in lb for lb in labels) == 6
+    lo, hi = design.bounds[:, 0], design.bounds[:, 1]
+    for label, th in cands:
+        assert np.all(th >= lo) and np.all(th <= hi), label
+        if label.startswith("via points"):
+            assert p.design_violation(p.robot_at(th)) is None, label
