@@ -87,15 +87,15 @@ class CodesignOutcome:
 
 
 def design_changes(design, before: np.ndarray, after: np.ndarray) -> list[dict]:
-    """Every design parameter that changed: name, before, after, unit."""
+    """Every design parameter that changed (by more than a millionth of its value, or of a
+    millimetre): name, before, after, unit (and a description when the design gives one)."""
+    before, after = np.asarray(before, dtype=np.float64), np.asarray(after, dtype=np.float64)
+    moved = np.abs(after - before) > 1e-6 * np.maximum(np.abs(before), 1e-3)
     if hasattr(design, "describe_changes"):
-        return design.describe_changes(before, after)
-    out = []
-    for name, b, a in zip(design.names, before, after):
-        if not np.isclose(a, b, rtol=0, atol=1e-9 * max(1.0, abs(b))):
-            unit = "Pa" if name.startswith("stiffness:") else "m"
-            out.append({"name": name, "before": float(b), "after": float(a), "unit": unit})
-    return out
+        keep = {n for n, m in zip(design.names, moved) if m}
+        return [c for c in design.describe_changes(before, after) if c["name"] in keep]
+    return [{"name": n, "before": float(b), "after": float(a), "unit": "Pa" if n.startswith("stiffness:") else "m"}
+            for n, b, a, m in zip(design.names, before, after, moved) if m]
 
 
 def _say(run: CodesignRun):
@@ -178,7 +178,7 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
         theta0 = problem.anchor.copy()
         say(f"screening designs around the shipped one ({run.screen.rounds} rounds at most)")
         theta, z, speed, rows = screen_designs(problem, theta0, np.asarray(baseline.z), base_speed,
-                                               run.joint.target(base_speed), run.screen, search=run.search, log=say)
+                                               run.search.target(base_speed), run.screen, search=run.search, log=say)
         problem.move_to(theta)
         state.path = [] if np.array_equal(theta, theta0) else [theta.tolist()]
         state.w = state.best_w = np.concatenate([z, theta]).tolist()
