@@ -176,6 +176,33 @@ def test_example_sweep_files_load_full_and_quick(name):
     assert robots == {"tripod", "puppy"}
 
 
+def test_rl_comparison_sweeps_are_the_same_runs_under_each_law_and_fair_budgets():
+    """examples/rl_seeds*.toml (issue #28 item 4): the same runs under both laws; trajopt's
+    ``--speed max`` gets exactly one PPO seed's simulation steps (its timesteps rounded up to whole
+    rollouts, as PPO collects them); the long PPO run has 5x the seeds' budget."""
+    import math
+
+    from trajopt.rl.hyperparams import default_hyperparams
+    specs = {law: load_spec(ROOT / "examples" / name)
+             for law, name in (("paper", "rl_seeds.toml"), ("coulomb", "rl_seeds_coulomb.toml"))}
+    assert specs["paper"].names() == specs["coulomb"].names()
+    for law, spec in specs.items():
+        assert {r.params["contact"] for r in spec.runs} == {law}
+        runs = {r.name: r for r in spec.runs}
+        for robot in ("tripod", "puppy"):
+            trajopt = runs[f"{robot}_trajopt_max"]
+            assert trajopt.kind == "optimize" and trajopt.params["speed"] == "max"
+            seeds = [runs[f"{robot}_{algo}_seed{s}"] for algo in ("ppo", "sac") for s in (0, 1, 2)]
+            assert {r.params["seed"] for r in seeds} == {0, 1, 2}
+            ppo = runs[f"{robot}_ppo_seed0"].params
+            rollout = default_hyperparams("ppo", n_envs=ppo["n_envs"])["n_steps"] * ppo["n_envs"]
+            assert trajopt.params["max_sim_steps"] == math.ceil(ppo["timesteps"] / rollout) * rollout
+            long = runs[f"{robot}_ppo5x_seed1"].params
+            assert long["algo"] == "ppo" and long["timesteps"] == 5 * ppo["timesteps"]
+            assert {k: v for k, v in long.items() if k not in ("timesteps", "checkpoint_every", "seed")} == \
+                {k: v for k, v in ppo.items() if k not in ("timesteps", "checkpoint_every", "seed")}
+
+
 # ----------------------------------------------------------------------------- on Ray (2 CPUs)
 @pytest.fixture(scope="module")
 def local_ray():
