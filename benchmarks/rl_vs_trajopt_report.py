@@ -155,7 +155,7 @@ def readme_table(results: dict[str, list[dict]], law: str) -> str:
         r = k.get("ppo5x")
         cells.append(f"{r['speeds'][0]:.2f} BL/min, {r['sim_steps'][0]:,} steps, {r['wall_time_s'][0]:.0f} s"
                      if r else "not run")
-        lines.append(f"| {robot.capitalize()}, {law} | " + " | ".join(cells) + " |")
+        lines.append(f"| {robot.capitalize()}, {law} law | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

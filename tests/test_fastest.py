@@ -163,3 +163,43 @@ def test_a_budget_that_fits_no_candidate_is_refused(tmp_path, capsys, monkeypatc
     assert main(["optimize", "tripod", "--speed", "max", "--max-sim-steps", "50", "--quiet", "--out", str(tmp_path)]) == 2
     assert "--speed max: a budget of 50 simulation steps fits none of the 2 candidates" in capsys.readouterr().err
     assert not (tmp_path / "tripod_walk.npz").exists()
+
+
+def test_revisit_runs_the_shorter_cycles_from_the_fastest_coarse_gait():
+    """The revisit stage: every candidate with a shorter cycle than the fastest upright coarse
+    gait, warm-started from its keyframes at the same phases (no seeds); nothing when the
+    fastest is the shortest cycle or nothing stood."""
+    from types import SimpleNamespace
+
+    from trajopt.fastest import _revisit
+    settings = SearchSettings()
+    kf16 = np.array([[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0], [7.0, 6.0, 5.0, 4.0, 3.0, 2.0, 1.0, 0.0]])
+
+    def run_of(n_cycle, n_kf, speed, upright=True, keyframes=None):
+        kf = keyframes if keyframes is not None else np.zeros((2, n_kf))
+        return ({"n_cycle": n_cycle, "n_keyframes": n_kf, "speed_bl_per_min": speed, "upright": upright},
+                SimpleNamespace(settings={"keyframes": kf.tolist()}))
+
+    class Search:
+        def __init__(self, runs):
+            self.runs, self.calls = runs, []
+
+        def run(self, stage, gait, start, iterations, share, *, warm=None, z0=None, n_seeds=0):
+            self.calls.append((stage, gait.n_cycle, gait.n_keyframes, start, np.asarray(warm.settings["keyframes"]),
+                               iterations, share, n_seeds))
+
+    search = Search([run_of(8, 4, 4.9), run_of(12, 4, 18.8), run_of(16, 8, 21.8, keyframes=kf16),
+                     run_of(24, 4, 30.0, upright=False)])
+    candidates = settings.candidates()
+    _revisit(search, settings, candidates)
+    assert [(c[1], c[2]) for c in search.calls] == [(8, 4), (12, 4)]
+    for stage, _, n_kf, start, warm, iterations, share, n_seeds in search.calls:
+        assert stage == "revisit" and start == "cycle 16, 8 keyframes" and n_seeds == 0
+        assert (iterations, share) == (settings.coarse_iterations, settings.coarse_share)
+        np.testing.assert_array_equal(warm, keyframes_at(kf16, n_kf))
+    shortest_best = Search([run_of(8, 4, 26.6), run_of(12, 4, 22.1)])
+    _revisit(shortest_best, settings, candidates)
+    assert shortest_best.calls == []
+    none_upright = Search([run_of(8, 4, 26.6, upright=False)])
+    _revisit(none_upright, settings, candidates)
+    assert none_upright.calls == []
