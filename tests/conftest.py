@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import functools
 import shutil
+import signal
 from pathlib import Path
 
 import meshio
@@ -12,6 +13,16 @@ import pytest
 from soft_envs.sim import Robot, Simulator, load_robot
 from soft_envs.sim.meshgen import voxel_tet_mesh
 from soft_envs.sim.robot_file import asset_path
+
+
+def pytest_configure(config):
+    """Ctrl-C reaches the tests and the processes they start even when pytest itself was started
+    with SIGINT ignored (``nohup pytest &`` from a non-interactive shell: a background job
+    inherits SIG_IGN, Python then installs no KeyboardInterrupt handler, and an exec'd child
+    keeps the signal ignored). The tests of the motors' stop on Ctrl-C and of an interrupted
+    sweep send SIGINT and expect it to arrive."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def block_mesh(nx=3, ny=2, nz=1, size=(0.06, 0.02, 0.02)) -> meshio.Mesh:
