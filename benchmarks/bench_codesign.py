@@ -33,6 +33,7 @@ def main() -> None:
     ap.add_argument("--baseline-dir", type=Path, default=None)
     ap.add_argument("--out", type=Path, default=HERE / "results")
     ap.add_argument("--screen", choices=("warm", "scratch"), default="warm", help="the screening's score")
+    ap.add_argument("--rounds", type=int, default=None, help="screening rounds at most (default: ScreenSettings')")
     args = ap.parse_args()
     rows = []
     for robot in args.robots:
@@ -40,7 +41,8 @@ def main() -> None:
         out = args.out / "codesign" / robot
         t0 = time.perf_counter()
         run = CodesignRun(robot, out, contact=args.contact, baseline=base, overwrite=True)
-        run.screen = dataclasses.replace(run.screen, score=args.screen)
+        run.screen = dataclasses.replace(run.screen, score=args.screen,
+                                         rounds=run.screen.rounds if args.rounds is None else args.rounds)
         outcome = run_codesign(run)
         wall = time.perf_counter() - t0
         s = outcome.summary

@@ -60,7 +60,7 @@ SCORES = ("warm", "scratch")
 class ScreenSettings:
     """What :func:`screen_designs` tries (module docstring); ``rounds=0``: no screening."""
 
-    rounds: int = 2
+    rounds: int = 3
     iterations: int = 5
     modulus_factors: tuple[float, ...] = (0.5, 2.0)
     leg_step: float = 3e-3
