@@ -24,17 +24,26 @@ from pathlib import Path
 
 from trajopt.codesign.run import CodesignRun, run_codesign
 
-QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"
-out = Path("results/tripod_codesign_example_quick" if QUICK else "results/tripod_codesign_example")
-run = (CodesignRun.quick("tripod", out, contact="coulomb", overwrite=True, quiet=True) if QUICK
-       else CodesignRun("tripod", out, contact="coulomb", overwrite=True))
-outcome = run_codesign(run)
-s = outcome.summary
-print(f"shipped design, fastest gait: {s['before_bl_per_min']:.2f} BL/min ({s['n_cycle']}-step cycle)")
-print(f"co-designed robot and gait:   {s['after_bl_per_min']:.2f} BL/min ({s['ratio']:.2f}x), "
-      f"{s['iterations']} Gauss-Newton iterations")
-if "reoptimised_bl_per_min" in s:
-    print(f"its gait re-optimised from scratch: {s['reoptimised_bl_per_min']:.2f} BL/min ({s['reoptimised_ratio']:.2f}x)")
-print(f"constraints checked in the written files: {'all hold' if s['checks_passed'] else 'FAILED'}")
-print(f"robot {outcome.robot_file}, gait {outcome.result_file}, report {outcome.report_file}")
-print(f"walk it: trajopt evaluate {outcome.result_file} --cycles 10")
+
+def main() -> None:
+    quick = os.environ.get("SOFT_ENVS_QUICK") == "1"
+    out = Path("results/tripod_codesign_example_quick" if quick else "results/tripod_codesign_example")
+    # workers=None: the screening scores its candidate designs in one process per core (the result
+    # is the same as workers=1); spawn imports this script in each, hence the __main__ guard below
+    run = (CodesignRun.quick("tripod", out, contact="coulomb", overwrite=True, quiet=True, workers=None) if quick
+           else CodesignRun("tripod", out, contact="coulomb", overwrite=True, workers=None))
+    outcome = run_codesign(run)
+    s = outcome.summary
+    print(f"shipped design, fastest gait: {s['before_bl_per_min']:.2f} BL/min ({s['n_cycle']}-step cycle)")
+    print(f"co-designed robot and gait:   {s['after_bl_per_min']:.2f} BL/min ({s['ratio']:.2f}x), "
+          f"{s['iterations']} Gauss-Newton iterations")
+    if "reoptimised_bl_per_min" in s:
+        print(f"its gait re-optimised from scratch: {s['reoptimised_bl_per_min']:.2f} BL/min "
+              f"({s['reoptimised_ratio']:.2f}x)")
+    print(f"constraints checked in the written files: {'all hold' if s['checks_passed'] else 'FAILED'}")
+    print(f"robot {outcome.robot_file}, gait {outcome.result_file}, report {outcome.report_file}")
+    print(f"walk it: trajopt evaluate {outcome.result_file} --cycles 10")
+
+
+if __name__ == "__main__":
+    main()

@@ -60,9 +60,11 @@ def test_refuses_to_replace_a_finished_run_and_unknown_kinds(done, capsys):
     assert exc.value.code == 2
 
 
-def test_resume_continues_an_interrupted_run(tmp_path, done):
-    """Interrupted at its first joint checkpoint, resumed: the same design and speed as a run
-    that was never interrupted."""
+@pytest.mark.parametrize("stage", ["screen_progress", "history"])
+def test_resume_continues_an_interrupted_run(tmp_path, done, stage):
+    """Interrupted at its first checkpoint after a screening round, or at its first joint
+    checkpoint, resumed (in this process; ``done`` scored its candidates in one worker process
+    per core): the same design and speed as a run that was never interrupted."""
     import trajopt.codesign.run as run_module
     out = tmp_path / "again"
     shutil.copytree(done, out)
@@ -74,7 +76,7 @@ def test_resume_continues_an_interrupted_run(tmp_path, done):
     def interrupt(path, data):
         original(path, data)
         calls.append(path.name)
-        if path.name == "codesign.partial.json" and data["state"]["history"]:
+        if path.name == "codesign.partial.json" and data["state"][stage]:
             raise KeyboardInterrupt
 
     run_module._write_json = interrupt

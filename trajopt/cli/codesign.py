@@ -43,6 +43,11 @@ def add_codesign_parser(sub) -> None:
                    help="how the screening scores a candidate design: warm, its gait warm-started from the current "
                         "keyframes (default; the fastest pairs), or scratch, as --speed max finds a gait for it "
                         "on the same cycle (the design's own merit; slower to run)")
+    p.add_argument("--rounds", type=integer(0, 100), default=None,
+                   help="screening rounds at most (default 4; 0: no screening, joint Gauss-Newton only)")
+    p.add_argument("--workers", type=integer(1, 1024), default=None,
+                   help="processes scoring the screening's candidates (default: one per core); the result "
+                        "is the same for any number")
     p.add_argument("--no-reoptimise", action="store_true",
                    help="skip re-optimising the gait of the written robot from scratch (--speed max)")
     p.add_argument("--quick", action="store_true", help="a tiny run (tests, CI; also SOFT_ENVS_QUICK=1)")
@@ -58,14 +63,16 @@ def _cmd_codesign(args) -> int:
     from ..codesign.run import CodesignRun, run_codesign
     from ..sweep import quick_requested
     kw = dict(vary=args.vary, contact=args.contact, baseline=args.baseline, reoptimise=not args.no_reoptimise,
-              resume=args.resume, overwrite=args.overwrite, quiet=args.quiet)
+              resume=args.resume, overwrite=args.overwrite, quiet=args.quiet,
+              workers=args.workers)          # None: one per core
     run = (CodesignRun.quick(args.robot, Path(args.out), **kw) if quick_requested(args.quick)
            else CodesignRun(args.robot, Path(args.out), **kw))
     joint = {k: v for k, v in (("stages", args.stages), ("iterations", args.iterations)) if v is not None}
     if joint:
         run.joint = dataclasses.replace(run.joint, **joint)
-    if args.screen is not None:
-        run.screen = dataclasses.replace(run.screen, score=args.screen)
+    screen = {k: v for k, v in (("score", args.screen), ("rounds", args.rounds)) if v is not None}
+    if screen:
+        run.screen = dataclasses.replace(run.screen, **screen)
     outcome = run_codesign(run)
     s = outcome.summary
     print(f"{outcome.robot_file}: {s['before_bl_per_min']:.2f} -> {s['after_bl_per_min']:.2f} BL/min "

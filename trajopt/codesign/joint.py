@@ -74,6 +74,7 @@ class JointState:
     done: bool = False
     screened: bool = False                   # the screening stage (trajopt.codesign.screen) is done
     screen_rows: list[dict] = field(default_factory=list)
+    screen_progress: dict | None = None      # an unfinished screening after its last round (ScreenProgress)
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -5,9 +5,11 @@ The steps (each file written atomically; ``DIR`` is created):
 1. **baseline**: the shipped design's fastest gait within the motors' limit, as ``trajopt
    optimize ROBOT --speed max`` finds it (:func:`trajopt.fastest.fastest_gait`), or a given one
    (``baseline=``, made by ``--speed max`` on the same robot and law): ``DIR/baseline_walk.npz``;
-2. **joint optimisation** of its keyframes and the design parameters ``vary`` declares
-   (:mod:`trajopt.codesign.joint`), checkpointed to ``DIR/codesign.partial.json`` after every
-   iteration; ``resume`` continues an interrupted run;
+2. **screening** of designs a finite step away (:mod:`trajopt.codesign.screen`), its candidates
+   scored in ``workers`` processes, then **joint optimisation** of the keyframes and the design
+   parameters ``vary`` declares (:mod:`trajopt.codesign.joint`); checkpointed to
+   ``DIR/codesign.partial.json`` after every screening round and every Gauss-Newton iteration;
+   ``resume`` continues an interrupted run from there;
 3. **the designed robot**: ``DIR/robot.toml`` (and ``DIR/mesh.vtu`` when the legs changed),
    written by :func:`soft_envs.envs.design.write_designed_robot`, a robot folder every command
    loads unchanged, checked independently of the optimiser (:mod:`trajopt.design_checks`);
@@ -23,6 +25,7 @@ The steps (each file written atomically; ``DIR`` is created):
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -42,9 +45,9 @@ from ..motor_limit import max_step_of_env
 from ..optimize import optimize_gait
 from ..results import Result
 from ..robot_match import describe_difference
-from .joint import JointSettings, JointState, optimise_jointly
+from .joint import JointSettings, JointState, optimise_jointly, replay_path
 from .problem import CodesignProblem, CodesignWeights
-from .screen import ScreenSettings, screen_designs
+from .screen import ScreenProgress, ScreenSettings, screen_designs
 
 __all__ = ["CodesignRun", "CodesignOutcome", "run_codesign", "design_changes"]
 
@@ -70,6 +73,15 @@ class CodesignRun:
     overwrite: bool = False
     quiet: bool = False
     name: str | None = None
+    workers: int | None = 1             # processes scoring the screening's candidates (None: one per core;
+                                        # > 1 from a script: run it under `if __name__ == "__main__":`)
+
+    def __post_init__(self):
+        if self.workers is not None and int(self.workers) < 1:
+            raise ValueError(f"workers must be >= 1, got {self.workers}")
+
+    def n_workers(self) -> int:
+        return int(self.workers) if self.workers is not None else max(1, os.cpu_count() or 1)
 
     @classmethod
     def quick(cls, robot: str, out: Path, **kw) -> "CodesignRun":
@@ -173,19 +185,8 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     def checkpoint(s: JointState) -> None:
         _write_json(partial, {"settings": settings, "state": s.to_dict()})
 
-    if not state.screened:                   # the coarse stage (an interrupted screening starts again)
-        t0 = time.perf_counter()
-        theta0 = problem.anchor.copy()
-        say(f"screening designs around the shipped one ({run.screen.rounds} rounds at most)")
-        theta, z, speed, rows = screen_designs(problem, theta0, np.asarray(baseline.z), base_speed,
-                                               run.search.target(base_speed), run.screen, search=run.search, log=say)
-        problem.move_to(theta)
-        state.path = [] if np.array_equal(theta, theta0) else [theta.tolist()]
-        state.w = state.best_w = np.concatenate([z, theta]).tolist()
-        state.best_speed, state.best_path_len = speed, len(state.path)
-        state.screen_rows, state.screened = rows, True
-        state.sim_steps, state.wall_time_s = problem.sim_steps, time.perf_counter() - t0
-        checkpoint(state)
+    if not state.screened:                   # the coarse stage, resumed after its last finished round
+        _screen(run, problem, state, baseline, base_speed, checkpoint, say)
 
     total = run.joint.stages * run.joint.iterations
     bar = None
@@ -232,6 +233,41 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     if failed:
         raise ValueError(f"{robot_file}: the designed robot breaks its constraints:\n{format_checks(checks)}")
     return CodesignOutcome(robot_file, result_file, report_file, summary)
+
+
+def _screen(run: CodesignRun, problem: CodesignProblem, state: JointState, baseline: Result, base_speed: float,
+            checkpoint, say) -> None:
+    """The screening stage into ``state`` (:func:`~trajopt.codesign.screen.screen_designs`),
+    checkpointed after every round; an interrupted one continues after its last round."""
+    t0, wall0 = time.perf_counter(), state.wall_time_s
+    theta0 = problem.anchor.copy()
+    progress = None
+    if state.screen_progress is not None:
+        progress = ScreenProgress(**state.screen_progress)
+        problem.block, problem.anchor = replay_path(problem, progress.path)
+        problem.sim_steps = state.sim_steps
+        say(f"resuming the screening after round {progress.rounds_done} of {run.screen.rounds}")
+    else:
+        say(f"screening designs around the shipped one ({run.screen.rounds} rounds at most, "
+            f"{run.n_workers()} worker{'s' if run.n_workers() > 1 else ''})")
+
+    def round_done(p: ScreenProgress) -> None:
+        state.screen_progress = asdict(p)
+        state.sim_steps, state.wall_time_s = problem.sim_steps, wall0 + time.perf_counter() - t0
+        checkpoint(state)
+
+    p = screen_designs(problem, theta0, np.asarray(baseline.z), base_speed, run.search.target(base_speed), run.screen,
+                       search=run.search, workers=run.n_workers(), resume=progress, log=say, round_done=round_done)
+    theta = np.asarray(p.theta)
+    state.path = list(p.path)
+    if not np.array_equal(theta, problem.anchor):
+        problem.move_to(theta)
+        state.path.append(theta.tolist())
+    state.w = state.best_w = np.concatenate([np.asarray(p.z), theta]).tolist()
+    state.best_speed, state.best_path_len = p.speed, len(state.path)
+    state.screen_rows, state.screened, state.screen_progress = p.rows, True, None
+    state.sim_steps, state.wall_time_s = problem.sim_steps, wall0 + time.perf_counter() - t0
+    checkpoint(state)
 
 
 def _gait_on_written_robot(run: CodesignRun, env, gait: GaitSpec, z: np.ndarray, state: JointState,

@@ -34,23 +34,34 @@ Candidates that break the clearance or mass constraints are skipped (listed). Gr
 each round scores the current design and the candidates around it, the best-scored candidate
 that beats the current design wins, and the next round starts from it; it stops after
 ``rounds`` rounds or a round without a better design.
+
+A round's scores are independent of each other: with ``workers`` > 1 they run in that many
+processes (:class:`concurrent.futures.ProcessPoolExecutor`, started by ``spawn``, one compute
+thread each), and the rows, the winner and every figure are the same as one after another in
+this process (``tests/test_codesign_screen.py``). After each round ``round_done`` receives where
+the screening stands (:class:`ScreenProgress`); a run interrupted between rounds continues from
+it (``resume``).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from typing import Any, Callable
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from soft_envs.envs import SimulationError
+from soft_envs.envs import SimulationError, as_gradient_env
+from soft_envs.envs.threads import limit_threads
 
 from ..fastest import SearchSettings, fastest_gait
 from ..gauss_newton import GaussNewtonOptions
 from ..optimize import optimize_gait
 from ..qp import QPError, nearest_feasible
-from .problem import CodesignProblem, InfeasibleDesign
+from .problem import CodesignProblem
 
-__all__ = ["ScreenSettings", "candidates", "screen_designs", "SCORES"]
+__all__ = ["ScreenSettings", "ScreenProgress", "candidates", "screen_designs", "SCORES"]
 
 #: how a candidate design is scored (module docstring)
 SCORES = ("warm", "scratch")
@@ -60,7 +71,7 @@ SCORES = ("warm", "scratch")
 class ScreenSettings:
     """What :func:`screen_designs` tries (module docstring); ``rounds=0``: no screening."""
 
-    rounds: int = 3
+    rounds: int = 4
     iterations: int = 5
     modulus_factors: tuple[float, ...] = (0.5, 2.0)
     leg_step: float = 3e-3
@@ -120,13 +131,11 @@ def candidates(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, setti
     return out
 
 
-def _gait(problem: CodesignProblem, robot, target: float, settings: ScreenSettings, z0: np.ndarray | None,
-          search: SearchSettings):
-    """A gait on ``robot``: ``settings.iterations`` Gauss-Newton iterations from ``z0`` (warm), or
-    (``z0`` None) from scratch as ``--speed max`` finds it on the current cycle and keyframes
-    (``search`` pinned to them: the same runs as that candidate's in the full search)."""
-    env = problem.env_of(robot)
-    gait = problem.gait
+def _gait(env, gait, target: float, settings: ScreenSettings, z0: np.ndarray | None, search: SearchSettings):
+    """``(speed, z, simulation steps, status)`` of a gait on ``env``'s robot:
+    ``settings.iterations`` Gauss-Newton iterations from ``z0`` (warm), or (``z0`` None) from
+    scratch as ``--speed max`` finds it on the current cycle and keyframes (``search`` pinned to
+    them: the same runs as that candidate's in the full search). Speed nan: not upright."""
     if z0 is None:
         pinned = replace(search, keyframes=(gait.n_keyframes,), max_sim_steps=None)
         try:
@@ -138,75 +147,199 @@ def _gait(problem: CodesignProblem, robot, target: float, settings: ScreenSettin
         res = optimize_gait(env, "walk", gait=gait, speed_bl_per_min=target, z0=z0, n_seeds=0,
                             options=GaussNewtonOptions(max_iter=settings.iterations), eval_cycles=settings.eval_cycles)
         steps = int(res.evaluation.get("optimization_sim_steps", 0)) + gait.n_prep + settings.eval_cycles * gait.n_cycle
-    problem.sim_steps += steps
     ev = res.evaluation
     speed = float(ev["speed_bl_per_min"]) if ev.get("upright") else float("nan")
     return speed, np.asarray(res.z), steps, res.status
+
+
+@dataclass(frozen=True)
+class _ScoreJob:
+    """One candidate's gait, as a worker process receives it (everything picklable)."""
+
+    robot: Any
+    contact: str
+    newton: Any
+    gait: Any
+    target: float
+    settings: ScreenSettings
+    z0: np.ndarray | None
+    search: SearchSettings
+
+
+def _score(job: _ScoreJob):
+    """:func:`_gait` of a job on a fresh environment of its robot, or ``SimulationError``'s text
+    (a failed candidate, not a failed screening)."""
+    env = as_gradient_env(job.robot, contact=job.contact)
+    if job.newton is not None:
+        env.simulator.newton.options = job.newton
+    try:
+        return _gait(env, job.gait, job.target, job.settings, job.z0, job.search)
+    except SimulationError as err:
+        return str(err)
+
+
+def _start_worker() -> None:
+    """A scoring process: one compute thread, and Ctrl-C is the main process's to handle (it
+    terminates the workers)."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    limit_threads(1)
+
+
+class _Scorer:
+    """Scores jobs in order: in this process (``workers`` 1) or in a pool of ``workers`` processes,
+    started on first use and terminated by :meth:`close` (also on Ctrl-C or an error)."""
+
+    def __init__(self, workers: int):
+        if int(workers) < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
+        self.workers = int(workers)
+        self.pool: ProcessPoolExecutor | None = None
+
+    def map(self, jobs: list[_ScoreJob]) -> Iterator:
+        if self.workers == 1 or len(jobs) <= 1:
+            return map(_score, jobs)
+        if self.pool is None:
+            self.pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                            initializer=_start_worker)
+        return self.pool.map(_score, jobs)
+
+    def close(self, terminate: bool = False) -> None:
+        pool, self.pool = self.pool, None
+        if pool is None:
+            return
+        if terminate:                       # running scores are abandoned, not waited for
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.terminate()
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _better(a: float, b: float) -> bool:
     return np.isfinite(a) and (not np.isfinite(b) or a > b)
 
 
+@dataclass
+class ScreenProgress:
+    """Where a screening stands after a round (JSON-able through :func:`dataclasses.asdict`):
+    the rounds done, the designs it moved to (in order: the path a resumed run replays), the best
+    design, its gait and speed so far, the rows, and whether it has ended."""
+
+    rounds_done: int
+    theta: list[float]
+    z: list[float]
+    speed: float
+    path: list[list[float]] = field(default_factory=list)
+    rows: list[dict] = field(default_factory=list)
+    finished: bool = False
+
+
 def screen_designs(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, speed: float, target: float,
                    settings: ScreenSettings = ScreenSettings(), *, search: SearchSettings = SearchSettings(),
-                   log: Callable[[str], Any] = lambda t: None, done: Callable[[dict], None] | None = None) -> tuple[np.ndarray, np.ndarray, float, list[dict]]:
-    """``(theta, z, speed, rows)``: the design chosen, its fastest upright gait found and that
-    gait's speed (``theta, z, speed`` as given when no candidate is better), and one row per run.
-    ``target``: the gaits' tracking target [BL/min]; ``done(row)`` after each candidate.
+                   workers: int = 1, resume: ScreenProgress | None = None,
+                   log: Callable[[str], Any] = lambda t: None, done: Callable[[dict], None] | None = None,
+                   round_done: Callable[[ScreenProgress], None] | None = None) -> ScreenProgress:
+    """Where the screening ends (:class:`ScreenProgress`): the design chosen, its fastest upright
+    gait found and that gait's speed (``theta, z, speed`` as given when no candidate is better),
+    the designs moved to, and one row per run. ``target``: the gaits' tracking target [BL/min];
+    ``done(row)`` after each candidate, ``round_done(progress)`` after each round; ``workers``:
+    processes scoring a round's candidates (module docstring); ``resume``: continue from a
+    ``round_done`` progress (``problem`` must stand at its last design: :meth:`CodesignProblem.move_to`
+    along its path).
 
     A candidate's score (``settings.score``, module docstring) is the speed of its gait
     warm-started from the current keyframes, or found from scratch as ``--speed max``
     (``search``) finds it on the current cycle and keyframe count; the current design is scored
     the same way. With scratch scores the ``warm`` best-scored candidates also get a gait
     warm-started from the current keyframes, and keep the faster."""
-    best_theta, best_z, best = np.asarray(theta, dtype=np.float64), np.asarray(z, dtype=np.float64), float(speed)
-    rows: list[dict] = []
-    for rnd in range(1, settings.rounds + 1):
-        start_theta, start_z = best_theta, best_z
+    if resume is None:
+        state = ScreenProgress(0, np.asarray(theta, dtype=np.float64).tolist(),
+                               np.asarray(z, dtype=np.float64).tolist(), float(speed))
+    else:
+        state = resume
+    scorer = _Scorer(workers)
+    try:
+        while not state.finished and state.rounds_done < settings.rounds:
+            _screen_round(problem, state, target, settings, search, scorer, log, done)
+            if round_done is not None:
+                round_done(state)
+    except BrokenProcessPool as err:
+        scorer.close(terminate=True)
+        raise RuntimeError(
+            f"a process scoring the screening's candidates died ({err}). Processes are started by "
+            "multiprocessing's spawn method, which imports the calling script again: a script that co-designs "
+            "with workers > 1 must run its work under `if __name__ == \"__main__\":`; or pass workers=1 (the "
+            "result is the same)") from err
+    except BaseException:
+        scorer.close(terminate=True)
+        raise
+    scorer.close()
+    return state
+
+
+def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float, settings: ScreenSettings,
+                  search: SearchSettings, scorer: _Scorer, log, done) -> None:
+    """One greedy round from ``state``'s design (module docstring); updates ``state``."""
+    rnd = state.rounds_done + 1
+    start_theta, start_z = np.asarray(state.theta), np.asarray(state.z)
+    if not np.array_equal(start_theta, problem.anchor):
         problem.move_to(start_theta)
-        scored: list[tuple[float, str, np.ndarray, np.ndarray]] = []
-        todo = [("current design", start_theta)] + candidates(problem, start_theta, start_z, settings)
-        for label, th in todo:
-            row = {"round": rnd, "candidate": label, "score_bl_per_min": float("nan"),
-                   "warm_bl_per_min": float("nan"), "status": "", "sim_steps": 0}
-            try:
-                robot = problem.robot_at(th)
-                why = problem.design_violation(robot)
-                if why is not None:
-                    raise InfeasibleDesign(why)
-                z0 = start_z if settings.score == "warm" else None
-                score, z_s, steps, status = _gait(problem, robot, target, settings, z0, search)
-            except InfeasibleDesign as err:
-                row["status"] = f"skipped: {err}"
-            except SimulationError as err:
-                row["status"] = f"failed: {err}"
+        state.path.append(list(state.theta))
+    todo = [("current design", start_theta)] + candidates(problem, start_theta, start_z, settings)
+    rows: list[dict] = []
+    jobs: list[tuple[int, _ScoreJob]] = []
+    for label, th in todo:
+        rows.append({"round": rnd, "candidate": label, "score_bl_per_min": float("nan"),
+                     "warm_bl_per_min": float("nan"), "status": "", "sim_steps": 0})
+        try:
+            robot = problem.robot_at(th)
+            why = problem.design_violation(robot)
+        except SimulationError as err:
+            rows[-1]["status"] = f"failed: {err}"
+            continue
+        if why is not None:
+            rows[-1]["status"] = f"skipped: {why}"
+            continue
+        jobs.append((len(rows) - 1, _ScoreJob(robot, problem.contact, problem.newton, problem.gait, target, settings,
+                                              start_z if settings.score == "warm" else None, search)))
+    scores = scorer.map([job for _, job in jobs])
+    scored: list[tuple[float, str, np.ndarray, np.ndarray]] = []
+    queue = iter(jobs)
+    for i, (label, th) in enumerate(todo):
+        row = rows[i]
+        if row["status"] == "":
+            _, job = next(queue)
+            out = next(scores)
+            if isinstance(out, str):
+                row["status"] = f"failed: {out}"
             else:
+                score, z_s, steps, status = out
+                problem.sim_steps += steps
                 row.update(score_bl_per_min=score, sim_steps=steps, status=status)
                 scored.append((score, label, th, z_s))
-            rows.append(row)
-            log(f"  screen round {rnd}: {label}: {row['score_bl_per_min']:.2f} BL/min "
-                f"({'warm-started' if settings.score == 'warm' else 'from scratch'}) {row['status']}")
-            if done is not None:
-                done(row)
-        current = scored[0][0] if scored and scored[0][1] == "current design" else float("nan")
-        ranked = sorted((s for s in scored if s[1] != "current design" and np.isfinite(s[0])), key=lambda s: -s[0])
-        winner = None
-        for score, label, th, z_s in ranked[:settings.warm]:
-            if not _better(score, current):
-                break
-            warm, z_w = score, z_s
-            if settings.score == "scratch":       # also a gait from the current keyframes
-                warm, z_w, steps, _ = _gait(problem, problem.robot_at(th), target, settings, start_z, search)
-                row = next(r for r in rows if r["round"] == rnd and r["candidate"] == label)
-                row.update(warm_bl_per_min=warm, sim_steps=row["sim_steps"] + steps)
-                log(f"  screen round {rnd}: {label}: {warm:.2f} BL/min warm-started")
-            gait_speed, gait_z = (warm, z_w) if _better(warm, score) else (score, z_s)
-            if winner is None:
-                winner = label
-                best_theta, best_z, best = th, gait_z, gait_speed
-        log(f"screen round {rnd}: {'best ' + winner if winner else 'no better design'} (score "
-            f"{ranked[0][0] if ranked else float('nan'):.2f} vs the current design's {current:.2f}; gait {best:.2f} BL/min)")
-        if winner is None:
+        state.rows.append(row)
+        log(f"  screen round {rnd}: {label}: {row['score_bl_per_min']:.2f} BL/min "
+            f"({'warm-started' if settings.score == 'warm' else 'from scratch'}) {row['status']}")
+        if done is not None:
+            done(row)
+    current = scored[0][0] if scored and scored[0][1] == "current design" else float("nan")
+    ranked = sorted((s for s in scored if s[1] != "current design" and np.isfinite(s[0])), key=lambda s: -s[0])
+    winner = None
+    for score, label, th, z_s in ranked[:settings.warm]:
+        if not _better(score, current):
             break
-    return best_theta, best_z, best, rows
+        warm, z_w = score, z_s
+        if settings.score == "scratch":       # also a gait from the current keyframes
+            env = problem.env_of(problem.robot_at(th))
+            warm, z_w, steps, _ = _gait(env, problem.gait, target, settings, start_z, search)
+            problem.sim_steps += steps
+            row = next(r for r in rows if r["candidate"] == label)
+            row.update(warm_bl_per_min=warm, sim_steps=row["sim_steps"] + steps)
+            log(f"  screen round {rnd}: {label}: {warm:.2f} BL/min warm-started")
+        gait_speed, gait_z = (warm, z_w) if _better(warm, score) else (score, z_s)
+        if winner is None:
+            winner = label
+            state.theta, state.z, state.speed = np.asarray(th).tolist(), np.asarray(gait_z).tolist(), float(gait_speed)
+    log(f"screen round {rnd}: {'best ' + winner if winner else 'no better design'} (score "
+        f"{ranked[0][0] if ranked else float('nan'):.2f} vs the current design's {current:.2f}; gait {state.speed:.2f} BL/min)")
+    state.rounds_done = rnd
+    state.finished = winner is None or rnd >= settings.rounds
