@@ -50,7 +50,7 @@ from ..parameterization import GaitParameterization
 from ..qp import LinearConstraints
 from ..targets import bl_per_min_to_mps
 
-__all__ = ["CodesignWeights", "CodesignProblem", "InfeasibleDesign", "TrustRegion", "CLEARANCE_MARGIN"]
+__all__ = ["CodesignWeights", "CodesignProblem", "InfeasibleDesign", "TrustRegion", "CLEARANCE_MARGIN", "design_env"]
 
 #: [m] the linearised clearance keeps this much above the limit where it can (the exact check
 #: then refuses fewer trials: the signed distance inside a body is concave near its edges)
@@ -96,6 +96,15 @@ class CodesignWeights:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def design_env(robot, contact: str, newton: Any = None):
+    """A gradient environment of a design's robot under ``contact``, with Newton options
+    ``newton`` (None: the environment's)."""
+    env = as_gradient_env(robot, contact=contact)
+    if newton is not None:
+        env.simulator.newton.options = newton
+    return env
 
 
 class CodesignProblem:
@@ -171,9 +180,7 @@ class CodesignProblem:
     def env_of(self, robot):
         """The gradient environment of a design's robot (same contact law; the last one is kept)."""
         if self._env_robot is not robot:
-            self._env, self._env_robot = as_gradient_env(robot, contact=self.contact), robot
-            if self.newton is not None:
-                self._env.simulator.newton.options = self.newton
+            self._env, self._env_robot = design_env(robot, self.contact, self.newton), robot
         return self._env
 
     def robot_at(self, theta: np.ndarray):

@@ -52,14 +52,14 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from soft_envs.envs import SimulationError, as_gradient_env
+from soft_envs.envs import SimulationError
 from soft_envs.envs.threads import limit_threads
 
 from ..fastest import SearchSettings, fastest_gait
 from ..gauss_newton import GaussNewtonOptions
 from ..optimize import optimize_gait
 from ..qp import QPError, nearest_feasible
-from .problem import CodesignProblem
+from .problem import CodesignProblem, design_env
 
 __all__ = ["ScreenSettings", "ScreenProgress", "candidates", "screen_designs", "SCORES"]
 
@@ -169,9 +169,7 @@ class _ScoreJob:
 def _score(job: _ScoreJob):
     """:func:`_gait` of a job on a fresh environment of its robot, or ``SimulationError``'s text
     (a failed candidate, not a failed screening)."""
-    env = as_gradient_env(job.robot, contact=job.contact)
-    if job.newton is not None:
-        env.simulator.newton.options = job.newton
+    env = design_env(job.robot, job.contact, job.newton)
     try:
         return _gait(env, job.gait, job.target, job.settings, job.z0, job.search)
     except SimulationError as err:
@@ -286,7 +284,7 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
         state.path.append(list(state.theta))
     todo = [("current design", start_theta)] + candidates(problem, start_theta, start_z, settings)
     rows: list[dict] = []
-    jobs: list[tuple[int, _ScoreJob]] = []
+    jobs: list[_ScoreJob] = []
     for label, th in todo:
         rows.append({"round": rnd, "candidate": label, "score_bl_per_min": float("nan"),
                      "warm_bl_per_min": float("nan"), "status": "", "sim_steps": 0})
@@ -299,15 +297,12 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
         if why is not None:
             rows[-1]["status"] = f"skipped: {why}"
             continue
-        jobs.append((len(rows) - 1, _ScoreJob(robot, problem.contact, problem.newton, problem.gait, target, settings,
-                                              start_z if settings.score == "warm" else None, search)))
-    scores = scorer.map([job for _, job in jobs])
+        jobs.append(_ScoreJob(robot, problem.contact, problem.newton, problem.gait, target, settings,
+                              start_z if settings.score == "warm" else None, search))
+    scores = scorer.map(jobs)                  # in the order of the rows left unscored above
     scored: list[tuple[float, str, np.ndarray, np.ndarray]] = []
-    queue = iter(jobs)
-    for i, (label, th) in enumerate(todo):
-        row = rows[i]
+    for row, (label, th) in zip(rows, todo):
         if row["status"] == "":
-            _, job = next(queue)
             out = next(scores)
             if isinstance(out, str):
                 row["status"] = f"failed: {out}"
