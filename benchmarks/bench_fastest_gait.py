@@ -36,9 +36,9 @@ from soft_envs.envs import make_gradient_env
 from soft_envs.sim import load_robot
 from trajopt.evaluation import evaluate_controls
 from trajopt.fastest import SearchSettings, fastest_gait, write_search_table
-from trajopt.gait import GaitSpec
-from trajopt.motor_limit import played_steps
-from trajopt.parameterization import GaitParameterization
+from trajopt.optim.gait import GaitSpec
+from trajopt.optim.motor_limit import played_steps
+from trajopt.optim.parameterization import GaitParameterization
 from trajopt.rl.envs import env_id
 from trajopt.rl.evaluate import play_controls_in_env, run_metric
 

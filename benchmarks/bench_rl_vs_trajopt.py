@@ -50,7 +50,7 @@ from bench_fastest_gait import independent_limit_check
 from rl_vs_trajopt_report import write_report
 from trajopt import Result
 from trajopt.evaluation import evaluate_controls
-from trajopt.gait import GaitSpec
+from trajopt.optim.gait import GaitSpec
 from trajopt.replay import env_for_result, result_parameterization
 from trajopt.rl.envs import GAIT, env_id
 from trajopt.rl.evaluate import play_controls_in_env, run_metric

@@ -14,7 +14,7 @@ import numpy as np
 
 from common import best_of, report
 from soft_envs.sim import Simulator, load_robot
-from trajopt.parameterization import GaitParameterization
+from trajopt.optim.parameterization import GaitParameterization
 
 
 def bench(name: str) -> dict:

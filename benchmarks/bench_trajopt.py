@@ -24,8 +24,8 @@ from common import report
 from trajopt import GaussNewtonOptions, optimize_gait
 from trajopt.evaluation import evaluate_controls
 from soft_envs.envs import make_gradient_env
-from trajopt.gait import GaitSpec
-from trajopt.parameterization import GaitParameterization
+from trajopt.optim.gait import GaitSpec
+from trajopt.optim.parameterization import GaitParameterization
 
 OUT = Path(__file__).with_name("results")
 INCLINES_DEG = (10.0, 20.0)

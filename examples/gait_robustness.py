@@ -19,7 +19,7 @@ import numpy as np
 from soft_envs.envs import load_robot
 from trajopt import GaitParameterization, GaitSpec
 from trajopt.cli import main
-from trajopt.results import Result
+from trajopt.results.result import Result
 
 QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"
 OUT = Path("results") / ("robustness_example_quick" if QUICK else "robustness_example")

@@ -12,12 +12,12 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from soft_envs.envs import MarkerSet, load_robot, parameter_values, with_contact_law, with_parameters
-from trajopt.calibrate import (MarkerData, fit_parameters, kabsch, rotation_jacobian, separability_warnings,
+from trajopt.calibration.calibrate import (MarkerData, fit_parameters, kabsch, rotation_jacobian, separability_warnings,
                                synthetic_tracks)
-from trajopt.calibration_files import HEADER
+from trajopt.calibration.files import HEADER
 from trajopt.cli import main
-from trajopt.results import Result
-from trajopt.tracks import read_tracks, write_tracks
+from trajopt.results.result import Result
+from trajopt.calibration.tracks import read_tracks, write_tracks
 
 DT = 0.033
 

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from soft_envs.envs import load_robot, with_parameters
-from trajopt.calibrate import CalibrationFit, synthetic_tracks
-from trajopt.calibration_checks import check_fit
+from trajopt.calibration.calibrate import CalibrationFit, synthetic_tracks
+from trajopt.calibration.checks import check_fit
 from trajopt.cli import main
-from trajopt.tracks import read_tracks, write_tracks
+from trajopt.calibration.tracks import read_tracks, write_tracks
 
 from .test_calibrate import DT, make_result, spread_markers, wave
 

@@ -148,7 +148,7 @@ def test_a_finished_result_is_never_replaced_and_checkpoints_go_beside_it(tiny, 
     assert code == 130 and "tripod_walk.partial.npz" in err
     assert finished.read_bytes() == original                              # the finished result is intact
     partial = out / "tripod_walk.partial.npz"
-    from trajopt.results import Result
+    from trajopt.results.result import Result
     assert Result.load(partial).status == "interrupted" and len(Result.load(partial).history) == 1
     code, _, err = run(argv, capsys)                                      # neither is replaced silently
     assert code == 2 and "interrupted run" in err and "--resume" in err
@@ -246,7 +246,7 @@ def test_interpolation_is_an_option_of_every_optimisation(tmp_path, capsys):
     a bad value is refused naming the option; ``--resume`` refuses a checkpoint of the other
     interpolation (RESUME_KEYS) and continues one of the same."""
     from trajopt.optimize_run import OptimizeRun
-    from trajopt.results import Result
+    from trajopt.results.result import Result
     parser = build_parser()
     assert parser.parse_args(["optimize", "puppy"]).interpolation is None       # the task's
     assert parser.parse_args(["optimize", "puppy", "--interpolation", "linear"]).interpolation == "linear"

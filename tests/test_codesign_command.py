@@ -13,7 +13,7 @@ from soft_envs.envs import load_robot
 from trajopt import Result
 from trajopt.cli import main
 from trajopt.codesign.run import CodesignRun, run_codesign
-from trajopt.design_checks import check_designed_robot
+from trajopt.codesign.checks import check_designed_robot
 from trajopt.evaluation import evaluate_result
 
 

@@ -18,10 +18,10 @@ from soft_envs.envs import make_gradient_env
 from soft_envs.sim.design import DesignParameters, LegMorph, RegionalModuli, TendonRouting, legs_below, region_from_boxes
 from soft_envs.sim.integrator import NewtonOptions
 from trajopt.codesign import CodesignProblem, InfeasibleDesign
-from trajopt.gait import GaitSpec
-from trajopt.gauss_newton import GaussNewtonOptions, gauss_newton
-from trajopt.motor_limit import gait_constraints, max_step_of_env, project_start
-from trajopt.qp import LinearConstraints
+from trajopt.optim.gait import GaitSpec
+from trajopt.optim.gauss_newton import GaussNewtonOptions, gauss_newton
+from trajopt.optim.motor_limit import gait_constraints, max_step_of_env, project_start
+from trajopt.optim.qp import LinearConstraints
 
 GAIT = GaitSpec(n_prep=4, n_cycle=8, n_cycles=2, n_keyframes=4, interpolation="linear")
 

@@ -20,8 +20,8 @@ from soft_envs.envs.design import load_design
 from trajopt.codesign import CodesignProblem
 from trajopt.codesign.joint import replay_path
 from trajopt.codesign.screen import ScreenProgress, ScreenSettings, screen_designs
-from trajopt.gait import GaitSpec
-from trajopt.motor_limit import gait_constraints, max_step_of_env, project_start
+from trajopt.optim.gait import GaitSpec
+from trajopt.optim.motor_limit import gait_constraints, max_step_of_env, project_start
 
 GAIT = GaitSpec(n_prep=4, n_cycle=8, n_cycles=2, n_keyframes=4, interpolation="linear")
 SETTINGS = ScreenSettings(rounds=2, iterations=1, modulus_factors=(2.0,), routing_steps=(), eval_cycles=2, warm=1)

@@ -1,4 +1,4 @@
-"""The independent check of a co-designed robot's written files (issue #29, trajopt/design_checks.py)."""
+"""The independent check of a co-designed robot's written files (issue #29, trajopt/codesign/checks.py)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,7 +11,7 @@ from soft_envs.sim import load_robot
 from soft_envs.sim.design import (DesignParameters, LegMorph, RegionalModuli, TendonRouting, legs_below,
                                   region_from_boxes, write_designed_robot)
 from soft_envs.sim.robot_file import asset_path
-from trajopt.design_checks import (DesignCheckError, check_designed_robot, format_checks, require_design_checks,
+from trajopt.codesign.checks import (DesignCheckError, check_designed_robot, format_checks, require_design_checks,
                                    signed_clearance)
 
 TRIPOD = asset_path("tripod")

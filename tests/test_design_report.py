@@ -1,4 +1,4 @@
-"""The co-design picture and report (issue #29 item 3, trajopt/design_report.py)."""
+"""The co-design picture and report (issue #29 item 3, trajopt/codesign/report.py)."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,8 +8,8 @@ from soft_envs.sim import load_robot
 from soft_envs.sim.design import (DesignParameters, LegMorph, RegionalModuli, TendonRouting, legs_below,
                                   region_from_boxes, write_designed_robot)
 from soft_envs.sim.robot_file import asset_path
-from trajopt.design_checks import check_designed_robot
-from trajopt.design_report import plot_robots_side_by_side, write_codesign_report
+from trajopt.codesign.checks import check_designed_robot
+from trajopt.codesign.report import plot_robots_side_by_side, write_codesign_report
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -67,7 +67,7 @@ def test_the_report_lists_every_change_the_ratio_and_the_checks(tmp_path, design
 
 
 def test_the_report_without_a_reoptimised_gait_and_with_a_failed_check(tmp_path):
-    from trajopt.design_checks import DesignCheck
+    from trajopt.codesign.checks import DesignCheck
     checks = [DesignCheck("total mass", False, 0.06, 0.0666, "robot.toml: 88 % of the source's", "kg")]
     text = write_codesign_report(tmp_path / "r.md", robot_name="puppy", before={"speed_bl_per_min": 10.0},
                                  after={"speed": 12.0}, reoptimised=None, changes=[], checks=checks,

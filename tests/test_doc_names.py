@@ -2,7 +2,7 @@
 path (``benchmarks/x.py``, ``docs/x.md``, ...) that the docs, the README or a docstring names
 exists: a moved or removed module leaves no stale pointer behind.
 
-Scanned: README.md, docs/*.md (except docs/api-changes.md, whose rows name old places on
+Scanned: README.md, docs/*.md (not CHANGELOG.md, whose rows name old places on
 purpose), and the docstrings and comments of soft_envs/, trajopt/, benchmarks/ and examples/.
 A dotted name resolves when its longest importable module prefix holds the rest as attributes
 (``soft_envs.sim.Simulator.rollout``); a path when the file or folder is in the repository.
@@ -24,15 +24,13 @@ PATH = re.compile(r"(?<![\w./-])((?:soft_envs|trajopt|benchmarks|tests|examples|
                   r"/[\w/.-]*\w\.(?:py|md|toml|vtu|npz|json))\b")
 #: Sphinx cross-references relative to the module's package (``:mod:`.system```, ``~.cables.Q``)
 RELATIVE = re.compile(r":(?:mod|class|func|meth|data|attr|exc):`~?(\.+)([A-Za-z_][\w.]*)`")
-#: files whose job is to name old places (renamed and removed names)
-EXEMPT = {"docs/api-changes.md"}
 
 
 def scanned_files() -> list[Path]:
     files = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
     for folder in (*PACKAGES, "benchmarks", "examples"):
         files += sorted((ROOT / folder).rglob("*.py"))
-    return [f for f in files if str(f.relative_to(ROOT)) not in EXEMPT]
+    return files
 
 
 def resolves(name: str) -> bool:

@@ -13,13 +13,13 @@ from trajopt import GaitSpec
 from trajopt.argtypes import speed
 from trajopt.cli import main
 from trajopt.fastest import SearchSettings, keyframes_at, search_table_paths
-from trajopt.motor_limit import speed_limit_constraints
-from trajopt.parameterization import (
+from trajopt.optim.motor_limit import speed_limit_constraints
+from trajopt.optim.parameterization import (
     GaitParameterization,
     hermite_cycle_basis,
     linear_cycle_basis,
 )
-from trajopt.results import Result
+from trajopt.results.result import Result
 
 from .test_motor_limit import STEP, _obeys_over_ten_cycles
 

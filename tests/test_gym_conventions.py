@@ -72,7 +72,7 @@ def test_every_keyword_is_in_the_arguments_table(cls):
 def test_max_episode_steps_is_one_documented_number():
     for env_id in IDS:
         assert gym.spec(env_id).max_episode_steps == soft_envs.MAX_EPISODE_STEPS == 300
-    from trajopt.gait import GaitSpec
+    from trajopt.optim.gait import GaitSpec
     from trajopt.rl.envs import TRAIN_HORIZON, make_env
     assert TRAIN_HORIZON == GaitSpec().n_steps() == 24 + 2 * 72          # the RL baseline: trajopt's horizon
     env = make_env("tripod")

@@ -131,8 +131,8 @@ def test_non_utf8_file_through_the_cli_is_one_line_exit_2(tmp_path: Path, capsys
                                                            ) -> None:
     import argparse
 
-    from trajopt.hardware.cli import add_play_parser, run_play
-    from trajopt.results import Result
+    from trajopt.cli.play import add_play_parser, run_play
+    from trajopt.results.result import Result
 
     u = np.zeros((5, 2))
     result = Result(robot="tripod", task="walk", motor_names=["front", "back"], dt=0.033, z=np.zeros(1), u=u,

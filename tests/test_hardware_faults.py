@@ -25,7 +25,7 @@ import pytest
 serial = pytest.importorskip("serial")
 
 from trajopt.hardware import protocol as P  # noqa: E402
-from trajopt.hardware.cli import add_play_parser, run_play  # noqa: E402
+from trajopt.cli.play import add_play_parser, run_play  # noqa: E402
 from trajopt.hardware.config import EXAMPLE_TRIPOD, HardwareConfig, load_hardware_config  # noqa: E402
 from trajopt.hardware.driver import WRITE_TIMEOUT, RoboClaw  # noqa: E402
 from trajopt.hardware.emulator import RoboClawEmulator  # noqa: E402
@@ -96,7 +96,7 @@ def emu() -> Iterator[RoboClawEmulator]:
 @pytest.fixture
 def result_file(tmp_path: Path) -> str:
     """A real result file (trajopt.results is numpy-only)."""
-    from trajopt.results import Result
+    from trajopt.results.result import Result
 
     u = smooth_u()
     res = Result(robot="tripod", task="walk", motor_names=NAMES, dt=DT, z=np.zeros(1), u=u, u_post=u,
@@ -258,7 +258,7 @@ END = 16  # steps of the short playbacks below: the stop's first packet is at_st
 def test_stop_acknowledged_but_encoder_read_back_unanswered_is_not_confirmed(
         emu: RoboClawEmulator, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Every duty 0 of the stop is acknowledged, but M1's encoder never answers: front is not confirmed."""
-    from trajopt.results import Result
+    from trajopt.results.result import Result
 
     u = smooth_u(END, 0.004)
     result = str(Result(robot="tripod", task="walk", motor_names=NAMES, dt=DT, z=np.zeros(1), u=u, u_post=u,
@@ -292,7 +292,7 @@ def test_motor_still_moving_after_an_acknowledged_stop_is_not_confirmed(emu: Rob
 
 def test_motor_still_moving_exits_3_naming_it(emu: RoboClawEmulator, tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
-    from trajopt.results import Result
+    from trajopt.results.result import Result
 
     u = smooth_u(END, 0.004)
     result = str(Result(robot="tripod", task="walk", motor_names=NAMES, dt=DT, z=np.zeros(1), u=u, u_post=u,

@@ -47,7 +47,7 @@ def test_play_dry_run_without_the_simulator_stack(tmp_path: Path) -> None:
 import numpy as np
 from trajopt.results import Result
 from trajopt.hardware import EXAMPLE_TRIPOD
-from trajopt.hardware.cli import add_play_parser
+from trajopt.cli.play import add_play_parser
 import argparse
 s = np.linspace(0, 1, 40)[:, None]
 u = 0.004 * np.sin(np.pi * s) ** 2 * np.ones((1, 2))

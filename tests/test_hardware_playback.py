@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import csv
 import dataclasses
 import io
@@ -17,7 +18,7 @@ import pytest
 pytest.importorskip("serial")
 
 from trajopt.hardware import protocol as P  # noqa: E402
-from trajopt.hardware.cli import add_play_parser, run_play  # noqa: E402
+from trajopt.cli.play import add_play_parser, run_play  # noqa: E402
 from trajopt.hardware.config import EXAMPLE_TRIPOD, HardwareConfig, load_hardware_config  # noqa: E402
 from trajopt.hardware.emulator import RoboClawEmulator  # noqa: E402
 from trajopt.hardware.errors import PlaybackError, RoboClawConnectionError, RoboClawTimeout  # noqa: E402
@@ -313,6 +314,7 @@ def fake_results(monkeypatch: pytest.MonkeyPatch) -> dict[str, object]:
 
     module = types.ModuleType("trajopt.results")
     module.Result = Result  # type: ignore[attr-defined]
+    module.__path__ = list(importlib.import_module("trajopt.results").__path__)   # its other modules stay real
     monkeypatch.setitem(sys.modules, "trajopt.results", module)
     store["res.npz"] = types.SimpleNamespace(u_post=smooth_u(), dt=DT, motor_names=["front", "back"])
     return store

@@ -54,7 +54,7 @@ def emu() -> Iterator[RoboClawEmulator]:
 @pytest.fixture
 def long_result(tmp_path: Path) -> str:
     """A result far longer than any test waits (it is played with --loops too): it is still streaming."""
-    from trajopt.results import Result
+    from trajopt.results.result import Result
 
     u = smooth_u(300, 0.004)
     res = Result(robot="tripod", task="walk", motor_names=NAMES, dt=DT, z=np.zeros(1), u=u, u_post=u,
@@ -156,7 +156,7 @@ def test_port_vanishing_under_a_running_play(emu: RoboClawEmulator, tmp_path: Pa
 def test_exception_in_the_streaming_loop_runs_the_stop(emu: RoboClawEmulator, tmp_path: Path,
                                                        monkeypatch: pytest.MonkeyPatch,
                                                        capsys: pytest.CaptureFixture[str]) -> None:
-    from trajopt.results import Result
+    from trajopt.results.result import Result
 
     check = TrackingMonitor.check
 
@@ -182,7 +182,7 @@ def test_exception_in_the_streaming_loop_with_a_hung_controller_exits_3(emu: Rob
                                                                          monkeypatch: pytest.MonkeyPatch,
                                                                          capsys: pytest.CaptureFixture[str]
                                                                          ) -> None:
-    from trajopt.results import Result
+    from trajopt.results.result import Result
 
     def broken_check(self: TrackingMonitor, t: float, step: int, measured: Any) -> None:
         if step == 10:

@@ -11,8 +11,8 @@ import pytest
 
 from soft_envs.envs import robot_fingerprint
 from soft_envs.sim.mesh import load_mesh
-from trajopt.results import Result
-from trajopt.robot_match import describe_difference
+from trajopt.results.result import Result
+from trajopt.results.robot_match import describe_difference
 
 
 def _result() -> Result:

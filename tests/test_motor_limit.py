@@ -122,7 +122,7 @@ def test_a_bad_motor_speed_rpm_keyword_is_refused(bad):
 def test_robustness_scales_the_robots_own_motor_speed(tmp_path):
     """The ``motor_speed`` perturbation is a factor of each motor's limit: a 50 rpm robot's
     motors at factor 1 do 50 rpm."""
-    from trajopt.robustness import applied_controls
+    from trajopt.robustness.study import applied_controls
     robot = load_robot(copy_robot("tripod", tmp_path, "max_speed_rpm = 50"))
     u = np.full((3, 2), 0.01)
     p = {"timing_jitter_s": 0.0, "motor_lag_s": 0.0, "motor_speed": 1.0}
@@ -135,11 +135,11 @@ def test_robustness_scales_the_robots_own_motor_speed(tmp_path):
 # ---------------------------------------------------------------------- optimised controls obey it (#28 item 2)
 from trajopt import GaitSpec, optimize_gait  # noqa: E402
 from trajopt.cli import main  # noqa: E402
-from trajopt.gauss_newton import GaussNewtonOptions, _constrained_direction, gauss_newton  # noqa: E402
-from trajopt.motor_limit import played_steps, speed_limit_constraints, worst_step  # noqa: E402
-from trajopt.parameterization import GaitParameterization  # noqa: E402
-from trajopt.qp import FEASIBILITY_ATOL, LinearConstraints  # noqa: E402
-from trajopt.results import Result  # noqa: E402
+from trajopt.optim.gauss_newton import GaussNewtonOptions, _constrained_direction, gauss_newton  # noqa: E402
+from trajopt.optim.motor_limit import played_steps, speed_limit_constraints, worst_step  # noqa: E402
+from trajopt.optim.parameterization import GaitParameterization  # noqa: E402
+from trajopt.optim.qp import FEASIBILITY_ATOL, LinearConstraints  # noqa: E402
+from trajopt.results.result import Result  # noqa: E402
 
 STEP = 100 * 2 * math.pi / 60 * 0.005 * 0.033          # [m] the shipped motors' step limit
 QUICK = GaitSpec(n_prep=6, n_cycle=24, n_cycles=2, n_keyframes=4)    # 6 steps per keyframe: the limit binds
@@ -323,7 +323,7 @@ def test_play_dry_run_accepts_what_optimize_writes(tmp_path, capsys, robot, args
 
 def test_an_environment_without_a_limit_gives_no_inequalities():
     """``motor_speed_rpm=None`` (no limit): the optimiser's limit is the environment's, so none."""
-    from trajopt.motor_limit import max_step_of_env
+    from trajopt.optim.motor_limit import max_step_of_env
     env = gym.make("SoftTripod-v1", motor_speed_rpm=None).unwrapped
     max_step = max_step_of_env(env)
     assert np.isinf(max_step).all()

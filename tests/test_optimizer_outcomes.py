@@ -1,6 +1,6 @@
 """The optimiser's outcomes against known minimisers (not only "the objective did not grow").
 
-Projected Gauss-Newton (``trajopt.gauss_newton``) on small problems whose bound-constrained
+Projected Gauss-Newton (``trajopt.optim.gauss_newton``) on small problems whose bound-constrained
 minimiser is known in closed form or from an independent solver (scipy's ``lsq_linear``):
 it must reach it to a stated tolerance, lower the objective on its first step, decrease it
 on every accepted step, and end with exactly the expected variables at their bounds (the KKT
@@ -16,7 +16,7 @@ from scipy.optimize import lsq_linear
 
 from soft_envs.envs import make_gradient_env
 from trajopt import GaitSpec, GaussNewtonOptions, optimize_gait
-from trajopt.gauss_newton import gauss_newton
+from trajopt.optim.gauss_newton import gauss_newton
 
 #: options that stop only on the projected gradient (or stalling at machine precision)
 PRECISE = GaussNewtonOptions(max_iter=100, ftol=0.0, xtol=0.0, gtol=1e-13)

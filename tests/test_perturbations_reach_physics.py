@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import trajopt.robustness as rb
+import trajopt.robustness.study as rb
 from soft_envs.envs import load_robot, parameter_values, with_contact_law
 from soft_envs.envs.domain import randomized_robot
 

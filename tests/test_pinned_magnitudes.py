@@ -17,7 +17,7 @@ from soft_envs.sim import Simulator
 from soft_envs.sim.gravity import Gravity
 from trajopt import GaitParameterization, GaitSpec
 from trajopt.evaluation import measure_gait
-from trajopt.objectives import ObjectiveWeights, gait_residuals
+from trajopt.optim.objectives import ObjectiveWeights, gait_residuals
 
 from .conftest import small_robot
 
@@ -121,7 +121,7 @@ def test_gait_speeds_are_displacements_over_times():
 def bar_fit():
     """Young's modulus of the bar fitted to 4 noisy markers over 16 steps of a pull."""
     from soft_envs.envs import MarkerSet, with_parameters
-    from trajopt.calibrate import MarkerData, fit_parameters, synthetic_tracks
+    from trajopt.calibration.calibrate import MarkerData, fit_parameters, synthetic_tracks
     robot = small_robot()
     X = np.asarray(robot.mesh.points)
     ends = [int(np.argmin(X[:, 0])), int(np.argmax(X[:, 0])), int(np.argmax(X[:, 1])), int(np.argmin(X[:, 2]))]

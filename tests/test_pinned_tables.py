@@ -13,9 +13,9 @@ import pytest
 
 from soft_envs.envs.domain import DEFAULT_DOMAIN_RANDOMIZATION
 from trajopt.hardware.config import DEFAULT_COUNTS_PER_REV, MotorConfig
-from trajopt.robustness import PERTURBATIONS, draw_perturbation
+from trajopt.robustness.study import PERTURBATIONS, draw_perturbation
 
-#: docs/calibration.md and trajopt/robustness.py's docstring: name -> (low, high, log-uniform)
+#: docs/calibration.md and trajopt/robustness/study.py's docstring: name -> (low, high, log-uniform)
 DOCUMENTED_PERTURBATIONS = {
     "friction": (0.5, 1.5, False), "youngs_modulus": (0.7, 1.3, False), "density": (0.9, 1.1, False),
     "payload_mass": (0.85, 1.15, False), "contact_stiffness": (0.5, 2.0, True), "cable_stiffness": (0.5, 2.0, True),

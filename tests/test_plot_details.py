@@ -8,8 +8,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from trajopt import calibration_files as calibrate_command
-from trajopt.calibration_files import tracks_figure
+from trajopt.calibration import files as calibrate_command
+from trajopt.calibration.files import tracks_figure
 from trajopt.sweep import load_spec, summary, write_summary
 
 from .test_sweep import tiny_block, write

@@ -13,7 +13,7 @@ from .test_robustness import tiny_result
 
 
 def test_plot_titles_name_robot_task_and_file_and_the_speed_plot_shows_the_target(tmp_path):
-    from trajopt.results import Result
+    from trajopt.results.result import Result
     res = Result.load(tiny_result(tmp_path))
     res.settings["speed_bl_per_min"] = 7.5
     res.evaluation = {"speed_per_cycle_bl_per_min": [3.0, 3.5], "speed_bl_per_min": 3.25}

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from trajopt.cli import main
-from trajopt.reservation import ReservationRefused, StaleReservationWarning, lock_path, read_owner, reserve
+from trajopt.results.reservation import ReservationRefused, StaleReservationWarning, lock_path, read_owner, reserve
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ["--prep-steps", "4", "--cycle-steps", "12", "--keyframes", "4", "--seeds", "1", "--cycles", "1", "--quiet"]
@@ -22,7 +22,7 @@ TINY = ["--prep-steps", "4", "--cycle-steps", "12", "--keyframes", "4", "--seeds
 HOLDER = """
 import sys, time
 from pathlib import Path
-from trajopt.reservation import reserve
+from trajopt.results.reservation import reserve
 with reserve(sys.argv[1], command="holder"):
     print("held", flush=True)
     while not Path(sys.argv[2]).exists():

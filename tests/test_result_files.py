@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trajopt.results import Result
+from trajopt.results.result import Result
 
 ROOT = Path(__file__).resolve().parents[1]
 

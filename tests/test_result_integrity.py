@@ -17,7 +17,7 @@ from soft_envs.sim.robot_file import asset_path
 from trajopt import GaitParameterization, GaitSpec
 from trajopt.cli import main
 from trajopt.evaluation import zero_slack_controls
-from trajopt.results import Result, ResultFileWarning, _sidecar_text, content_hash
+from trajopt.results.result import Result, ResultFileWarning, _sidecar_text, content_hash
 
 GAIT = GaitSpec(n_prep=4, n_cycle=12, n_cycles=1, n_keyframes=2, symmetry=False)
 

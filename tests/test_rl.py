@@ -16,7 +16,7 @@ import pytest
 
 import soft_envs  # noqa: F401  (registers the ids)
 from trajopt.cli import main
-from trajopt.results import Result
+from trajopt.results.result import Result
 
 pytestmark = pytest.mark.rl
 pytest.importorskip("stable_baselines3")

@@ -13,7 +13,7 @@ import pytest
 from soft_envs.envs import robot_fingerprint
 from soft_envs.sim.robot_file import asset_path
 from trajopt.cli import main
-from trajopt.results import Result
+from trajopt.results.result import Result
 
 STEPS = 12
 
@@ -123,7 +123,7 @@ def test_a_result_without_fingerprint_is_checked_by_its_motors(tmp_path, capsys)
 
 
 def test_resume_refuses_a_changed_robot():
-    from trajopt.optimize import check_resume
+    from trajopt.optim.optimize import check_resume
     res = gait_for(asset_path("tripod"))
     res.settings.update(source="ckpt.partial.npz")
     other = dict(res.robot_fingerprint, sha256="0" * 64, toml_sha256="1" * 64,
@@ -195,7 +195,7 @@ def test_a_result_from_before_the_coulomb_default_is_still_the_same_robot(tmp_pa
     """The shipped robot files changed `[contact] model` from "paper" to "coulomb" (issue #31);
     a result records its own law and replays with it, so a result made for the file that said
     "paper" is a result of the same robot. Any other change is still refused."""
-    from trajopt.robot_match import describe_difference
+    from trajopt.results.robot_match import describe_difference
     toml = copy_robot("tripod", tmp_path / "a")
     now = robot_fingerprint(toml)
     text = toml.read_text()

@@ -16,10 +16,10 @@ from soft_envs.envs import load_robot, make_gradient_env
 from trajopt import GaitParameterization, GaitSpec
 from trajopt.cli import main
 from trajopt.evaluation import zero_slack_controls
-from trajopt.results import Result
-from trajopt.robustness import (PERTURBATIONS, applied_controls, draw_perturbation, map_samples, perturbed_slope,
+from trajopt.results.result import Result
+from trajopt.robustness.study import (PERTURBATIONS, applied_controls, draw_perturbation, map_samples, perturbed_slope,
                                 run_sample)
-from trajopt.robustness_report import robustness_jobs
+from trajopt.robustness.report import robustness_jobs
 
 GAIT = GaitSpec(n_prep=4, n_cycle=12, n_cycles=1, n_keyframes=2, symmetry=False)
 

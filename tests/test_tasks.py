@@ -7,9 +7,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from trajopt.gait import GaitSpec
-from trajopt.objectives import ObjectiveWeights
-from trajopt.tasks import TASKS, Task, command_line_tasks, get_task
+from trajopt.optim.gait import GaitSpec
+from trajopt.optim.objectives import ObjectiveWeights
+from trajopt.tasks.registry import TASKS, Task, command_line_tasks, get_task
 
 
 def test_the_paper_tasks_and_what_they_give():
@@ -54,7 +54,7 @@ def test_a_new_task_is_one_class_and_one_registry_line(monkeypatch, tmp_path):
     from trajopt.sweep.kinds import KINDS
     assert KINDS["optimize"].check("task", "sidestep") == "sidestep"
     from trajopt import optimize_gait
-    from trajopt.gauss_newton import GaussNewtonOptions
+    from trajopt.optim.gauss_newton import GaussNewtonOptions
     res = optimize_gait("tripod", "sidestep", gait=GaitSpec(n_prep=2, n_cycle=6, n_keyframes=2, n_cycles=1,
                                                             symmetry=False),
                         options=GaussNewtonOptions(max_iter=0), n_seeds=1, eval_cycles=1)

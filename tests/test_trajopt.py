@@ -11,9 +11,9 @@ from soft_envs.envs import as_gradient_env, make_gradient_env
 from soft_envs.sim import NewtonOptions
 from trajopt import GaitParameterization, GaitSpec, GaussNewtonOptions, ObjectiveWeights, Result, optimize_gait
 from trajopt.evaluation import zero_slack_controls
-from trajopt.optimize import GaitProblem
-from trajopt.parameterization import hermite_cycle_basis
-from trajopt.targets import quarter_circle, straight_line
+from trajopt.optim.optimize import GaitProblem
+from trajopt.optim.parameterization import hermite_cycle_basis
+from trajopt.tasks.targets import quarter_circle, straight_line
 
 from .conftest import shipped
 
@@ -111,7 +111,7 @@ def test_slack_eating_residual_is_eq_13():
     """0.5 |r|^2 = scale^2 sum Q(eps - Gamma) with Q(s) = max(s, 0)^2 / 2 (paper eq. 13), and its
     Jacobian is -scale dGamma/dz on the cables less than eps taut, zero on the others; checked
     against central differences of Gamma(z) = Gamma0 + G z (exact for a linear map)."""
-    from trajopt.objectives import slack_eating_residual
+    from trajopt.optim.objectives import slack_eating_residual
     rng = np.random.default_rng(3)
     eps, scale = 5e-5, 7.0
     gamma = rng.uniform(-2e-4, 2e-4, size=(6, 4))
@@ -306,7 +306,7 @@ def test_gauss_newton_resume_keeps_the_rejection_count():
     """A run interrupted inside a streak of rejected steps resumes that streak: with
     max_rejections = 3 and 2 rejections already made, one more rejection stops it."""
     from soft_envs.sim import SimulationError
-    from trajopt.gauss_newton import gauss_newton
+    from trajopt.optim.gauss_newton import gauss_newton
 
     def fun(z, need_jac):                  # minimum at z = 1, but nothing beyond 0.01 simulates
         if z[0] > 0.01:

@@ -12,12 +12,12 @@ from soft_envs.envs import make_gradient_env
 from soft_envs.sim import NewtonOptions
 from trajopt import GaitParameterization, GaitSpec, GaussNewtonOptions, ObjectiveWeights, Result, optimize_gait
 from trajopt.evaluation import measure_gait
-from trajopt.gait import TURN_KEYFRAMES
-from trajopt.heading import HeadingMeasure
-from trajopt.objectives import HeadingTarget
-from trajopt.optimize import TASK_CONTACT, GaitProblem
-from trajopt.targets import quarter_circle, quarter_circle_heading, straight_line
-from trajopt.tasks import TURN_INTERPOLATION
+from trajopt.optim.gait import TURN_KEYFRAMES
+from trajopt.optim.heading import HeadingMeasure
+from trajopt.optim.objectives import HeadingTarget
+from trajopt.optim.optimize import TASK_CONTACT, GaitProblem
+from trajopt.tasks.targets import quarter_circle, quarter_circle_heading, straight_line
+from trajopt.tasks.registry import TURN_INTERPOLATION
 
 from .conftest import shipped
 

@@ -11,7 +11,7 @@ from PIL import Image
 from soft_envs.render import Renderer, write_animation
 from soft_envs.sim.mesh import boundary_faces
 from trajopt import plots
-from trajopt.export import export_vtu_series
+from trajopt.results.export import export_vtu_series
 
 from .conftest import shipped
 

@@ -12,7 +12,7 @@ import math
 from pathlib import Path
 from typing import Callable
 
-from .files import check_output_dir
+from .results.files import check_output_dir
 
 __all__ = ["contact_law", "integer", "positive_int", "nonnegative_int", "number", "positive_float", "nonnegative_float",
            "slope_deg", "speed", "file_name", "frame_size", "output_dir", "output_file", "cycles", "steps"]

@@ -23,7 +23,7 @@ import numpy as np
 
 from soft_envs.envs import BodyFrame, GradientEnv, SimulationError, heading_vector, tilt_deg_of, yaw_of
 
-from .gait import DEFAULT_EVAL_CYCLES
+from .optim.gait import DEFAULT_EVAL_CYCLES
 
 __all__ = ["measure_gait", "evaluate_controls", "evaluate_result", "zero_slack_controls", "mps_to_bl_per_min",
            "DEFAULT_EVAL_CYCLES"]
@@ -140,10 +140,10 @@ def evaluate_result(res, n_cycles: int | None = None, *, ignore_robot_mismatch: 
     ``res.target`` are measured when the played controls cover it.
 
     What is scored is what ``trajopt play`` streams: loading checked ``u`` against the keyframes
-    (:mod:`trajopt.result_checks`), and here the stored ``u_post`` of a keyframe result must be
+    (:mod:`trajopt.results.checks`), and here the stored ``u_post`` of a keyframe result must be
     the zero-slack controls of the rollout of ``u`` (a ValueError naming the file otherwise)."""
     from .replay import env_for_result, result_controls
-    from .result_checks import check_zero_slack
+    from .results.checks import check_zero_slack
     cycles = int(res.settings.get("eval_cycles", DEFAULT_EVAL_CYCLES)) if n_cycles is None else int(n_cycles)
     if cycles < 1:
         raise ValueError(f"the number of cycles must be >= 1, got {cycles}")

@@ -1,7 +1,7 @@
 """The fastest walk within the motors' speed limit: ``trajopt optimize ROBOT --speed max`` (issue #28 item 3).
 
 The paper fixes the cycle (72 steps, 2.4 s) by hand; the fastest gait under the motors' speed
-limit (:mod:`trajopt.motor_limit`) needs a shorter one. :func:`fastest_gait` searches the
+limit (:mod:`trajopt.optim.motor_limit`) needs a shorter one. :func:`fastest_gait` searches the
 cycle length and the keyframe count discretely, with several starts, coarse to fine:
 
 1. **coarse**: every candidate ``(n_cycle, n_keyframes)`` of :class:`SearchSettings`
@@ -36,7 +36,7 @@ over several strides, not only its prep phase.
 Each candidate is evaluated with :func:`trajopt.evaluation.evaluate_controls` over
 ``eval_cycles`` cycles (10) after the prep phase; the result is the fastest upright one.
 Every simulation step is counted: the optimisations' (``sim_steps`` of
-:class:`trajopt.optimize.GaitProblem`: rollouts with and without sensitivities,
+:class:`trajopt.optim.optimize.GaitProblem`: rollouts with and without sensitivities,
 line-search trials, seed screening) and the evaluations'; the total is in
 ``result.evaluation["search_sim_steps"]`` and the table. :func:`write_search_table` writes the
 table beside the result (``NAME.search.csv`` and ``.md``).
@@ -56,12 +56,12 @@ import numpy as np
 
 from soft_envs.envs import SimulationError, as_gradient_env
 
-from .files import atomic_write_bytes
-from .gait import GaitSpec
-from .gauss_newton import GaussNewtonOptions
-from .optimize import optimize_gait
-from .parameterization import GaitParameterization
-from .results import Result
+from .results.files import atomic_write_bytes
+from .optim.gait import GaitSpec
+from .optim.gauss_newton import GaussNewtonOptions
+from .optim.optimize import optimize_gait
+from .optim.parameterization import GaitParameterization
+from .results.result import Result
 
 __all__ = [
     "SEARCH_EVAL_CYCLES",
@@ -142,7 +142,7 @@ TABLE_COLUMNS = ("stage", "n_cycle", "n_keyframes", "horizon_cycles", "start", "
 
 
 class _KeyframeStart:
-    """A warm start for :func:`trajopt.optimize.choose_start`: only its keyframes are read."""
+    """A warm start for :func:`trajopt.optim.optimize.choose_start`: only its keyframes are read."""
 
     def __init__(self, keyframes: np.ndarray, source: str):
         self.settings = {"keyframes": np.asarray(keyframes).tolist(), "source": source}
@@ -201,7 +201,7 @@ class _Search:
         return np.inf if budget is None else share * budget
 
     def _n_starts(self, gait: GaitSpec, warm, z0, n_seeds: int) -> int:
-        """Rollouts :func:`~trajopt.optimize.choose_start` screens before Gauss-Newton."""
+        """Rollouts :func:`~trajopt.optim.optimize.choose_start` screens before Gauss-Newton."""
         if z0 is not None:
             return 0
         n = (1 if warm is not None else 0) + (len(GaitParameterization.for_robot(self.env.robot, gait).seeds(n_seeds))

@@ -6,7 +6,7 @@ named as the command's). It writes ``OUT/NAME.npz`` only when the run finishes; 
 checkpoints (one per Gauss-Newton iteration, and the last iterate on Ctrl-C) go to
 ``OUT/NAME.partial.npz``, which ``resume`` continues and a finished run removes. A finished
 result, or an interrupted run's checkpoint, is never replaced without ``overwrite``, and while a
-run lives its name is reserved (``OUT/NAME.lock``, :mod:`trajopt.reservation`): a second run of
+run lives its name is reserved (``OUT/NAME.lock``, :mod:`trajopt.results.reservation`): a second run of
 the same name and folder is refused at once.
 """
 from __future__ import annotations
@@ -20,13 +20,13 @@ from typing import Any, Callable, Mapping
 
 from soft_envs.envs import compile_ahead, make_gradient_env
 
-from .files import RESULTS_DIR
-from .gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
-from .gauss_newton import GaussNewtonOptions
-from .optimize import optimize_gait
-from .reservation import lock_path, reserve
-from .results import Result, partial_path, result_path
-from .tasks import get_task
+from .results.files import RESULTS_DIR
+from .optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
+from .optim.gauss_newton import GaussNewtonOptions
+from .optim.optimize import optimize_gait
+from .results.reservation import lock_path, reserve
+from .results.result import Result, partial_path, result_path
+from .tasks.registry import get_task
 
 __all__ = ["OptimizeRun", "run_optimization", "OPTIMIZE_OPTIONS"]
 
@@ -41,7 +41,7 @@ class OptimizeRun:
     :mod:`trajopt.fastest`, with its search table beside the result), heading [deg], turn side, slope ``angle`` [deg] (a task
     on a slope), contact law (None: the task's, else the robot file's), symmetry (None: the
     task's), warm start result, whether to optimise without the motors' speed limit
-    (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes and their ``interpolation`` (None: the task's; :data:`trajopt.gait.INTERPOLATIONS`), cycle
+    (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes and their ``interpolation`` (None: the task's; :data:`trajopt.optim.gait.INTERPOLATIONS`), cycle
     steps (None: the paper's 72; with ``speed="max"``: searched) and prep steps, random seeds, evaluation cycles,
     the ``speed="max"`` search's budget of simulation steps (``max_sim_steps``, None: none), output folder and
     result name (None:

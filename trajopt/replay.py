@@ -3,7 +3,7 @@ on, its controls for any number of cycles, and its trajectory. Used by the ``tra
 (evaluate, render, export, plot) and by the RL baseline alike.
 
 The environment is only built for the robot the result was made for: :func:`env_for_result`
-checks the result's robot fingerprint and motors (:func:`trajopt.robot_match.check_robot`) and
+checks the result's robot fingerprint and motors (:func:`trajopt.results.robot_match.check_robot`) and
 refuses another or an edited robot unless ``ignore_robot_mismatch`` (then it warns,
 :class:`RobotMismatchWarning`).
 """
@@ -16,10 +16,10 @@ import numpy as np
 
 from soft_envs.envs import GradientEnv, Trajectory, make_gradient_env
 
-from .gait import GaitSpec
-from .parameterization import GaitParameterization
-from .results import Result
-from .robot_match import check_robot, fingerprint_of
+from .optim.gait import GaitSpec
+from .optim.parameterization import GaitParameterization
+from .results.result import Result
+from .results.robot_match import check_robot, fingerprint_of
 
 __all__ = ["env_for_result", "result_parameterization", "result_controls", "replay", "RobotMismatchWarning"]
 
@@ -32,7 +32,7 @@ def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False) -> Gradi
     """A bare environment with the physics ``res`` was made on: its robot (shipped name or
     robot.toml path), slope, uphill heading, contact law (results made before it was recorded
     used the paper's law) and simulation time step ``res.dt``. A robot that
-    is not the one ``res`` was made for raises :class:`~trajopt.robot_match.RobotMismatchError`
+    is not the one ``res`` was made for raises :class:`~trajopt.results.robot_match.RobotMismatchError`
     (a ValueError), or warns with ``ignore_robot_mismatch``."""
     s = res.settings
     env = make_gradient_env(res.robot, incline_deg=float(s.get("incline_deg", 0.0)),

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from soft_envs.envs import MarkerSet, load_robot, with_contact_law, with_parameters
-from trajopt.calibrate import synthetic_tracks
-from trajopt.results import Result
-from trajopt.tracks import write_tracks
+from trajopt.calibration.calibrate import synthetic_tracks
+from trajopt.results.result import Result
+from trajopt.calibration.tracks import write_tracks
 
 HERE = Path(__file__).resolve().parent
 #: the parameters of the robot that made the tracks (the shipped Tripod's: 1e5 Pa, 0.3, 1000 /m)

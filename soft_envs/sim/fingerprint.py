@@ -2,7 +2,7 @@
 
 :func:`robot_fingerprint` hashes a ``robot.toml`` as parsed and normalised (comments, layout, key
 order, ``1`` vs ``1.0`` and the ``[design]`` table do not count) and its mesh as read (positions rounded to 1e-9 of the
-mesh's size, and tets; the file format does not count). ``trajopt.robot_match`` compares two
+mesh's size, and tets; the file format does not count). ``trajopt.results.robot_match`` compares two
 fingerprints and names the fields that changed.
 """
 from __future__ import annotations

@@ -9,7 +9,7 @@ centres of mass. Its columns are the body's forward (``R e_x``), up (``R e_y``) 
 
 Headings and yaw are measured in the ground plane from +x towards +z, i.e. clockwise seen from
 above: a positive yaw rate is a right turn (left is -z for a robot facing +x with +y up), the
-convention of :mod:`trajopt.targets`. ``yaw = atan2(f_z, f_x)`` for the forward vector ``f``.
+convention of :mod:`trajopt.tasks.targets`. ``yaw = atan2(f_z, f_x)`` for the forward vector ``f``.
 Tilt is the angle between the up vector and +y.
 """
 from __future__ import annotations

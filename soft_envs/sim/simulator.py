@@ -248,7 +248,7 @@ class Simulator:
         if not isinstance(state, State):
             warnings.warn("Simulator.step(x_prev, x_prev2, u, ...) is deprecated: pass a State, "
                           "step(state, u) -> State (sim.rest_state(), sim.state_at_rest(x) or "
-                          "State(x, x_prev, x_prev2, history, k)); see docs/api-changes.md",
+                          "State(x, x_prev, x_prev2, history, k)); see CHANGELOG.md",
                           DeprecationWarning, stacklevel=2)
             return self._step_positions(state, *args, factor_cache=factor_cache, **kwargs)
         if len(args) + len(kwargs) != 1 or set(kwargs) - {"u"}:

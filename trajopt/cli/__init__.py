@@ -31,9 +31,9 @@ from pathlib import Path
 
 from ..argtypes import (contact_law, cycles, file_name, frame_size, integer, number, output_dir, output_file,
                        positive_float, positive_int, slope_deg, speed, steps)
-from ..files import RESULTS_DIR
-from ..gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
-from ..tasks import TURN_KEYFRAMES, command_line_tasks
+from ..results.files import RESULTS_DIR
+from ..optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
+from ..tasks.registry import TURN_KEYFRAMES, command_line_tasks
 
 __all__ = ["main", "build_parser", "RESULTS_DIR"]
 

@@ -1,7 +1,7 @@
 """``trajopt calibrate``: inputs (robot, markers, tracks, controls) and outputs (calibration.json,
 a new robot.toml with the fitted values, the before/after plot of the tracks). The fit itself is
-:func:`trajopt.calibrate.fit_parameters`, the files :mod:`trajopt.calibration_files`; the checks of
-the data and of the fit (:mod:`trajopt.calibration_checks`) refuse to write anything when one
+:func:`trajopt.calibration.calibrate.fit_parameters`, the files :mod:`trajopt.calibration.files`; the checks of
+the data and of the fit (:mod:`trajopt.calibration.checks`) refuse to write anything when one
 fails, unless ``--force``."""
 from __future__ import annotations
 
@@ -12,11 +12,11 @@ from typing import Any
 
 from soft_envs.envs import PHYSICAL_PARAMETERS, MarkerSet, check_parameters, load_robot, with_contact_law
 
-from ..calibrate import MarkerData, fit_parameters
-from ..calibration_checks import check_fit, check_tracks
-from ..calibration_files import HEADER, plot_tracks, read_marker_points, write_calibrated_robot
-from ..results import Result, atomic_write_bytes
-from ..tracks import read_tracks
+from ..calibration.calibrate import MarkerData, fit_parameters
+from ..calibration.checks import check_fit, check_tracks
+from ..calibration.files import HEADER, plot_tracks, read_marker_points, write_calibrated_robot
+from ..results.result import Result, atomic_write_bytes
+from ..calibration.tracks import read_tracks
 
 __all__ = ["run_calibrate"]
 

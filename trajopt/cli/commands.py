@@ -1,7 +1,7 @@
 """What ``trajopt optimize`` and ``trajopt evaluate`` do (argument parsing lives in
 :mod:`trajopt.cli`; render, export and plot in :mod:`trajopt.cli.output_commands`; the library
 functions they call in :mod:`trajopt.optimize_run` (the run's files, checkpoints and resume),
-:mod:`trajopt.optimize`, :mod:`trajopt.evaluation` and :mod:`trajopt.replay`).
+:mod:`trajopt.optim.optimize`, :mod:`trajopt.evaluation` and :mod:`trajopt.replay`).
 """
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ import time
 from pathlib import Path
 
 from ..evaluation import evaluate_result
-from ..files import RESULTS_DIR
+from ..results.files import RESULTS_DIR
 from ..optimize_run import OptimizeRun, run_optimization
 from ..progress import IterationProgress
-from ..results import Result
-from ..tasks import speed_along_path
+from ..results.result import Result
+from ..tasks.registry import speed_along_path
 
 __all__ = ["run_optimize", "run_evaluate", "STATUS_MEANING", "evaluation_rows"]
 

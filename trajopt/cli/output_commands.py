@@ -1,11 +1,11 @@
 """What ``trajopt render``, ``export`` and ``plot`` do (argument parsing lives in :mod:`trajopt.cli`;
-the library functions in :mod:`trajopt.replay`, :mod:`trajopt.export` and :mod:`trajopt.plots`).
+the library functions in :mod:`trajopt.replay`, :mod:`trajopt.results.export` and :mod:`trajopt.plots`).
 
 Each checks everything before it simulates or draws: the result file, the robot it was made for
 (``--ignore-robot-mismatch`` overrides), the tools it needs (``--mp4``: the ``video`` extra), and
 its outputs (an existing one is refused without ``--overwrite``). Every file is written
-atomically (:mod:`trajopt.files`): an interrupted command leaves the previous file or none, never
-half a file or a temporary. Defaults follow the results folder (:data:`trajopt.files.RESULTS_DIR`).
+atomically (:mod:`trajopt.results.files`): an interrupted command leaves the previous file or none, never
+half a file or a temporary. Defaults follow the results folder (:data:`trajopt.results.files.RESULTS_DIR`).
 """
 from __future__ import annotations
 
@@ -15,10 +15,10 @@ import numpy as np
 
 from soft_envs.envs import cable_points, strain_energy_density
 
-from ..files import RESULTS_DIR, atomic_output, refuse_existing
+from ..results.files import RESULTS_DIR, atomic_output, refuse_existing
 from ..replay import env_for_result, replay
-from ..results import Result
-from ..tasks import speed_along_path
+from ..results.result import Result
+from ..tasks.registry import speed_along_path
 
 __all__ = ["run_render", "run_export", "run_plot", "check_video_writer"]
 
@@ -79,7 +79,7 @@ def _series_files(directory: Path, stem: str) -> list[Path]:
 
 
 def run_export(args) -> int:
-    from ..export import export_vtu_series
+    from ..results.export import export_vtu_series
     res = Result.load(args.result)
     stem = Path(args.result).stem
     out = args.vtu if args.vtu is not None else RESULTS_DIR / "paraview" / stem

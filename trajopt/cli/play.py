@@ -104,7 +104,7 @@ def run_play(args: argparse.Namespace) -> int:
     from ..hardware.signals import Terminated, signal_of
 
     try:
-        from trajopt.results import Result  # numpy-only module, imported lazily on purpose
+        from trajopt.results import Result  # numpy-only modules, imported lazily on purpose
 
         res = Result.load(args.result)
         config = load_hardware_config(args.hardware)
@@ -112,14 +112,14 @@ def run_play(args: argparse.Namespace) -> int:
         print(f"trajopt play: cannot load inputs: {type(exc).__name__}: {exc}", file=sys.stderr)
         return EXIT_INPUT
     try:
-        from trajopt.robot_match import check_for_play
+        from trajopt.results.robot_match import check_for_play
         for note in check_for_play(res, config.robot, config.path, src=str(args.result),
                                    ignore=getattr(args, "ignore_robot_mismatch", False)):
             print(f"trajopt play: warning: {note}", file=sys.stderr)
     except ValueError as exc:
         print(f"trajopt play: refused: {exc}", file=sys.stderr)
         return EXIT_INPUT
-    from trajopt.motor_limit import playback_note
+    from trajopt.optim.motor_limit import playback_note
     note = playback_note(res, args.loops)      # the robot's motor limit (robot.toml max_speed_rpm)
     if note:
         print(f"trajopt play: {note}", file=sys.stderr)

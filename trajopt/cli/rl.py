@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ..argtypes import (contact_law, cycles, file_name, integer, nonnegative_float, number, output_dir, output_file, positive_int,
                         slope_deg)
-from ..files import RESULTS_DIR, refuse_existing
+from ..results.files import RESULTS_DIR, refuse_existing
 from ..rl.envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOTS, TRAIN_HORIZON
 from ..rl.hyperparams import ALGOS
 from ..rl.options import RUNS_DIR, TRAIN_OPTIONS
@@ -142,7 +142,7 @@ def _cmd_evaluate(args) -> int:
 
 def _cmd_export(args) -> int:
     from ..rl import MissingRLDependencies
-    from ..results import result_path
+    from ..results.result import result_path
     model = Path(args.model)
     default = RESULTS_DIR / f"{model.name if model.is_dir() else model.stem}.npz"
     path = result_path(args.out if args.out is not None else default)

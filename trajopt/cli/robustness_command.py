@@ -1,9 +1,9 @@
-"""``trajopt robustness``: runs :func:`trajopt.robustness_report.run_robustness_study` and prints
+"""``trajopt robustness``: runs :func:`trajopt.robustness.report.run_robustness_study` and prints
 its report (the perturbations and the replays: :mod:`trajopt.robustness`)."""
 from __future__ import annotations
 
-from ..robustness import PERTURBATIONS
-from ..robustness_report import run_robustness_study
+from ..robustness.study import PERTURBATIONS
+from ..robustness.report import run_robustness_study
 
 __all__ = ["run_robustness"]
 

@@ -59,7 +59,7 @@ def _dry_run(spec, out: Path) -> int:
     """List the runs: done, to run, or refused (what their start would refuse: an unknown
     robot, a negative physical value); exit 2 when any is refused. Writes nothing."""
     from ..sweep.runner import plan
-    from ..reservation import read_owner
+    from ..results.reservation import read_owner
     from ..sweep.task import SWEEP_LOCK, check_run
     todo, done = plan(spec, out)
     refused = 0

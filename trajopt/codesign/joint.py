@@ -1,6 +1,6 @@
 """Gauss-Newton on gait and design together, in stages with a rising target (issue #29 item 3).
 
-:func:`optimise_jointly` runs :func:`trajopt.gauss_newton.gauss_newton` on a
+:func:`optimise_jointly` runs :func:`trajopt.optim.gauss_newton.gauss_newton` on a
 :class:`~trajopt.codesign.problem.CodesignProblem` in ``stages``: each stage tracks a straight
 line at ``max(min_target, target_margin * best)`` BL/min, where ``best`` is the fastest upright
 gait found so far (the shipped design's fastest gait at first: co-design asks for more than is
@@ -27,7 +27,7 @@ from soft_envs.envs import SimulationError
 
 from ..evaluation import evaluate_controls
 from ..fastest import SEARCH_EVAL_CYCLES
-from ..gauss_newton import GaussNewtonOptions, gauss_newton
+from ..optim.gauss_newton import GaussNewtonOptions, gauss_newton
 from .problem import CodesignProblem
 
 __all__ = ["JointSettings", "JointState", "optimise_jointly", "replay_path", "evaluate_design"]

@@ -1,7 +1,7 @@
 r"""The co-design problem: gait keyframes z and design parameters theta, one shooting problem.
 
 The variables are ``w = [z; theta]``: the keyframes of a walking gait
-(:class:`~trajopt.parameterization.GaitParameterization`) and the robot's design parameters
+(:class:`~trajopt.optim.parameterization.GaitParameterization`) and the robot's design parameters
 (:class:`~soft_envs.envs.design.DesignParameters`: regional moduli, via points, leg lengths).
 The objective is the walk's (paper eq. 5-7) made independent of where the robot starts, plus a
 small pull towards the shipped design:
@@ -12,7 +12,7 @@ small pull towards the shipped design:
 * ``r_com,k = sqrt(w_com / K) (c_k - c_0 - v t_k e_x) / BL``: the horizontal COM of states
   k = 1..K against a straight line at the target speed v from the rest COM ``c_0``, which moves
   with the design (its derivative ``dc_0/dtheta`` is in the Jacobian);
-* the keyframes' magnitude and smoothness regularisers of :mod:`trajopt.objectives`;
+* the keyframes' magnitude and smoothness regularisers of :mod:`trajopt.optim.objectives`;
 * ``r_design = sqrt(w_design / n_theta) (theta - theta_shipped) / range``, each parameter
   normalised by the width of its bounds.
 
@@ -27,7 +27,7 @@ problem keeps a current block and moves it (:meth:`DesignParameters.moved_to`) t
 where Gauss-Newton asks for a Jacobian (an accepted iterate); trial points of the line search are
 the current block's :meth:`~DesignParameters.robot_at`.
 
-Constraints. Linear in w: the motors' speed limit on z (:mod:`trajopt.motor_limit`) and the
+Constraints. Linear in w: the motors' speed limit on z (:mod:`trajopt.optim.motor_limit`) and the
 bounds of z and theta. Nonlinear in theta, linearised at every accepted iterate
 (:meth:`CodesignProblem.linearised_constraints`): every routed via point stays
 ``min_clearance`` (2 mm) inside the body (``TendonRouting.clearance``), and the total mass
@@ -44,11 +44,11 @@ import numpy as np
 from soft_envs.envs import SimulationError, as_gradient_env
 from soft_envs.envs.design import MAX_MASS_LOSS, MIN_CLEARANCE, DesignParameters, design_rollout
 
-from ..gait import GaitSpec
-from ..motor_limit import speed_limit_constraints
-from ..parameterization import GaitParameterization
-from ..qp import LinearConstraints
-from ..targets import bl_per_min_to_mps
+from ..optim.gait import GaitSpec
+from ..optim.motor_limit import speed_limit_constraints
+from ..optim.parameterization import GaitParameterization
+from ..optim.qp import LinearConstraints
+from ..tasks.targets import bl_per_min_to_mps
 
 __all__ = ["CodesignWeights", "CodesignProblem", "InfeasibleDesign", "TrustRegion", "CLEARANCE_MARGIN", "design_env"]
 

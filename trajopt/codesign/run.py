@@ -12,7 +12,7 @@ The steps (each file written atomically; ``DIR`` is created):
    ``resume`` continues an interrupted run from there;
 3. **the designed robot**: ``DIR/robot.toml`` (and ``DIR/mesh.vtu`` when the legs changed),
    written by :func:`soft_envs.envs.design.write_designed_robot`, a robot folder every command
-   loads unchanged, checked independently of the optimiser (:mod:`trajopt.design_checks`);
+   loads unchanged, checked independently of the optimiser (:mod:`trajopt.codesign.checks`);
 4. **its gait**: ``DIR/NAME_walk.npz``, the co-designed keyframes on the robot reloaded from
    ``DIR/robot.toml`` (a few more Gauss-Newton iterations there, kept when faster), tied to the
    written robot (its fingerprint: the shipped robot refuses it);
@@ -38,13 +38,13 @@ from soft_envs.envs import make_gradient_env, robot_fingerprint
 from soft_envs.envs.design import KINDS, load_design, write_designed_robot
 
 from ..fastest import SearchSettings, fastest_gait, write_search_table
-from ..files import atomic_write_bytes
-from ..gait import GaitSpec
-from ..gauss_newton import GaussNewtonOptions
-from ..motor_limit import max_step_of_env
-from ..optimize import optimize_gait
-from ..results import Result
-from ..robot_match import describe_difference
+from ..results.files import atomic_write_bytes
+from ..optim.gait import GaitSpec
+from ..optim.gauss_newton import GaussNewtonOptions
+from ..optim.motor_limit import max_step_of_env
+from ..optim.optimize import optimize_gait
+from ..results.result import Result
+from ..results.robot_match import describe_difference
 from .joint import JointSettings, JointState, optimise_jointly, replay_path
 from .problem import CodesignProblem, CodesignWeights
 from .screen import ScreenProgress, ScreenSettings, screen_designs
@@ -205,7 +205,7 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
         raise RuntimeError("co-design: the best design's block was lost (a bug)")
     robot_file = write_designed_robot(block, block.values, run.out)
     say(f"wrote the designed robot {robot_file}")
-    from ..design_checks import check_designed_robot, format_checks
+    from .checks import check_designed_robot, format_checks
     checks = check_designed_robot(shipped.source, robot_file)
     new_env = make_gradient_env(str(robot_file), contact=env.contact_model)
     name = run.name or f"{shipped.name}_walk"
@@ -303,7 +303,7 @@ def _summary(run, env, baseline, result, reopt, state, changes, checks, wall) ->
 
 
 def _report(run, shipped, designed, summary, changes, checks, settings) -> Path:
-    from ..design_report import plot_robots_side_by_side, write_codesign_report
+    from .report import plot_robots_side_by_side, write_codesign_report
     picture = run.out / "codesign.png"
     plot_robots_side_by_side(shipped, designed, picture)
     before = {"speed_bl_per_min": summary["before_bl_per_min"], "n_cycle": summary["n_cycle"],

@@ -56,9 +56,9 @@ from soft_envs.envs import SimulationError
 from soft_envs.envs.threads import limit_threads
 
 from ..fastest import SearchSettings, fastest_gait
-from ..gauss_newton import GaussNewtonOptions
-from ..optimize import optimize_gait
-from ..qp import QPError, nearest_feasible
+from ..optim.gauss_newton import GaussNewtonOptions
+from ..optim.optimize import optimize_gait
+from ..optim.qp import QPError, nearest_feasible
 from .problem import CodesignProblem, design_env
 
 __all__ = ["ScreenSettings", "ScreenProgress", "candidates", "screen_designs", "SCORES"]

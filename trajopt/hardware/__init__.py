@@ -6,9 +6,9 @@
 * :func:`stop_motors` -- stop every channel whatever happens meanwhile; :class:`StopReport` says
   which stops were confirmed (read back) and which were not;
 * :class:`Terminated` -- what SIGTERM / SIGHUP raise during a playback (after its stop sequence);
-* :class:`RoboClawEmulator` -- pty-based emulated controllers for tests and demos (POSIX);
-* :func:`add_play_parser` / :func:`run_play` -- the ``trajopt play`` sub-command (its home is
-  :mod:`trajopt.cli.play`; loaded from there on first use).
+* :class:`RoboClawEmulator` -- pty-based emulated controllers for tests and demos (POSIX).
+
+The ``trajopt play`` command that drives them is :mod:`trajopt.cli.play`.
 
 Importing this package does not need pyserial; opening a port without it raises
 ``ImportError("... pip install soft-envs[hardware]")``.
@@ -56,18 +56,14 @@ __all__ = [
     "HardwareConfig", "MotorConfig", "PlannedCommand", "PlaybackError", "PlaybackSummary", "PositionPID", "RoboClaw",
     "RoboClawCRCError", "RoboClawConnectionError", "RoboClawEmulator", "RoboClawError", "RoboClawNoAck",
     "RoboClawTimeout", "RoboClawUnmatchedReply", "StopReport", "Terminated", "TrackingError", "TrajectoryLimitError",
-    "TrajectoryPlan", "add_play_parser", "crc16", "describe_plan", "iter_command_stream", "load_hardware_config",
+    "TrajectoryPlan", "crc16", "describe_plan", "iter_command_stream", "load_hardware_config",
     "open_serial", "parse_firmware_version", "parse_hardware_config", "plan_trajectory", "play_trajectory",
-    "run_play", "stop_all_reachable", "stop_motors",
+    "stop_all_reachable", "stop_motors",
 ]
 
 
 def __getattr__(name: str) -> Any:
-    """Import the emulator lazily (it needs POSIX ptys), and the command line's play hook."""
-    if name in ("add_play_parser", "run_play"):
-        from ..cli import play
-
-        return getattr(play, name)
+    """Import the emulator lazily (it needs POSIX ptys)."""
     if name == "RoboClawEmulator":
         from .emulator import RoboClawEmulator
 

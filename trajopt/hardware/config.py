@@ -47,7 +47,7 @@ try:
 except ImportError:  # pragma: no cover - Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
-from ..files import decode_utf8
+from ..results.files import decode_utf8
 from .protocol import ADDRESS_MAX, ADDRESS_MIN, INT32_MAX
 
 #: Pololu 298:1 micro metal gearmotor: 12 counts per motor revolution times 297.92:1.

@@ -30,7 +30,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..gait import DEFAULT_EVAL_CYCLES, GaitSpec
+from ..optim.gait import DEFAULT_EVAL_CYCLES, GaitSpec
 
 __all__ = ["ROBOTS", "ROBOT_IDS", "COULOMB_IDS", "GAIT", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES",
            "DropHorizontalPosition", "make_env", "robot_name", "env_id", "run_contact"]

@@ -31,9 +31,9 @@ from soft_envs.envs import heading_vector
 from soft_envs.envs.actuation import MOTOR_SPEED_FROM_ROBOT
 
 from ..evaluation import evaluate_controls, evaluate_result, measure_gait, zero_slack_controls
-from ..gait import GaitSpec
-from ..results import Result
-from ..robot_match import fingerprint_of
+from ..optim.gait import GaitSpec
+from ..results.result import Result
+from ..results.robot_match import fingerprint_of
 from . import require_sb3
 from .envs import DEFAULT_EVAL_CYCLES, GAIT, make_env, run_contact
 from .training import CONFIG_NAME, MODEL_NAME, VECNORM_NAME

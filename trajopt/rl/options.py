@@ -7,7 +7,7 @@ import os
 import sys
 from typing import Any
 
-from ..files import RESULTS_DIR
+from ..results.files import RESULTS_DIR
 from .envs import TRAIN_HORIZON
 
 __all__ = ["train_with_options", "TRAIN_OPTIONS", "RUNS_DIR"]

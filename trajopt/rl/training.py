@@ -54,7 +54,7 @@ class TrainRun:
 
 
 def write_config(run_dir: Path, config: dict[str, Any]) -> Path:
-    from ..results import atomic_write_bytes
+    from ..results.result import atomic_write_bytes
     path = Path(run_dir) / CONFIG_NAME
     atomic_write_bytes(path, json.dumps(jsonable(config), indent=1).encode())
     return path
@@ -84,7 +84,7 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     cores; ``None`` leaves PyTorch's default). Ctrl-C stops training and saves the model with
     ``status="interrupted"``. An existing run of the same name is an error unless
     ``overwrite`` (then its checkpoints are deleted first); a run of the same name in progress
-    is refused (``out/NAME.lock``, :mod:`trajopt.reservation`).
+    is refused (``out/NAME.lock``, :mod:`trajopt.results.reservation`).
     """
     require_sb3()
     import torch
@@ -114,7 +114,7 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     checkpoint_every = int(checkpoint_every or max(timesteps // 10, 1))
 
     run_dir = Path(out) / (name or f"{robot}_{algo}_seed{seed}")
-    from ..reservation import lock_path, reserve
+    from ..results.reservation import lock_path, reserve
     with reserve(lock_path(run_dir), f"RL run {run_dir.name}"):   # a second run of this name is refused
         ckpt_dir = _prepare_run_dir(run_dir, overwrite)
         if torch_threads is not None:
@@ -157,7 +157,7 @@ def _prepare_run_dir(run_dir: Path, overwrite: bool) -> Path:
 def _save_atomically(model, venv, model_path: Path, vecnorm_path: Path) -> None:
     """The final model and its VecNormalize statistics, each complete or not at all (a kill
     during the save leaves the previous files)."""
-    from ..files import atomic_output
+    from ..results.files import atomic_output
     with atomic_output(model_path) as tmp, open(tmp, "wb") as fh:
         model.save(fh)
     with atomic_output(vecnorm_path) as tmp:

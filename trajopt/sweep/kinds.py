@@ -19,10 +19,10 @@ from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
 from ..argtypes import contact_law, cycles, integer, nonnegative_float, number, positive_int, slope_deg, speed, steps
-from ..gait import INTERPOLATIONS
+from ..optim.gait import INTERPOLATIONS
 from ..rl.envs import ROBOTS
 from ..rl.hyperparams import ALGOS
-from ..tasks import command_line_tasks
+from ..tasks.registry import command_line_tasks
 
 __all__ = ["Option", "RunKind", "KINDS", "CONTACT_LAWS"]
 

@@ -1,6 +1,6 @@
 """Running a sweep: one Ray task per run, resuming, faults, Ctrl-C, progress.
 
-A sweep holds its folder while it runs (``DIR/sweep.lock``, :mod:`trajopt.reservation`): a
+A sweep holds its folder while it runs (``DIR/sweep.lock``, :mod:`trajopt.results.reservation`): a
 second sweep into the same folder is refused at once. Runs whose ``status.json`` says ``done``
 (with the same kind and parameters, and their result files present) are skipped;
 the others (never started, failed, interrupted, killed) are started, optimisations from their
@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from ..reservation import reserve
+from ..results.reservation import reserve
 from .spec import Run, SweepSpec
 from .task import SWEEP_LOCK, execute, read_status, recover_status, result_present, write_status
 

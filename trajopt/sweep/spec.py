@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..files import decode_utf8
+from ..results.files import decode_utf8
 from .kinds import KINDS
 
 __all__ = ["KINDS", "Run", "SweepSpec", "load_spec", "quick_requested"]

@@ -8,8 +8,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..files import atomic_write_png
-from ..results import atomic_write_bytes
+from ..results.files import atomic_write_png
+from ..results.result import atomic_write_bytes
 from .spec import SweepSpec
 
 __all__ = ["summary_rows", "write_summary", "METRIC_COLUMNS"]

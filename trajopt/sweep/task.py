@@ -22,8 +22,8 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from ..gait import DEFAULT_EVAL_CYCLES
-from ..results import Result, atomic_write_bytes, partial_path
+from ..optim.gait import DEFAULT_EVAL_CYCLES
+from ..results.result import Result, atomic_write_bytes, partial_path
 from .spec import Run
 
 __all__ = ["execute", "read_status", "write_status", "recover_status", "result_present", "check_run", "resumes",

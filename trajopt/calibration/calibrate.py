@@ -2,7 +2,7 @@ r"""Identification of physical parameters from tracked markers (issue #19; the p
 "through trial and error", II-A).
 
 Markers are points bound to the mesh (a robot.toml's ``[[markers]]``); their measured tracks
-(:mod:`trajopt.tracks`) are compared, sample by sample, with the simulated markers of the
+(:mod:`trajopt.calibration.tracks`) are compared, sample by sample, with the simulated markers of the
 controls that were played, interpolated between the simulation steps to each sample's time. The
 fit minimises the marker residuals
 
@@ -26,7 +26,7 @@ named alone.
 
 What ``trajopt calibrate`` checks before it writes a robot from a fit (units, time span, RMS
 against the tracker's noise, evaluation limit, standard errors, bounds):
-:mod:`trajopt.calibration_checks`.
+:mod:`trajopt.calibration.checks`.
 """
 from __future__ import annotations
 
@@ -89,7 +89,7 @@ class MarkerData:
 
     @classmethod
     def from_tracks(cls, tracks, robot, markers: MarkerSet, u: np.ndarray, dt: float, **kw) -> "MarkerData":
-        """The samples of ``tracks`` (:class:`trajopt.tracks.Tracks`) within the controls' span."""
+        """The samples of ``tracks`` (:class:`trajopt.calibration.tracks.Tracks`) within the controls' span."""
         T = len(u) * dt
         t, idx, vals = [], [], []
         for i, name in enumerate(markers.names):

@@ -9,7 +9,7 @@ an error); a missing sample is a row with ``x``, ``y`` or ``z`` empty or ``nan``
 all); ``inf`` is an error, not a missing sample. Every problem is a ValueError naming the file
 and line (a file that is not UTF-8: the byte offset).
 
-The calibration (:class:`trajopt.calibrate.MarkerData`) compares each sample with the
+The calibration (:class:`trajopt.calibration.calibrate.MarkerData`) compares each sample with the
 simulated marker interpolated linearly between the two simulation steps around its time, so
 any rate works and a missing sample simply contributes nothing (interpolating the noisy samples
 onto the steps instead would smooth and re-weight them).
@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import decode_utf8
-from .results import atomic_write_bytes
+from ..results.files import decode_utf8
+from ..results.result import atomic_write_bytes
 
 __all__ = ["TRACK_COLUMNS", "Tracks", "read_tracks", "write_tracks", "read_utf8"]
 

@@ -5,13 +5,13 @@ A :class:`Result` is saved as ``NAME.npz`` (arrays plus the metadata as JSON) an
 
 * the ``.npz`` is authoritative: it carries ``content_sha256``, a SHA-256 of its metadata and
   arrays, checked when it is read (a damaged or hand-edited file is refused);
-* the ``.json`` repeats that hash. Each file is written atomically (:mod:`trajopt.files`), the
+* the ``.json`` repeats that hash. Each file is written atomically (:mod:`trajopt.results.files`), the
   ``.npz`` first; a save killed between the two leaves the new ``.npz`` beside the old (or no)
   ``.json``, and :meth:`Result.load` reports that (:class:`ResultFileWarning`), reads the
   ``.npz`` and rewrites the ``.json`` from it;
-* a result records the fingerprint of its robot (:mod:`trajopt.robot_match`), so that it is
+* a result records the fingerprint of its robot (:mod:`trajopt.results.robot_match`), so that it is
   never replayed on another or an edited robot by mistake;
-* a result's controls are checked against its keyframes (:mod:`trajopt.result_checks`), so an
+* a result's controls are checked against its keyframes (:mod:`trajopt.results.checks`), so an
   edited ``u`` or ``u_post`` whose hash was recomputed is refused too;
 * ``format_version`` 2 requires ``content_sha256`` and ``robot_fingerprint``: removing either is
   refused. Older files (version 1 or none) may lack them only if they lack every field that came
@@ -33,9 +33,9 @@ from typing import Any
 import numpy as np
 
 from .files import atomic_write_bytes
-from .gait import GaitSpec
-from .result_checks import check_controls
-from .tasks import speed_along_path
+from ..optim.gait import GaitSpec
+from .checks import check_controls
+from ..tasks.registry import speed_along_path
 
 __all__ = ["Result", "ResultFileWarning", "atomic_write_bytes", "result_path", "partial_path", "FORMAT_VERSION"]
 
@@ -93,7 +93,7 @@ class Result:
     history : one dict per Gauss-Newton iteration. evaluation : see trajopt.evaluation.
     status : how the run ended (:data:`trajopt.cli.commands.STATUS_MEANING`); "running" or
     "interrupted" for a checkpoint.
-    robot_fingerprint : the robot it was made for (:func:`trajopt.robot_match.fingerprint_of`);
+    robot_fingerprint : the robot it was made for (:func:`trajopt.results.robot_match.fingerprint_of`);
     empty for robots built in Python and for files of older versions.
     """
 

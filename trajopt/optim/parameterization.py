@@ -1,6 +1,6 @@
 """Control trajectories from a few keyframes (paper III-B, eq. 12).
 
-``u = (u_prep, u_cycle, u_cycle)`` (the shape is a :class:`~trajopt.gait.GaitSpec`): each motor's
+``u = (u_prep, u_cycle, u_cycle)`` (the shape is a :class:`~trajopt.optim.gait.GaitSpec`): each motor's
 cycle is a periodic zero-tangent cubic Hermite spline through ``n_keyframes`` equally spaced
 keyframes (or, with ``GaitSpec(interpolation="linear")``, straight lines between them:
 :func:`linear_cycle_basis`); the preparatory phase eases from the rest contraction ``u_rest`` (``robot.u_rest``:
@@ -64,7 +64,7 @@ def linear_cycle_basis(n_steps: int, n_keyframes: int) -> np.ndarray:
 
 def cycle_basis(gait: GaitSpec) -> np.ndarray:
     """(n_cycle, n_keyframes) basis of ``gait``'s cycle, as its ``interpolation`` says
-    (:data:`trajopt.gait.INTERPOLATIONS`)."""
+    (:data:`trajopt.optim.gait.INTERPOLATIONS`)."""
     make = linear_cycle_basis if gait.interpolation == "linear" else hermite_cycle_basis
     return make(gait.n_cycle, gait.n_keyframes)
 

@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from .files import atomic_write_png, decode_utf8
-from .replay import env_for_result, result_controls
-from .results import Result, atomic_write_bytes
-from .robustness import (DERIVED_NAMES, PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample,
+from ..results.files import atomic_write_png, decode_utf8
+from ..replay import env_for_result, result_controls
+from ..results.result import Result, atomic_write_bytes
+from .study import (DERIVED_NAMES, PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample,
                          summarize)
 
 __all__ = ["run_robustness_study", "plot_robustness", "robustness_jobs"]
@@ -184,7 +184,7 @@ def run_robustness_study(result: str | os.PathLike, out: str | os.PathLike, *, s
     ``cycles`` cycles and write the study to ``out`` (see the module docstring): ``(report,
     files written)``. Resumes the samples of a study with the same settings there (``overwrite``:
     discard them); a second study into the same ``out`` is refused while this one runs."""
-    from .reservation import reserve       # a second study into the same --out is refused (issue #26 item 2)
+    from ..results.reservation import reserve       # a second study into the same --out is refused (issue #26 item 2)
     with reserve(Path(out) / "robustness.lock", f"robustness folder {out}"):
         return _run_study(Path(result), Path(out), samples, cycles, seed, workers, overwrite)
 

@@ -51,7 +51,7 @@ import numpy as np
 
 from soft_envs.envs import SimulationError, load_robot, make_gradient_env, scale_parameters, with_contact_law
 
-from .evaluation import measure_gait
+from ..evaluation import measure_gait
 
 __all__ = ["PERTURBATIONS", "DERIVED_NAMES", "SampleJob", "draw_perturbation", "applied_controls",
            "perturbed_slope", "run_sample", "map_samples", "summarize"]

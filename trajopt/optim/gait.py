@@ -13,7 +13,7 @@ A task changes these defaults (``gait_defaults`` of :class:`trajopt.tasks.Task`)
 makes one stride per 72-step cycle, and the Puppy cannot both walk and turn a quarter circle in
 two such strides (the optimised turn reached 43-56 degrees in 10 cycles); 12 keyframes let
 each leg make up to three strides per cycle, and the walk's 4 keyframes warm-start it as three strides
-(:meth:`~trajopt.parameterization.GaitParameterization.keyframes_from`); and its keyframes are
+(:meth:`~trajopt.optim.parameterization.GaitParameterization.keyframes_from`); and its keyframes are
 joined by straight lines (:data:`~trajopt.tasks.TURN_INTERPOLATION`), which under the motors'
 speed limit turn further than the spline.
 
@@ -26,11 +26,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from .tasks import TASKS, TURN_KEYFRAMES
+from ..tasks.registry import TASKS, TURN_KEYFRAMES
 
 __all__ = ["GaitSpec", "DEFAULT_EVAL_CYCLES", "TURN_KEYFRAMES", "INTERPOLATIONS"]
 
-#: how a cycle passes through its keyframes (:func:`trajopt.parameterization.cycle_basis`):
+#: how a cycle passes through its keyframes (:func:`trajopt.optim.parameterization.cycle_basis`):
 #: ``"hermite"``, the paper's zero-tangent cubic Hermite spline (eq. 12; the default); its
 #: slope peaks at 1.5 times its mean between keyframes, so under the motors' speed limit a
 #: cable averages at most 2/3 of the motor's speed; ``"linear"``, straight lines between

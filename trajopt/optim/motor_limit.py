@@ -9,13 +9,13 @@ An optimised gait obeys it at every step of its controls as played for any numbe
 * within the cycle, and from the cycle's last step to its first (the wrap-around, played
   between cycles).
 
-The controls are affine in the keyframes z (:class:`~trajopt.parameterization.GaitParameterization`:
+The controls are affine in the keyframes z (:class:`~trajopt.optim.parameterization.GaitParameterization`:
 ``u = offset + dudz z``), so each step's change is too, and the limit is a set of linear
 inequalities ``G z <= h``: for every such step k -> k+1 and motor m,
 ``+-((dudz[k+1, m] - dudz[k, m]) z + offset[k+1, m] - offset[k, m]) <= max_step[m]``,
 evaluated from the parameterisation's own affine map (so they are exact for whatever it
 does: the prep ease, cycles, symmetry, tendon pairs). Rows that repeat (mirror motors play
-the same steps half a cycle later) are kept once. :mod:`trajopt.gauss_newton` keeps its
+the same steps half a cycle later) are kept once. :mod:`trajopt.optim.gauss_newton` keeps its
 iterates inside; :func:`project_start` moves an infeasible start (a warm start made without
 the limit) to the nearest feasible keyframes.
 

@@ -1,7 +1,7 @@
 """The files of a calibration (``trajopt calibrate``, :mod:`trajopt.cli.calibrate_command`): marker
 points read from a CSV, the new robot.toml with the fitted values, the before/after plot of the
-tracks. The fit itself is :func:`trajopt.calibrate.fit_parameters`; the checks of the data and of
-the fit are :mod:`trajopt.calibration_checks`."""
+tracks. The fit itself is :func:`trajopt.calibration.calibrate.fit_parameters`; the checks of the data and of
+the fit are :mod:`trajopt.calibration.checks`."""
 from __future__ import annotations
 
 import csv
@@ -15,7 +15,7 @@ import numpy as np
 from soft_envs.envs import MarkerSet, load_robot, parameter_values
 
 from .calibrate import CalibrationFit, MarkerData
-from .files import atomic_write_bytes, atomic_write_png
+from ..results.files import atomic_write_bytes, atomic_write_png
 from .tracks import read_utf8
 
 __all__ = ["read_marker_points", "write_calibrated_robot", "plot_tracks", "tracks_figure", "HEADER"]

@@ -10,7 +10,7 @@ the leader and its followers, in one colour), and, when a robot's moduli are not
 boundary faces coloured by their tet's Young's modulus over the fitted one (one colour bar for
 both, logarithmic, 1 in the middle).
 
-:func:`write_codesign_report` writes the markdown file atomically (:mod:`trajopt.files`).
+:func:`write_codesign_report` writes the markdown file atomically (:mod:`trajopt.results.files`).
 """
 from __future__ import annotations
 
@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from .design_checks import DesignCheck, boundary_triangles, format_checks
-from .files import atomic_write_bytes, atomic_write_png
+from .checks import DesignCheck, boundary_triangles, format_checks
+from ..results.files import atomic_write_bytes, atomic_write_png
 
 __all__ = ["plot_robots_side_by_side", "write_codesign_report", "RESULT_ROWS"]
 
@@ -156,7 +156,7 @@ def write_codesign_report(path: str | os.PathLike, *, robot_name: str, before: d
     co-designed gait, and the gait optimised from scratch on the written robot (None: not run),
     each a dict with ``speed_bl_per_min`` and optionally the other keys of :data:`RESULT_ROWS`
     (any further keys are listed too); ``changes``: dicts ``name``, ``before``, ``after``,
-    ``unit``; ``checks``: :func:`~trajopt.design_checks.check_designed_robot`'s list (or its
+    ``unit``; ``checks``: :func:`~trajopt.codesign.checks.check_designed_robot`'s list (or its
     table); ``picture``: the PNG of :func:`plot_robots_side_by_side` (linked relative to the
     report); ``settings``: the run's settings."""
     path = Path(path)

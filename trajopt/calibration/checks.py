@@ -23,7 +23,7 @@ After the fit (:func:`check_fit`):
 - ``evaluation-limit``: the last stage stopped at its ``--max-evaluations`` before converging;
 - ``standard-errors``: a standard error at least as large as its value;
 - ``at-bounds``: a parameter within :data:`BOUND_TOLERANCE` of its range at a bound
-  (:data:`trajopt.calibrate.PARAMETER_BOUNDS`).
+  (:data:`trajopt.calibration.calibrate.PARAMETER_BOUNDS`).
 """
 from __future__ import annotations
 
@@ -77,7 +77,7 @@ def _speed(samples: dict) -> float:
 
 
 def check_tracks(tracks, data: MarkerData) -> list[str]:
-    """The data checks (module docstring) of ``tracks`` (:class:`trajopt.tracks.Tracks`) and the
+    """The data checks (module docstring) of ``tracks`` (:class:`trajopt.calibration.tracks.Tracks`) and the
     samples ``data`` that fall within the controls' span."""
     failures = []
     T = len(data.u) * data.dt

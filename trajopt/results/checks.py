@@ -6,11 +6,11 @@ file's ``u_post``).
 before every save) for results with keyframes; it needs no simulator:
 
 * ``u`` must be the keyframes re-expanded as the optimiser does
-  (:class:`~trajopt.parameterization.GaitParameterization`: the prep phase easing from the rest
+  (:class:`~trajopt.optim.parameterization.GaitParameterization`: the prep phase easing from the rest
   contraction into the cycle, then ``n_cycles`` cycles of the Hermite spline), to
   :data:`CONTROL_ATOL`; its length must be the gait's;
 * a result made under the motors' speed limit (``settings["motor_limit"]``) obeys it at every
-  step of ``u``, from rest and across the wrap-around (:mod:`trajopt.motor_limit`);
+  step of ``u``, from rest and across the wrap-around (:mod:`trajopt.optim.motor_limit`);
 * ``u_post`` adds slack only: ``u <= u_post``, and ``u_post <= u_max``;
 * with a robot fingerprint (which carries the robot's normalised ``robot.toml``), the motor
   names must be its motors in its order, the rest contraction is the robot's (otherwise one
@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from .gait import GaitSpec
-from .motor_limit import STEP_ATOL, worst_step
-from .parameterization import GaitParameterization, cycle_basis, prep_ease
+from ..optim.gait import GaitSpec
+from ..optim.motor_limit import STEP_ATOL, worst_step
+from ..optim.parameterization import GaitParameterization, cycle_basis, prep_ease
 
 __all__ = ["check_controls", "check_zero_slack", "motors_of_fingerprint", "CONTROL_ATOL", "ZERO_SLACK_ATOL"]
 
@@ -108,7 +108,7 @@ def check_controls(res: Any, src: str) -> None:
 
 def _check_motor_limit(res: Any, rest: np.ndarray, spec: GaitSpec, src: str) -> None:
     """A result that records the motors' speed limit it was made under (``settings["motor_limit"]``,
-    :mod:`trajopt.motor_limit`) obeys it at every step of ``u`` as played, to :data:`STEP_ATOL`."""
+    :mod:`trajopt.optim.motor_limit`) obeys it at every step of ``u`` as played, to :data:`STEP_ATOL`."""
     limit = res.settings.get("motor_limit")
     if not isinstance(limit, dict):
         return               # made without the limit, or before it was recorded

@@ -5,12 +5,12 @@ its name:
 
 * its target COM path (:meth:`Task.target_path`, paper eq. 5, Fig. 3) and, when the body must
   also face along it, the target heading (:meth:`Task.target_heading`, the heading term of
-  :mod:`trajopt.objectives`);
-* its gait shape, as overrides of the :class:`~trajopt.gait.GaitSpec` defaults
-  (:attr:`Task.gait_defaults`; :meth:`GaitSpec.for_task <trajopt.gait.GaitSpec.for_task>`);
-* its objective weights, as overrides of the :class:`~trajopt.objectives.ObjectiveWeights`
+  :mod:`trajopt.optim.objectives`);
+* its gait shape, as overrides of the :class:`~trajopt.optim.gait.GaitSpec` defaults
+  (:attr:`Task.gait_defaults`; :meth:`GaitSpec.for_task <trajopt.optim.gait.GaitSpec.for_task>`);
+* its objective weights, as overrides of the :class:`~trajopt.optim.objectives.ObjectiveWeights`
   defaults (:attr:`Task.weight_defaults`; :meth:`ObjectiveWeights.for_task
-  <trajopt.objectives.ObjectiveWeights.for_task>`);
+  <trajopt.optim.objectives.ObjectiveWeights.for_task>`);
 * its default contact law (:attr:`Task.contact`, None: the robot file's);
 * whether it walks on the slope ``--angle`` (:attr:`Task.on_slope`), and how its speed is
   reported (:attr:`Task.speed_along_path`: along the COM path, for a curved target).
@@ -28,9 +28,9 @@ __all__ = ["Task", "Walk", "Turn", "Incline", "Custom", "TASKS", "get_task", "co
 
 #: keyframes per cycle of the turn (the walk and incline keep the paper's 4): with 4, a leg makes
 #: one stride per 72-step cycle, and the Puppy cannot both walk and turn a quarter circle in two
-#: such strides; 12 let each leg make up to three strides per cycle (:mod:`trajopt.gait`)
+#: such strides; 12 let each leg make up to three strides per cycle (:mod:`trajopt.optim.gait`)
 TURN_KEYFRAMES = 12
-#: how the turn's keyframes are joined (:data:`trajopt.gait.INTERPOLATIONS`): straight lines, so
+#: how the turn's keyframes are joined (:data:`trajopt.optim.gait.INTERPOLATIONS`): straight lines, so
 #: under the motors' speed limit a cable can move at the motor's full speed (the paper's
 #: zero-tangent spline peaks at 1.5x its mean slope: 2/3 of it). Puppy right turn under the limit,
 #: Coulomb law, 10 iterations from the Coulomb walk: +68.7 deg over the horizon, +33.8 per cycle,

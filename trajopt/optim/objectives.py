@@ -7,7 +7,7 @@ r"""The gait objective as a residual vector with its Jacobian (for Gauss-Newton)
   horizontal COM ``c_k = (x, z)`` of states k = 1..K, in body lengths (BL).
 * Heading tracking (the turn; off unless ``w_heading > 0`` and a target heading is given):
   ``r_heading,k = sqrt(w_heading / K) (yaw_k - yaw_hat_k)`` [rad] for the yaw of the body's
-  best-fit rotation (:class:`~trajopt.heading.HeadingMeasure`) at states k = 1..K, with its exact
+  best-fit rotation (:class:`~trajopt.optim.heading.HeadingMeasure`) at states k = 1..K, with its exact
   Jacobian through the rollout's ``dxdz``. COM tracking alone lets the body follow a curve
   partly sideways; this term asks it to face along the path.
 * Slack eating (paper eq. 13, :func:`slack_eating_residual`): ``r_slack,k,t = sqrt(w_slack / (K T)) max(eps - Gamma_kt, 0) / range``:
@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .heading import HeadingMeasure
-from .tasks import TASKS, TURN_HEADING_WEIGHT
+from ..tasks.registry import TASKS, TURN_HEADING_WEIGHT
 
 __all__ = ["ObjectiveWeights", "HeadingTarget", "gait_residuals", "slack_eating_residual", "TURN_HEADING_WEIGHT"]
 

@@ -17,15 +17,15 @@ Each iteration
      the Puppy turn (heading +42 instead of +56 deg over 10 cycles);
   5. decreases lambda after a full step, increases it after a backtracked or rejected one.
 
-With ``constraints`` (linear inequalities ``G z <= h``, :class:`~trajopt.qp.LinearConstraints`:
-the motors' speed limit, :mod:`trajopt.motor_limit`) the iterates stay feasible. Step 3's
+With ``constraints`` (linear inequalities ``G z <= h``, :class:`~trajopt.optim.qp.LinearConstraints`:
+the motors' speed limit, :mod:`trajopt.optim.motor_limit`) the iterates stay feasible. Step 3's
 direction is kept when every trial point of step 4 obeys them (so a run the constraints never
 bind is the unconstrained run, bit for bit). Otherwise the step is the solution of the
 Gauss-Newton subproblem as a QP, ``min 0.5 dz'(J'J + lambda (diag(J'J) + mu I)) dz + g'dz``
 subject to ``G (z + dz) <= h`` and the bounds (cvxopt's interior-point solver,
-:func:`trajopt.qp.solve_qp`, shortened until it is exactly feasible), and step 4 backtracks
+:func:`trajopt.optim.qp.solve_qp`, shortened until it is exactly feasible), and step 4 backtracks
 along ``z + alpha dz``: convex combinations of two feasible points, so every trial is feasible.
-The start must be feasible (:func:`trajopt.motor_limit.project_start`). ``constraints`` may
+The start must be feasible (:func:`trajopt.optim.motor_limit.project_start`). ``constraints`` may
 also be a function of z returning the linear inequalities to keep from z on: the linearisation
 of nonlinear constraints (co-design's clearance and mass floor, :mod:`trajopt.codesign`), taken
 again after every accepted step (after ``fun(z, True)``); ``fun`` then refuses trial points that
@@ -143,7 +143,7 @@ def _line_search(fun: Callable, z: np.ndarray, dz: np.ndarray, g: np.ndarray, f:
 def _require_feasible(constraints: LinearConstraints | None, z: np.ndarray) -> None:
     if constraints is not None and not constraints.feasible(z):
         raise ValueError(f"the start breaks the constraints (worst G z - h = {constraints.violation(z):.3g}); "
-                         "project it first (trajopt.motor_limit.project_start)")
+                         "project it first (trajopt.optim.motor_limit.project_start)")
 
 
 def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.ndarray,

@@ -26,7 +26,7 @@ import numpy as np
 
 from soft_envs.envs import GradientEnv, SimulationError, as_gradient_env
 
-from .evaluation import DEFAULT_EVAL_CYCLES, evaluate_controls, zero_slack_controls
+from ..evaluation import DEFAULT_EVAL_CYCLES, evaluate_controls, zero_slack_controls
 from .gait import GaitSpec
 from .gauss_newton import GaussNewtonOptions, GaussNewtonResult, gauss_newton
 from .heading import HeadingMeasure
@@ -34,10 +34,10 @@ from .motor_limit import (describe_projection, gait_constraints, max_step_of_env
                           speed_limit_constraints)
 from .objectives import HeadingTarget, ObjectiveWeights, gait_residuals
 from .parameterization import GaitParameterization
-from .results import Result
-from .robot_match import describe_difference, fingerprint_of
-from .targets import bl_per_min_to_mps, from_array
-from .tasks import TASKS, Task, get_task
+from ..results.result import Result
+from ..results.robot_match import describe_difference, fingerprint_of
+from ..tasks.targets import bl_per_min_to_mps, from_array
+from ..tasks.registry import TASKS, Task, get_task
 
 __all__ = ["optimize_gait", "GaitProblem", "Start", "Recorder", "build_problem", "choose_start", "check_resume",
            "finish", "DEFAULT_SPEED", "TASKS", "TASK_CONTACT"]
@@ -60,7 +60,7 @@ class GaitProblem:
     ``heading``: target headings of the body for the heading term (used when
     ``weights.heading > 0``; the rollouts then keep ``dxdz``). ``max_step`` (M,): the motors'
     speed limit as the largest change of a control in a step [m] (None: no limit); its
-    inequalities on z are ``speed_limit`` (:mod:`trajopt.motor_limit`)."""
+    inequalities on z are ``speed_limit`` (:mod:`trajopt.optim.motor_limit`)."""
 
     def __init__(self, env: GradientEnv, param: GaitParameterization, target: np.ndarray,
                  weights: ObjectiveWeights, heading: HeadingTarget | None = None,
@@ -106,7 +106,7 @@ class Start:
     first_iteration: int = 1
     rejections: int = 0
     #: how far the start was moved into the motors' speed limit (None: it obeyed it), see
-    #: :func:`trajopt.motor_limit.project_start`
+    #: :func:`trajopt.optim.motor_limit.project_start`
     projection: dict[str, Any] | None = None
 
 
@@ -310,7 +310,7 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
     ``callback(entry, partial_result)`` runs after each Gauss-Newton iteration (checkpointing,
     progress); returning True stops the optimisation. ``motor_limit``: every step of the
     controls obeys the motors' speed limit (the environment's ``motor_speed``: the robot's
-    ``max_speed_rpm`` unless overridden; :mod:`trajopt.motor_limit`); a start outside it (a
+    ``max_speed_rpm`` unless overridden; :mod:`trajopt.optim.motor_limit`); a start outside it (a
     warm start made without it) is first projected into it, and the projection printed and
     recorded in ``settings["start_projection"]``; the limit is recorded in
     ``settings["motor_limit"]``. ``motor_limit=False`` optimises without (the results of
