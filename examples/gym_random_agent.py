@@ -1,4 +1,4 @@
-"""A random agent on SoftPuppy-v1: the Gymnasium side of soft_envs in a few lines.
+"""A random agent on SoftPuppy-v2: the Gymnasium side of soft_envs in a few lines.
 
 Run:  python examples/gym_random_agent.py [frame.png]
 
@@ -17,14 +17,14 @@ import gymnasium as gym
 import numpy as np
 from PIL import Image
 
-import soft_envs  # noqa: F401  -- importing the package registers SoftTripod-v1 and SoftPuppy-v1
+import soft_envs  # noqa: F401  -- importing the package registers SoftTripod-v2 and SoftPuppy-v2
 
 QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"      # CI smoke test: fewer steps
 N_STEPS = 10 if QUICK else 100
 
 # Actions are 8 motor commands in [-1, 1] (-1: cable released, +1: fully pulled in); the motors
 # follow them at their real speed limit. rgb_array rendering is offscreen (no display needed).
-env = gym.make("SoftPuppy-v1", render_mode="rgb_array")   # Coulomb law; contact="paper": the paper's
+env = gym.make("SoftPuppy-v2", render_mode="rgb_array")   # Coulomb law; contact="paper": the paper's
 obs, info = env.reset(seed=42)                    # seeds the reset noise and everything random
 env.action_space.seed(42)                         # ... and the random actions, for repeatability
 print(f"observation: {obs.shape[0]} numbers; parts: {env.unwrapped.observation_structure}")

@@ -16,14 +16,14 @@ import os
 
 import gymnasium as gym
 
-import soft_envs  # noqa: F401  (registers SoftTripod-v1 and SoftPuppy-v1, and -v0 for Table I)
+import soft_envs  # noqa: F401  (registers SoftTripod-v2 and SoftPuppy-v2, and -v0 for Table I)
 from trajopt import GaitSpec, GaussNewtonOptions, Result, optimize_gait
 
 # CI smoke test: a 4 + 2 x 12 step horizon, one iteration, one seed, one evaluation cycle
 QUICK = os.environ.get("SOFT_ENVS_QUICK") == "1"
 size = dict(gait=GaitSpec(n_prep=4, n_cycle=12), n_seeds=1, eval_cycles=1) if QUICK else {}
 
-env = gym.make("SoftTripod-v1", reset_noise_scale=0.0)   # Coulomb law; contact="paper": the paper's
+env = gym.make("SoftTripod-v2", reset_noise_scale=0.0)   # Coulomb law; contact="paper": the paper's
 env.reset(seed=0)
 
 

@@ -1,4 +1,4 @@
-"""RL baseline in a nutshell: train PPO on SoftTripod-v1 (Coulomb law) briefly, score it with trajopt's metric.
+"""RL baseline in a nutshell: train PPO on SoftTripod-v2 (Coulomb law) briefly, score it with trajopt's metric.
 
 Run:  python examples/rl_baseline.py [TRAJOPT_RESULT.npz]     (a minute or two; needs
       pip install soft-envs[rl])

@@ -6,7 +6,7 @@ soft_envs.sim``; the rules hold at import time, ``tests/test_layers.py`` checks 
 * :mod:`soft_envs.sim` is the physics alone: robots, the finite-element energy, implicit-Euler
   rollouts and their exact sensitivities. It imports numpy, scipy, numba, meshio and cvxopt,
   never Gymnasium, :mod:`soft_envs.envs` or ``trajopt``; it imports without Gymnasium installed.
-* :mod:`soft_envs.envs` is the Gymnasium environments (``SoftTripod-v1``, ``SoftPuppy-v1``) and
+* :mod:`soft_envs.envs` is the Gymnasium environments (``SoftTripod-v2``, ``SoftPuppy-v2``) and
   the gradient protocol (:class:`~soft_envs.envs.GradientEnv`) through which ``trajopt`` reaches
   the physics. It imports :mod:`soft_envs.sim`, Gymnasium and :mod:`soft_envs.render`, never
   ``trajopt``.
@@ -15,32 +15,45 @@ soft_envs.sim``; the rules hold at import time, ``tests/test_layers.py`` checks 
   mesh helpers of :mod:`soft_envs.sim` only.
 
 Importing the package registers the environments with Gymnasium when Gymnasium is installed
-(``gymnasium.make("SoftPuppy-v1")`` after ``import soft_envs``, or
-``gymnasium.make("soft_envs:SoftPuppy-v1")`` without the import). The environment classes are
+(``gymnasium.make("SoftPuppy-v2")`` after ``import soft_envs``, or
+``gymnasium.make("soft_envs:SoftPuppy-v2")`` without the import). The environment classes are
 only imported when an environment is made.
 """
-__all__ = ["ENV_IDS_BY_ROBOT", "ENV_IDS", "ENV_KWARGS", "LATEST_ENV_IDS", "MAX_EPISODE_STEPS"]
+__all__ = ["ENV_VERSIONS", "LATEST_VERSION", "ENV_IDS_BY_ROBOT", "ENV_IDS", "ENV_ROBOTS", "ENV_KWARGS", "LATEST_ENV_IDS",
+           "MAX_EPISODE_STEPS"]
 
-#: The environment ids registered by this package (the one place they are written): the id of
-#: each shipped robot under each contact law. ``-v1`` (``"coulomb"``, :mod:`soft_envs.sim.contact.coulomb`:
-#: feet that stick) is the latest and the default, the law of the shipped robot files;
-#: ``gym.make("SoftTripod-v1", contact="paper")`` runs it under the paper's law. ``-v0``
-#: (``"paper"``: viscous-like lagged friction) is kept to reproduce Table I and always uses the
-#: paper's law, whatever the robot file says (Gymnasium reports it "out of date" because a
-#: ``-v1`` exists: its versioning convention, a new version when the dynamics change).
-ENV_IDS_BY_ROBOT = {
-    "tripod": {"paper": "SoftTripod-v0", "coulomb": "SoftTripod-v1"},
-    "puppy": {"paper": "SoftPuppy-v0", "coulomb": "SoftPuppy-v1"},
+#: The versions of the environments (Gymnasium's convention: a new version when the dynamics
+#: change), each the keywords its ids pass: ``-v0`` the paper's contact law at the paper's
+#: integration, one implicit-Euler step of 0.033 s per control step (Table I); ``-v1`` the
+#: Coulomb law (:mod:`soft_envs.sim.contact.coulomb`: feet that stick) at the same integration
+#: (the default of release 0.1.0); ``-v2``, the latest and the default, every law at its own
+#: converged physics (``substeps=None``: :attr:`soft_envs.sim.contact.ContactLaw.default_substeps`,
+#: 4 physics steps per control step for the Coulomb law, docs/fidelity.md), the Coulomb law by
+#: default (``gym.make("SoftTripod-v2", contact="paper")`` runs the paper's law, at its own 33 ms).
+ENV_VERSIONS = {
+    "v0": {"contact": "paper", "substeps": 1},
+    "v1": {"contact": "coulomb", "substeps": 1},
+    "v2": {"contact": "coulomb"},
 }
+#: The latest version: the one the project makes (RL baseline, examples, trajopt).
+LATEST_VERSION = "v2"
+_ENV_NAMES = {"tripod": "SoftTripod", "puppy": "SoftPuppy"}
+#: The id the project makes for each shipped robot under each contact law: the latest (``-v2``)
+#: for the Coulomb law; the paper's law is ``contact="paper"`` on it, and ``-v0`` keeps Table I's.
+ENV_IDS_BY_ROBOT = {robot: {"paper": f"{name}-v0", "coulomb": f"{name}-{LATEST_VERSION}"}
+                    for robot, name in _ENV_NAMES.items()}
 _ENTRY_POINTS = {"tripod": "soft_envs.envs.tripod:SoftTripodEnv", "puppy": "soft_envs.envs.puppy:SoftPuppyEnv"}
-#: Each id's entry point.
-ENV_IDS = {env_id: _ENTRY_POINTS[robot] for robot, ids in ENV_IDS_BY_ROBOT.items() for env_id in ids.values()}
-#: Keyword arguments each id passes to its environment: its contact law, explicitly (a keyword
-#: given to ``gymnasium.make`` replaces it: ``contact="paper"`` on ``-v1``).
-ENV_KWARGS = {env_id: {"contact": law} for ids in ENV_IDS_BY_ROBOT.values() for law, env_id in ids.items()}
-#: The latest id of each shipped robot (``-v1``): the one the project makes (RL baseline,
+#: Each registered id's entry point (every version of every shipped robot).
+ENV_IDS = {f"{name}-{version}": _ENTRY_POINTS[robot] for robot, name in _ENV_NAMES.items() for version in ENV_VERSIONS}
+#: The shipped robot of each registered id.
+ENV_ROBOTS = {f"{name}-{version}": robot for robot, name in _ENV_NAMES.items() for version in ENV_VERSIONS}
+#: Keyword arguments each id passes to its environment: its version's (a keyword given to
+#: ``gymnasium.make`` replaces it: ``contact="paper"`` on ``-v2``).
+ENV_KWARGS = {f"{name}-{version}": dict(kwargs) for name in _ENV_NAMES.values()
+              for version, kwargs in ENV_VERSIONS.items()}
+#: The latest id of each shipped robot (``-v2``): the one the project makes (RL baseline,
 #: examples); the paper's law is its ``contact="paper"``, never ``-v0`` unless Table I is asked for.
-LATEST_ENV_IDS = {robot: ids["coulomb"] for robot, ids in ENV_IDS_BY_ROBOT.items()}
+LATEST_ENV_IDS = {robot: f"{name}-{LATEST_VERSION}" for robot, name in _ENV_NAMES.items()}
 
 #: Episode length of ``gymnasium.make`` (its ``TimeLimit`` wrapper), in environment steps: 300
 #: steps of 0.033 s are 10 s, about four of the paper's 72-step gait cycles. Pass

@@ -52,7 +52,7 @@ EXPECTED = {
                         r"simulation steps of the whole search: [\d,]+",
                         r"saved results/tripod_fastest_example_quick\.npz and results/tripod_fastest_example_quick"
                         r"\.search\.csv"],
-    "codesign_tripod.py": [r"shipped design, fastest gait: \d+\.\d+ BL/min \(8-step cycle\)",
+    "codesign_tripod.py": [r"shipped design, fastest gait: \d+\.\d+ BL/min \(\d+-step cycle\)",
                            r"co-designed robot and gait: +\d+\.\d+ BL/min \(\d+\.\d+x\), \d+ Gauss-Newton iterations",
                            r"its gait re-optimised from scratch: \d+\.\d+ BL/min",
                            r"constraints checked in the written files: all hold",

@@ -146,7 +146,9 @@ SHORT = GaitSpec(n_prep=4, n_cycle=12)          # 4 + 2 x 12 steps
 
 @pytest.fixture(scope="module")
 def tripod_env():
-    return make_gradient_env("tripod")
+    """The Tripod at one physics step per control step (``-v1``'s physics): the optimiser's
+    outcomes, fast; the physics' own tests are elsewhere."""
+    return make_gradient_env("tripod", substeps=1)
 
 
 def test_optimize_gait_short_horizon_accepts_a_step_and_strictly_decreases(tripod_env):

@@ -34,13 +34,15 @@ def gait(tmp_path):
     param = GaitParameterization.for_robot(robot, GAIT)
     z = param.initial_z(0.5, np.random.default_rng(3), noise=0.4)
     u = param.controls(z)
-    traj = make_gradient_env(toml).rollout(u)
+    env = make_gradient_env(toml)
+    traj = env.rollout(u)
     u_post = zero_slack_controls(u, traj.cable_deformation, robot.tendon_motor, robot.u_bounds)
     K = len(u)
     res = Result(robot=str(toml), task="walk", motor_names=robot.motor_names, dt=0.033, z=z, u=u, u_post=u_post,
                  target=np.zeros((K + 1, 2)), com=traj.com, status="converged",
                  settings={**GAIT.to_settings(), "keyframes": param.keyframes(z).tolist(), "heading_deg": 0.0,
-                           "eval_cycles": 1, "contact": robot.contact.model},   # as results record it
+                           "eval_cycles": 1, "contact": robot.contact.model,    # as results record it
+                           "substeps": env.substeps},
                  evaluation={"upright": True, "speed_bl_per_min": 1.0}, robot_fingerprint=robot_fingerprint(toml))
     return res.save(tmp_path / "gait.npz")
 

@@ -110,7 +110,7 @@ def test_export_replays_to_the_evaluated_displacement(runs, robot, walker, tmp_p
     assert loaded.u.shape == (24 + 72 * CYCLES, len(loaded.motor_names))
     np.testing.assert_array_equal(loaded.u, res.u)
     # the controls, replayed open loop from the reset state, reproduce the closed-loop run
-    env = gym.make({"tripod": "SoftTripod-v1", "puppy": "SoftPuppy-v1"}[robot], reset_noise_scale=0.0)
+    env = gym.make({"tripod": "SoftTripod-v2", "puppy": "SoftPuppy-v2"}[robot], reset_noise_scale=0.0)
     env.reset(seed=0)
     traj = env.unwrapped.rollout(loaded.u)
     disp = float(traj.com[-1, 0] - traj.com[24, 0])          # target direction +x
@@ -130,7 +130,7 @@ def test_applied_controls_as_actions_replay_in_env(runs):
     """control_to_action of the exported u, stepped through the env, is the same run."""
     from trajopt.rl.evaluate import export_result, play_controls_in_env
     res = export_result(runs["tripod", "sac"].run_dir, n_cycles=CYCLES)
-    env = gym.make("SoftTripod-v1", reset_noise_scale=0.0, max_episode_steps=len(res.u))
+    env = gym.make("SoftTripod-v2", reset_noise_scale=0.0, max_episode_steps=len(res.u))
     acts = env.unwrapped.control_to_action(res.u)
     rec = play_controls_in_env(env, lambda obs, k: acts[k], len(res.u), seed=0)
     np.testing.assert_allclose(rec["u"], res.u, atol=1e-12)
@@ -200,14 +200,16 @@ def test_env_ids_have_one_home():
     from trajopt.rl.envs import COULOMB_IDS, ROBOT_IDS, ROBOTS, env_id, robot_name
     assert set(ROBOTS) == set(soft_envs.ENV_IDS_BY_ROBOT)
     assert ROBOT_IDS == {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
-    assert COULOMB_IDS == {"tripod": "SoftTripod-v1", "puppy": "SoftPuppy-v1"}
-    assert set(soft_envs.ENV_IDS) == {*ROBOT_IDS.values(), *COULOMB_IDS.values()}
-    assert soft_envs.ENV_KWARGS == {"SoftTripod-v0": {"contact": "paper"}, "SoftPuppy-v0": {"contact": "paper"},
-                                    "SoftTripod-v1": {"contact": "coulomb"}, "SoftPuppy-v1": {"contact": "coulomb"}}
+    assert COULOMB_IDS == {"tripod": "SoftTripod-v2", "puppy": "SoftPuppy-v2"}
+    assert set(soft_envs.ENV_IDS) == {*ROBOT_IDS.values(), *COULOMB_IDS.values(), "SoftTripod-v1", "SoftPuppy-v1"}
+    paper, coulomb_33ms = {"contact": "paper", "substeps": 1}, {"contact": "coulomb", "substeps": 1}
+    assert soft_envs.ENV_KWARGS == {"SoftTripod-v0": paper, "SoftPuppy-v0": paper,
+                                    "SoftTripod-v1": coulomb_33ms, "SoftPuppy-v1": coulomb_33ms,
+                                    "SoftTripod-v2": {"contact": "coulomb"}, "SoftPuppy-v2": {"contact": "coulomb"}}
     assert soft_envs.LATEST_ENV_IDS == COULOMB_IDS
     # the RL baseline makes the latest id under either law (never -v0, "out of date")
-    assert env_id("puppy") == "SoftPuppy-v1" and env_id("SoftPuppy-v0") == "SoftPuppy-v1"
-    assert robot_name("SoftTripod-v1") == "tripod"
+    assert env_id("puppy") == "SoftPuppy-v2" and env_id("SoftPuppy-v0") == "SoftPuppy-v2"
+    assert robot_name("SoftTripod-v1") == "tripod" and robot_name("SoftTripod-v2") == "tripod"
     with pytest.raises(ValueError, match="SoftTripod-v0"):
         robot_name("cube")
 
@@ -220,9 +222,10 @@ def _out_of_date(caught) -> list[str]:
 
 @pytest.mark.parametrize("contact", [None, "paper"])
 def test_rl_commands_use_the_latest_id_under_either_law_without_a_deprecation_warning(tmp_path, contact):
-    """``trajopt rl train`` / ``rl evaluate`` (issue #31 item 4): the default is the Coulomb law
-    on -v1; ``--contact paper`` is the paper's law on -v1 too (``contact="paper"``), never -v0,
-    which Gymnasium reports "out of date". The run records its law, and evaluates with it."""
+    """``trajopt rl train`` / ``rl evaluate``: the default is the Coulomb law on -v2;
+    ``--contact paper`` is the paper's law on -v2 too (``contact="paper"``), never -v0, which
+    Gymnasium reports "out of date". The run records its law and its physics steps (the law's:
+    4 for Coulomb, 1 for the paper's), and evaluates with them."""
     import json
     import warnings
     law = ["--contact", contact] if contact else []
@@ -236,9 +239,11 @@ def test_rl_commands_use_the_latest_id_under_either_law_without_a_deprecation_wa
         assert main(["rl", "export", str(tmp_path / "run"), "--cycles", "1", "--out", str(tmp_path / "g.npz")]) == 0
     assert not _out_of_date(caught), _out_of_date(caught)
     config = json.loads((tmp_path / "run" / "rl_config.json").read_text())
-    assert config["env_id"] == "SoftTripod-v1"
+    assert config["env_id"] == "SoftTripod-v2"
     assert config["env"]["env_kwargs"]["contact"] == (contact or "coulomb")
-    assert Result.load(tmp_path / "g.npz").settings["contact"] == (contact or "coulomb")   # evaluated with it
+    assert config["env"]["env_kwargs"]["substeps"] == (1 if contact == "paper" else 4)
+    exported = Result.load(tmp_path / "g.npz").settings                                    # evaluated with them
+    assert exported["contact"] == (contact or "coulomb") and exported["substeps"] == (1 if contact == "paper" else 4)
 
 
 def test_runs_made_before_the_law_was_recorded_evaluate_with_their_ids_law():
@@ -249,3 +254,14 @@ def test_runs_made_before_the_law_was_recorded_evaluate_with_their_ids_law():
     assert run_contact({"env_id": "SoftPuppy-v1", "env": {"env_kwargs": {}}}) == "coulomb"
     assert run_contact({"env_id": "SoftPuppy-v1", "env": {"env_kwargs": {"contact": "paper"}}}) == "paper"
     assert run_contact({}) == "paper"
+
+
+def test_runs_made_before_substeps_evaluate_with_their_ids_physics():
+    """rl_config.json of runs made before sub-steps holds no ``substeps``: -v0 and -v1 runs (and
+    runs without an id) had one physics step per control step; -v2 runs record theirs."""
+    from trajopt.rl.envs import run_substeps
+    assert run_substeps({"env_id": "SoftPuppy-v1", "env": {"env_kwargs": {}}}) == 1
+    assert run_substeps({"env_id": "SoftPuppy-v0", "env": {"env_kwargs": {}}}) == 1
+    assert run_substeps({}) == 1
+    assert run_substeps({"env_id": "SoftPuppy-v2", "env": {"env_kwargs": {"substeps": 4}}}) == 4
+    assert run_substeps({"env_id": "SoftPuppy-v2", "env": {"env_kwargs": {}}}) is None     # the law's default

@@ -30,9 +30,9 @@ def tiny_result(tmp_path, contact: str | None = None):
     z = param.initial_z(0.5, np.random.default_rng(0), noise=0.4)
     u = param.controls(z)
     K = len(u)
-    settings = {**GAIT.to_settings(), "keyframes": param.keyframes(z).tolist(), "heading_deg": 0.0,
-                "incline_deg": 0.0, **({"contact": contact} if contact else {})}
     env = make_gradient_env("tripod", contact=contact or "paper")
+    settings = {**GAIT.to_settings(), "keyframes": param.keyframes(z).tolist(), "heading_deg": 0.0,
+                "incline_deg": 0.0, **({"contact": contact, "substeps": env.substeps} if contact else {})}
     u_post = zero_slack_controls(u, env.rollout(u).cable_deformation, robot.tendon_motor, robot.u_bounds)
     res = Result(robot="tripod", task="walk", motor_names=robot.motor_names, dt=0.033, z=z, u=u, u_post=u_post,
                  target=np.zeros((K + 1, 2)), com=np.zeros((K + 1, 3)), settings=settings)

@@ -20,6 +20,7 @@ from typing import Any, Callable, Mapping
 
 from soft_envs.envs import compile_ahead, make_gradient_env
 
+from .fidelity import fidelity_record
 from .results.files import RESULTS_DIR
 from .optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
@@ -39,7 +40,8 @@ class OptimizeRun:
     (shipped name or robot.toml path), the task (:data:`trajopt.tasks.TASKS`), its target speed
     [BL/min] (None: the robot's default; ``"max"``: the fastest walk within the motors' limit,
     :mod:`trajopt.fastest`, with its search table beside the result), heading [deg], turn side, slope ``angle`` [deg] (a task
-    on a slope), contact law (None: the task's, else the robot file's), symmetry (None: the
+    on a slope), contact law (None: the task's, else the robot file's), physics ``substeps`` per
+    control step (None: the contact law's default), symmetry (None: the
     task's), warm start result, whether to optimise without the motors' speed limit
     (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes and their ``interpolation`` (None: the task's; :data:`trajopt.optim.gait.INTERPOLATIONS`), cycle
     steps (None: the paper's 72; with ``speed="max"``: searched) and prep steps, random seeds, evaluation cycles,
@@ -54,6 +56,7 @@ class OptimizeRun:
     turn: str = "right"
     angle: float = 20.0
     contact: str | None = None
+    substeps: int | None = None
     symmetry: bool | None = None
     warm_start: Path | None = None
     no_motor_limit: bool = False
@@ -86,6 +89,13 @@ class OptimizeRun:
 
 #: the options an optimisation run takes (a sweep file's ``optimize`` arguments)
 OPTIMIZE_OPTIONS = tuple(f.name for f in dataclasses.fields(OptimizeRun))
+
+
+def _physics(env) -> str:
+    """``"physics: 4 steps of 8.25 ms per 33 ms control step"`` (what the run simulates)."""
+    n = int(env.substeps)
+    return (f"physics: {n} steps of {1e3 * env.timestep / n:g} ms per {1e3 * env.timestep:g} ms control step"
+            if n > 1 else f"physics: one step of {1e3 * env.timestep:g} ms per control step")
 
 
 def _refuse(path: Path, what: str, advice: str) -> None:
@@ -161,7 +171,10 @@ def _check_speed_max(run: OptimizeRun) -> None:
 
 
 def _finish_files(res: Result, out: Path, partial: Path) -> Path:
-    """Save the finished result and remove the checkpoint (the other way round never)."""
+    """Record how the result's speed holds at finer physics steps (:func:`~trajopt.fidelity.fidelity_record`),
+    save the finished result and remove the checkpoint (the other way round never)."""
+    if res.evaluation.get("upright") and "fidelity" not in res.evaluation:
+        res.evaluation["fidelity"] = fidelity_record(res)
     path = res.save(out)
     for p in (partial, partial.with_suffix(".json")):
         p.unlink(missing_ok=True)
@@ -207,9 +220,9 @@ def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Resul
         interpolation=settings.interpolation if run.interpolation is None else run.interpolation,
         max_sim_steps=run.max_sim_steps)
     with compile_ahead(run.robot):
-        env = make_gradient_env(run.robot, heading_deg=run.heading, contact=run.contact)
+        env = make_gradient_env(run.robot, heading_deg=run.heading, contact=run.contact, substeps=run.substeps)
     print(f"{env.robot.summary()}; task walk at the highest speed within the motors' limit; {env.contact_model} "
-          f"contact law{'; quick search (SOFT_ENVS_QUICK)' if quick else ''}")
+          f"contact law; {_physics(env)}{'; quick search (SOFT_ENVS_QUICK)' if quick else ''}")
     res, rows = fastest_gait(env, settings=settings, cycle_steps=run.cycle_steps, heading_deg=run.heading,
                              robot_spec=run.robot, quiet=run.quiet)
     path = _finish_files(res, out, partial)
@@ -231,12 +244,13 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
     incline = run.angle if task.on_slope else 0.0
     contact = run.contact or task.contact          # e.g. the turn pivots on feet that stick
     with compile_ahead(run.robot):            # first run on a machine: numba compiles meanwhile
-        env = make_gradient_env(run.robot, incline_deg=incline, heading_deg=run.heading, contact=contact)
+        env = make_gradient_env(run.robot, incline_deg=incline, heading_deg=run.heading, contact=contact,
+                                substeps=run.substeps)
     print(f"{env.robot.summary()}; task {task.name}; {env.contact_model} contact law"
           + (f" (the {task.name}'s default; --contact paper for the paper's)" if contact and not run.contact
              else " (the robot file's; --contact paper for the paper's)"
              if not run.contact and env.contact_model != "paper" else "")
-          + (f", slope {incline:g} deg" if incline else ""))
+          + (f", slope {incline:g} deg" if incline else "") + f"; {_physics(env)}")
     print(f"writes {out} (+ .json) when it finishes; checkpoints in {partial} until then")
     done_before = len(resume.history) if resume else 0
     progress = None if make_progress is None else make_progress(done_before + 1)

@@ -21,28 +21,37 @@ from .optim.parameterization import GaitParameterization
 from .results.result import Result
 from .results.robot_match import check_robot, fingerprint_of
 
-__all__ = ["env_for_result", "result_parameterization", "result_controls", "replay", "RobotMismatchWarning"]
+__all__ = ["env_for_result", "result_substeps", "result_parameterization", "result_controls", "replay",
+           "RobotMismatchWarning"]
 
 
 class RobotMismatchWarning(UserWarning):
     """A result is used on a robot other than its own (``ignore_robot_mismatch=True``)."""
 
 
-def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False) -> GradientEnv:
+def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False, substeps: int | None = None) -> GradientEnv:
     """A bare environment with the physics ``res`` was made on: its robot (shipped name or
     robot.toml path), slope, uphill heading, contact law (results made before it was recorded
-    used the paper's law) and simulation time step ``res.dt``. A robot that
+    used the paper's law), control step ``res.dt`` and physics sub-steps (results made before
+    they were recorded used one; ``substeps`` replays with others, e.g. finer steps). A robot that
     is not the one ``res`` was made for raises :class:`~trajopt.results.robot_match.RobotMismatchError`
     (a ValueError), or warns with ``ignore_robot_mismatch``."""
     s = res.settings
     env = make_gradient_env(res.robot, incline_deg=float(s.get("incline_deg", 0.0)),
                             heading_deg=float(s.get("heading_deg", 0.0)), timestep=res.dt,
-                            contact=s.get("contact", "paper"))
+                            contact=s.get("contact", "paper"),
+                            substeps=result_substeps(res) if substeps is None else substeps)
     note = check_robot(res, fingerprint_of(env.robot), list(env.robot.motor_names),
                        src=res.path or "the result", ignore=ignore_robot_mismatch)
     if note is not None:
         warnings.warn(note, RobotMismatchWarning, stacklevel=2)
     return env
+
+
+def result_substeps(res: Result) -> int:
+    """The physics steps per control step ``res`` was made with (``settings["substeps"]``; 1 for
+    results made before sub-steps, which all used one)."""
+    return int(res.settings.get("substeps", 1))
 
 
 def result_parameterization(res: Result, robot: Any) -> GaitParameterization:

@@ -1,7 +1,7 @@
 """Gymnasium environments of cable-driven soft robots, and the gradient protocol of trajopt.
 
 This layer turns the physics of :mod:`soft_envs.sim` into Gymnasium environments
-(``SoftTripod-v1``: :class:`SoftTripodEnv`, ``SoftPuppy-v1``: :class:`SoftPuppyEnv`, both
+(``SoftTripod-v2``: :class:`SoftTripodEnv`, ``SoftPuppy-v2``: :class:`SoftPuppyEnv`, both
 :class:`SoftRobotEnv`, registered on ``import soft_envs``) and offers ``trajopt`` its one way into
 the physics: the :class:`GradientEnv` protocol (rollouts with exact sensitivities, the robot, the
 simulation time step, the slope) with :func:`make_gradient_env` / :func:`as_gradient_env`, plus the

@@ -24,12 +24,15 @@ def _is_integer(v: Any) -> bool:
     return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
 
 
-def check_env_arguments(*, frame_skip: Any, timestep: Any, gait_period: Any, reset_noise_scale: Any,
+def check_env_arguments(*, frame_skip: Any, timestep: Any, substeps: Any, gait_period: Any, reset_noise_scale: Any,
                         motor_speed_rpm: Any, incline_deg: Any, observe_nodes: Any, render_mode: Any,
                         width: Any, height: Any, camera_config: Any) -> None:
     """Raise ValueError naming the first bad keyword (see the module docstring)."""
     if not (_is_integer(frame_skip) and frame_skip >= 1):
         raise ValueError(f"frame_skip must be a positive integer, got {frame_skip!r}")
+    if not (substeps is None or (_is_integer(substeps) and substeps >= 1)):
+        raise ValueError(f"substeps must be a positive integer (physics steps per control step) or None "
+                         f"(the contact law's default), got {substeps!r}")
     for name, v in (("timestep", timestep), ("gait_period", gait_period)):
         if not (is_number(v) and math.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be a positive number [s], got {v!r}")

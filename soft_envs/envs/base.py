@@ -1,4 +1,4 @@
-"""SoftRobotEnv: the Gymnasium environment shared by ``SoftTripod-v1`` and ``SoftPuppy-v1`` (and their ``-v0``).
+"""SoftRobotEnv: the Gymnasium environment shared by ``SoftTripod-v2`` and ``SoftPuppy-v2`` (and their ``-v0``, ``-v1``).
 
 A thin layer over :class:`soft_envs.sim.Simulator`: actions in [-1, 1] become cable
 contractions (with a motor speed limit), ``frame_skip`` implicit-Euler steps are taken, and the
@@ -30,6 +30,7 @@ from gymnasium import logger, spaces
 
 from ..sim import (DEFAULT_DT, GAIT_CYCLE_STEPS, FactorCache, Robot, SimulationError, Simulator, State,
                    incline_gravity, load_robot)
+from ..sim.contact import CONTACT_LAWS
 from ..sim.robot import DEFAULT_MAX_SPEED_RPM
 from .actuation import MOTOR_SPEED_FROM_ROBOT, Actuation
 from .arguments import RENDER_MODES, check_env_arguments
@@ -69,6 +70,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         *,
         frame_skip: int = 1,
         timestep: float = PAPER_TIMESTEP,
+        substeps: int | None = None,
         task: str = "walk",
         target_heading_deg: float = 0.0,
         turn_direction: str = "right",
@@ -97,7 +99,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
             ctrl_cost_weight=ctrl_cost_weight, healthy_reward=healthy_reward,
             terminate_when_unhealthy=terminate_when_unhealthy, healthy_tilt_deg=healthy_tilt_deg,
             healthy_height_fraction=healthy_height_fraction)
-        check_env_arguments(frame_skip=frame_skip, timestep=timestep, gait_period=gait_period,
+        check_env_arguments(frame_skip=frame_skip, timestep=timestep, substeps=substeps, gait_period=gait_period,
                             reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
                             incline_deg=incline_deg, observe_nodes=observe_nodes, render_mode=render_mode,
                             width=width, height=height, camera_config=camera_config)
@@ -108,6 +110,8 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         if self._base_robot.n_motors == 0:
             raise ValueError(f"robot {self._base_robot.name!r} has no motors")
         self.frame_skip = int(frame_skip)
+        self._substeps = int(CONTACT_LAWS[self._base_robot.contact.model].default_substeps
+                             if substeps is None else substeps)
         self._heading = self._task.heading
         self._incline_deg = float(incline_deg)
         self._gravity = incline_gravity(incline_deg, uphill=(self._heading[0], self._heading[2]))
@@ -176,8 +180,16 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
 
     @property
     def timestep(self) -> float:
-        """Simulation time step h [s] (``simulator.dt``): the step of :meth:`rollout`."""
+        """Control step h [s] (``simulator.dt``): the step of :meth:`rollout` (one row of its
+        controls) and of the motors; ``frame_skip`` of them make an environment step."""
         return self._sim.dt
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per control step (``simulator.substeps``; each ``timestep / substeps``
+        seconds, the controls joined by straight lines): the ``substeps`` keyword, by default
+        the contact law's (:attr:`~soft_envs.sim.contact.ContactLaw.default_substeps`)."""
+        return self._substeps
 
     @property
     def incline_deg(self) -> float:
@@ -208,7 +220,8 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         if self._sim is not None and factors == self._domain:
             return
         robot = randomized_robot(self._base_robot, factors)
-        sim = Simulator(robot, dt=self._sim.dt if dt is None else dt, gravity=self._gravity, control="length")
+        sim = Simulator(robot, dt=self._sim.dt if dt is None else dt, gravity=self._gravity, control="length",
+                        substeps=self._substeps)
         x_rest = sim.rest_state(robot.u_rest).x
         self._sim, self._domain = sim, factors
         self._frame = BodyFrame(x_rest, robot.node_masses)
@@ -248,7 +261,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         if s > 0:
             x0 = state.x + self.np_random.uniform(-s, s, size=state.x.shape)
             xm1 = x0 - self.np_random.uniform(-s, s, size=state.x.shape)
-            state = State(x0, xm1, None, self._sim.initial_history(x0))   # anchors where the feet are
+            state = State(x0, xm1, None, self._sim.initial_history(x0), 0, u_rest)   # anchors where the feet are
         self._reset_state = state
         self._restore(state, u_rest, self._frame.com(state.x))
         if self.render_mode == "human":
@@ -336,8 +349,8 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
 
     # the state's fields under the names the mixins (hooks, viewer) and tests read
     _x = property(lambda self: self._state.x, doc="positions now (n, 3) [m]")
-    _x_prev = property(lambda self: self._state.x_prev, doc="positions one simulation step ago (n, 3) [m]")
-    _n_sub = property(lambda self: self._state.k, doc="simulation steps since reset")
+    _x_prev = property(lambda self: self._state.x_prev, doc="positions one physics step ago (n, 3) [m]")
+    _n_sub = property(lambda self: self._state.k, doc="control steps (of timestep) since reset")
 
     @property
     def is_healthy(self) -> bool:
@@ -350,7 +363,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         obs = np.empty(self._obs_size)
         obs[0:3] = self._com - self._com_start
         obs[1] = self._com[1]
-        obs[3:6] = (self._com - self._frame.com(self._x_prev)) / self.timestep
+        obs[3:6] = (self._com - self._frame.com(self._x_prev)) / self._sim.physics_dt
         obs[6:9] = self._rot[:, 0]
         obs[9:12] = self._rot[:, 1]
         i = 12 + s["cable_deformation"]

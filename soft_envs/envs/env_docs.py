@@ -11,6 +11,7 @@ written here, and the list of gradient hooks comes from
 from __future__ import annotations
 
 import inspect
+import math
 import textwrap
 from dataclasses import dataclass
 
@@ -44,6 +45,17 @@ class RobotDoc:
     def n_motors(self) -> int:
         return len(self.actions)
 
+    def motor_figures(self) -> dict[str, float]:
+        """The shipped robot file's figures the Action Space states, read from it (not written
+        here): ``u_min_mm``, ``u_max_mm`` (the first motor's range), ``rpm`` (its
+        ``max_speed_rpm``), ``spool_radius_mm``."""
+        from ..sim.robot import DEFAULT_MAX_SPEED_RPM
+        from ..sim.robot_file import asset_path, read_robot_toml
+        motor = read_robot_toml(asset_path(self.name))["motors"][0]
+        return {"u_min_mm": 1e3 * float(motor.get("u_min", 0.0)), "u_max_mm": 1e3 * float(motor["u_max"]),
+                "rpm": float(motor.get("max_speed_rpm", DEFAULT_MAX_SPEED_RPM)),
+                "spool_radius_mm": 1e3 * float(motor.get("spool_radius", 0.005))}
+
     @property
     def n_observations(self) -> int:
         """Entries of the observation without nodes: COM 3 + velocity 3 + forward 3 + up 3 +
@@ -66,24 +78,29 @@ def _span(start: int, size: int) -> str:
 
 
 def _action_section(r: RobotDoc) -> str:
-    rows = [(str(i), what, "-1 (u_min = 0)", "1 (u_max = 16 mm)", name, "cable length (m)")
-            for i, (what, name) in enumerate(r.actions)]
+    m = r.motor_figures()
+    rows = [(str(i), what, f"-1 (u_min = {m['u_min_mm']:g} mm)", f"1 (u_max = {m['u_max_mm']:g} mm)", name,
+             "cable length (m)") for i, (what, name) in enumerate(r.actions)]
     table = markdown_table(("Num", "Action", "Control Min", "Control Max", "Name (robot.toml)", "Type (Unit)"), rows)
+    speed = m["rpm"] * 2 * math.pi / 60 * m["spool_radius_mm"]             # [mm/s]
+    stroke = m["u_max_mm"] - m["u_min_mm"]
     return f"""## Action Space
 The action space is a `Box(-1, 1, ({r.n_motors},), float32)`. Action *a* commands the cable
 contraction (metres of cable pulled in by the motor) `u_cmd = u_min + (a + 1) / 2 (u_max - u_min)`;
 values outside [-1, 1] are clipped, NaN/inf or a wrong shape raise `ValueError`.
 The applied contraction follows the command at the motor's speed limit: in every
-simulation step it moves towards `u_cmd` by at most `v_max * timestep`, with
+control step of `timestep` seconds it moves towards `u_cmd` by at most `v_max * timestep`, with
 `v_max = motor_speed_rpm * 2 pi / 60 * spool_radius` (by default the robot's
-`[[motors]] max_speed_rpm`: 100 rpm for the shipped robots, a Pololu 298:1 micro metal
-gearmotor's no-load speed at 6 V; spool radius 5 mm: 52 mm/s, 1.7 mm per step; the full
-16 mm stroke of the shipped robot.toml takes 10 steps). `info["u"]` is the contraction
-applied at the end of the step and `info["u_substeps"]` (frame_skip, {r.n_motors}) the contraction of
-each simulation step.
+`[[motors]] max_speed_rpm`: {m['rpm']:g} rpm for the shipped robot, a Pololu 298:1 micro metal
+gearmotor's no-load speed at 6 V; spool radius {m['spool_radius_mm']:g} mm: {speed:.0f} mm/s,
+{speed * 0.033:.2f} mm per 0.033 s step; the full {stroke:g} mm stroke of the shipped robot.toml takes
+{math.ceil(stroke / (speed * 0.033)):d} steps). Inside a control step the physics takes `substeps` steps
+with the contraction moving at a constant speed. `info["u"]` is the contraction
+applied at the end of the step and `info["u_substeps"]` (frame_skip, {r.n_motors}) the contraction at the
+end of each control step.
 
-{table}
-"""
+{{table}}
+""".replace("{table}", table)
 
 
 def _observation_section(r: RobotDoc) -> str:
@@ -93,7 +110,7 @@ def _observation_section(r: RobotDoc) -> str:
         ("0", "COM x relative to the COM at reset", "-Inf", "Inf", "position (m)"),
         ("1", "COM height above the ground (y)", "-Inf", "Inf", "position (m)"),
         ("2", "COM z relative to the COM at reset", "-Inf", "Inf", "position (m)"),
-        ("3-5", "COM velocity (x, y, z) over the last simulation step", "-Inf", "Inf", "velocity (m/s)"),
+        ("3-5", "COM velocity (x, y, z) over the last physics step", "-Inf", "Inf", "velocity (m/s)"),
         ("6-8", "forward vector R e_x (world frame)", "-1", "1", "unit vector"),
         ("9-11", "up vector R e_y (world frame)", "-1", "1", "unit vector"),
         (_span(cables, r.n_tendons), f"cable deformation Gamma of {r.tendons}, divided by the motor's range "
@@ -173,9 +190,15 @@ def _arguments(r: RobotDoc) -> list[tuple[str, str, str, str]]:
         ("`robot`", "**str \\| Path \\| Robot**", f'`"{r.name}"`',
          f"shipped robot name, a `robot.toml` path (e.g. the fine mesh `assets/{r.name}/robot_fine.toml`) or a "
          "`Robot`; sizes in the tables above change accordingly"),
-        ("`frame_skip`", "**int**", "`1`", "simulation steps per environment step; `env.unwrapped.dt = frame_skip * timestep`"),
+        ("`frame_skip`", "**int**", "`1`", "control steps per environment step; `env.unwrapped.dt = frame_skip * timestep`"),
         ("`timestep`", "**float**", "`0.033`",
-         "simulation time step [s] (`env.unwrapped.timestep`, `env.unwrapped.simulator.dt`; the paper's h)"),
+         "control step [s] (`env.unwrapped.timestep`, `env.unwrapped.simulator.dt`; the paper's h): the motors' "
+         "and the gradient hooks' step"),
+        ("`substeps`", "**int \\| None**", "`None`",
+         "physics steps per control step (implicit Euler of `timestep / substeps`, the contraction moving at a "
+         "constant speed within the step); `None`: the contact law's default, 4 for `\"coulomb\"` (8.25 ms, where "
+         "the gaits' speeds converge: docs/fidelity.md), 1 for `\"paper\"` (its friction is defined at 33 ms); "
+         "`env.unwrapped.substeps`"),
         ("`task`", "**str**", '`"walk"`', '`"walk"` (speed along the target heading) or `"turn"` (yaw rate)'),
         ("`target_heading_deg`", "**float**", "`0`",
          "walking direction, degrees from +x towards +z (90 = +z, the robot's right; the convention of `trajopt`); "
@@ -210,9 +233,9 @@ def _arguments(r: RobotDoc) -> list[tuple[str, str, str, str]]:
          "ground contact law: `\"coulomb\"` (Coulomb friction bounded by `friction_coefficient` x the "
          "normal force, feet held by stick anchors: `soft_envs.sim.contact.coulomb`; the shipped robot "
          "files' default), `\"paper\"` (paper II-C: viscous-like lagged friction, what Table I was made with), "
-         f"or `None` for the robot file's `[contact] model`. `{r.env_name}-v1`, the latest id, passes "
-         f"`\"coulomb\"` (`gym.make(\"{r.env_name}-v1\", contact=\"paper\")` for the paper's law); "
-         f"`{r.env_name}-v0` passes `\"paper\"` (Table I)"),
+         f"or `None` for the robot file's `[contact] model`. `{r.env_name}-v2`, the latest id, passes "
+         f"`\"coulomb\"` (`gym.make(\"{r.env_name}-v2\", contact=\"paper\")` for the paper's law); "
+         f"`{r.env_name}-v0` passes `\"paper\"` (Table I), `{r.env_name}-v1` `\"coulomb\"` at one physics step"),
         ("`render_mode`", "**str \\| None**", "`None`",
          '`"rgb_array"` (uint8 frames, offscreen matplotlib, no OpenGL) or `"human"` (matplotlib window)'),
         ("`width`, `height`", "**int**", "`480`, `360`", "frame size in pixels"),
@@ -274,9 +297,13 @@ def _version_section(r: RobotDoc) -> str:
 * v1: the Coulomb contact law (`contact="coulomb"`: friction bounded by mu N with
   mu = 0.8, feet that stick; the `friction` factor of domain randomisation scales mu).
   Observations, actions and rewards as in v0. The stick anchors are part of the state
-  (`get_state()["history"]`). The latest id and the project's default; `contact="paper"`
-  gives the paper's law on it. Since the shipped robot files default to the Coulomb law
-  (issue #31), v0 passes `contact="paper"` explicitly and keeps the paper's law.
+  (`get_state()["history"]`). Since the shipped robot files default to the Coulomb law,
+  v0 passes `contact="paper"` explicitly and keeps the paper's law; v1 passes
+  `substeps=1` and keeps one physics step of 0.033 s per control step.
+* v2: converged physics, the latest id and the project's default: every contact law at its
+  own number of physics steps per 0.033 s control step (`substeps=None`: 4 for the Coulomb
+  law, where the fast gaits' speeds hold at finer steps; 1 for the paper's law). Actions,
+  observations (the COM velocity over the last physics step) and rewards as in v1.
 """
 
 
@@ -286,10 +313,10 @@ def env_docstring(r: RobotDoc) -> str:
 {r.description.strip()}
 
 Units are SI with +y up and the ground at y = 0; the robot faces +x at rest and its left
-is -z. One environment step is `frame_skip` simulation steps of `timestep` = 0.033 s; as in
-Gymnasium's MuJoCo environments, `env.unwrapped.dt` is the duration of one environment step,
-`frame_skip * timestep`, and the simulation step is `env.unwrapped.timestep`
-(`env.unwrapped.simulator.dt`).
+is -z. One environment step is `frame_skip` control steps of `timestep` = 0.033 s, each of
+`substeps` physics steps; as in Gymnasium's MuJoCo environments, `env.unwrapped.dt` is the
+duration of one environment step, `frame_skip * timestep`, and the control step is
+`env.unwrapped.timestep` (`env.unwrapped.simulator.dt`).
 """
     return "\n".join([description, _action_section(r), _observation_section(r), _rewards_to_episode_end(r),
                       _arguments_section(r), _version_section(r)])

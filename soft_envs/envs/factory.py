@@ -18,29 +18,32 @@ __all__ = ["as_gradient_env", "make_gradient_env"]
 
 def make_gradient_env(robot: str | os.PathLike | Robot = "puppy", *, incline_deg: float = 0.0,
                       heading_deg: float = 0.0, timestep: float = PAPER_TIMESTEP,
-                      contact: str | None = None) -> SoftRobotEnv:
+                      contact: str | None = None, substeps: int | None = None) -> SoftRobotEnv:
     """A bare environment for trajectory optimisation, reset without noise: its rollouts start
     at the exact rest state with the motors at ``robot.u_rest``.
 
     ``robot``: a shipped robot name (``"tripod"``, ``"puppy"``: their registered classes), a
     robot.toml path or a :class:`~soft_envs.sim.Robot`; the ground slopes by ``incline_deg``,
-    rising along ``heading_deg`` (degrees from +x towards +z); ``timestep`` is the simulation
-    time step [s]; ``contact`` the contact law ("paper", "coulomb"; None: the robot file's)."""
+    rising along ``heading_deg`` (degrees from +x towards +z); ``timestep`` is the control step
+    [s] (one row of a rollout's controls); ``contact`` the contact law ("paper", "coulomb"; None:
+    the robot file's); ``substeps`` the physics steps per control step (None: the law's default,
+    :attr:`~soft_envs.sim.contact.ContactLaw.default_substeps`)."""
     shipped = {"tripod": SoftTripodEnv, "puppy": SoftPuppyEnv}
     cls = shipped.get(robot, SoftRobotEnv) if isinstance(robot, str) else SoftRobotEnv
     env = cls(robot, incline_deg=incline_deg, target_heading_deg=heading_deg, timestep=timestep,
-              reset_noise_scale=0.0, contact=contact)
+              reset_noise_scale=0.0, contact=contact, substeps=substeps)
     env.reset(seed=0)
     return env
 
 
 def as_gradient_env(env_or_robot: Any, *, incline_deg: float = 0.0, heading_deg: float = 0.0,
-                    contact: str | None = None) -> GradientEnv:
+                    contact: str | None = None, substeps: int | None = None) -> GradientEnv:
     """The :class:`GradientEnv` of a (wrapped) environment, i.e. its ``unwrapped`` object, or
     :func:`make_gradient_env` of a :class:`~soft_envs.sim.Robot`, a robot name or a robot.toml
     path. TypeError when the environment lacks a member of the protocol."""
     if isinstance(env_or_robot, (Robot, str, os.PathLike)):
-        return make_gradient_env(env_or_robot, incline_deg=incline_deg, heading_deg=heading_deg, contact=contact)
+        return make_gradient_env(env_or_robot, incline_deg=incline_deg, heading_deg=heading_deg, contact=contact,
+                                 substeps=substeps)
     target = getattr(env_or_robot, "unwrapped", env_or_robot)
     missing = [name for name in GRADIENT_ENV_MEMBERS if not hasattr(target, name)]
     if missing:

@@ -75,7 +75,7 @@ class GradientHooksMixin:
             if v.shape != shape or not np.isfinite(v).all():
                 raise ValueError(f"state[{name!r}] must be a finite array of shape {shape}, got {v.shape}")
         history = self._sim.check_history(state.get("history"), x, "state['history']")
-        new = State(x, xp, xp2, history, int(state.get("sim_steps", self._state.k)))
+        new = State(x, xp, xp2, history, int(state.get("sim_steps", self._state.k)), u)
         self._trail.clear()
         self._restore(new, u, state.get("com_start", self._com_start))
 

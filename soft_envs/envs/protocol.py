@@ -1,8 +1,8 @@
 """The gradient protocol: the one way ``trajopt`` reaches the physics.
 
 Any object satisfying :class:`GradientEnv` (usually ``env.unwrapped`` of a Gymnasium
-environment) can be optimised by ``trajopt.optimize_gait``; the shipped ``SoftTripod-v1`` and
-``SoftPuppy-v1`` do. :func:`~soft_envs.envs.factory.as_gradient_env` finds it in a (wrapped)
+environment) can be optimised by ``trajopt.optimize_gait``; the shipped ``SoftTripod-v2`` and
+``SoftPuppy-v2`` do (and their older versions). :func:`~soft_envs.envs.factory.as_gradient_env` finds it in a (wrapped)
 environment, or builds a bare one (:func:`~soft_envs.envs.factory.make_gradient_env`) for a
 robot, a shipped robot name or a robot.toml path.
 """
@@ -25,7 +25,8 @@ class GradientEnv(Protocol):
     length control, paper eq. 2; the simulator's tension control (appendix A,
     ``Simulator(control="tension")``) is not an environment's] from the environment's reset
     state (the state the last ``reset`` produced; at rest unless reset noise is on), one
-    simulation step of ``timestep`` seconds per row, and returns a
+    control step of ``timestep`` seconds per row (``substeps`` physics steps each, the controls
+    joined by straight lines), and returns a
     :class:`~soft_envs.sim.Trajectory`, with exact sensitivities when ``dudz`` (K, n_motors, nz)
     is given. It does not change the environment's own state.
     ``u`` is applied as given (the environments' action clipping and motor speed limit are not
@@ -49,7 +50,10 @@ class GradientEnv(Protocol):
     def robot(self) -> Robot: ...           # mesh, masses, motors, tendons, body length
 
     @property
-    def timestep(self) -> float: ...        # simulation time step h [s] of rollouts
+    def timestep(self) -> float: ...        # control step h [s] of rollouts (one row of u)
+
+    @property
+    def substeps(self) -> int: ...          # physics steps per control step (timestep / substeps each)
 
     @property
     def incline_deg(self) -> float: ...     # ground slope [deg]
@@ -79,7 +83,7 @@ class GradientEnv(Protocol):
 
 
 #: The members of :class:`GradientEnv`, checked by :func:`~soft_envs.envs.factory.as_gradient_env`.
-GRADIENT_ENV_MEMBERS = ("robot", "timestep", "incline_deg", "contact_model", "gravity", "rollout",
+GRADIENT_ENV_MEMBERS = ("robot", "timestep", "substeps", "incline_deg", "contact_model", "gravity", "rollout",
                         "reset_state", "get_state", "set_state", "com", "cable_deformation", "cable_tension")
 #: Optional members of :class:`GradientEnv` (parameter sensitivities for calibration).
 PARAMETER_MEMBERS = ("rollout_parameters",)

@@ -1,4 +1,4 @@
-"""``SoftPuppy-v0`` / ``SoftPuppy-v1``: the eight-motor quadruped Puppy of Bern et al. (RSS 2019), section IV-B.
+"""``SoftPuppy-v0`` / ``-v1`` / ``-v2``: the eight-motor quadruped Puppy of Bern et al. (RSS 2019), section IV-B.
 
 The specification (spaces, rewards, arguments) is :class:`SoftPuppyEnv`'s docstring, built by
 :func:`~.env_docs.env_docstring` from the robot's own parts below (``help(SoftPuppyEnv)``).
@@ -39,7 +39,7 @@ leg as a pivot).""",
             "fore_right_back_b: motor 0's pair first)",
     contractions="motors 0-7 (Action Space order)",
     body_length_m=0.13,
-    example='env = gym.make("SoftPuppy-v1", incline_deg=10.0, domain_randomization={"friction": (0.7, 1.3)})',
+    example='env = gym.make("SoftPuppy-v2", incline_deg=10.0, domain_randomization={"friction": (0.7, 1.3)})',
 )
 
 

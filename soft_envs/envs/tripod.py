@@ -1,4 +1,4 @@
-"""``SoftTripod-v0`` / ``SoftTripod-v1``: the two-motor Tripod of Bern et al. (RSS 2019), section IV-A.
+"""``SoftTripod-v0`` / ``-v1`` / ``-v2``: the two-motor Tripod of Bern et al. (RSS 2019), section IV-A.
 
 The specification (spaces, rewards, arguments) is :class:`SoftTripodEnv`'s docstring, built by
 :func:`~.env_docs.env_docstring` from the robot's own parts below (``help(SoftTripodEnv)``).
@@ -31,7 +31,7 @@ to walk forward (+x at rest) or, with `task="turn"`, to turn on the spot.""",
              ("Contraction of the middle leg's back cables (bends it backward)", "back")),
     n_tendons=4, tendons="front_a, front_b, back_a, back_b", contractions="front, back",
     body_length_m=0.14,
-    example='env = gym.make("SoftTripod-v1", frame_skip=2, task="turn", turn_direction="left")',
+    example='env = gym.make("SoftTripod-v2", frame_skip=2, task="turn", turn_direction="left")',
 )
 
 

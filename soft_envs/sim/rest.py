@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from .inputs import initial_placement
 from .integrator import FactorCache, NewtonOptions, NewtonSolver, SimulationError
 from .parameter_block import parameter_block
 from .sensitivity import ForwardSensitivities
 from .state import State, advance
 from .system import EnergySystem
 
-__all__ = ["relax", "placement_sensitivity"]
+__all__ = ["relax", "placement_sensitivity", "RestStates"]
 
 
 def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
@@ -34,7 +35,7 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
     system = EnergySystem(sim.robot, gravity=relax_g, control=sim.control)
     solver = NewtonSolver(system, 1.0, NewtonOptions(tol=min(tol, 1e-10), max_iter=100,
                                                      solver=sim.newton.options.solver))
-    x = sim.initial_placement()
+    x = initial_placement(sim.robot)
     history = system.initial_history(x)
     sens = exact = None
     if params:      # its own solver for the exact Hessians: the relaxation's path stays that of rest_state
@@ -63,7 +64,7 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
         raise SimulationError(f"rest_state of robot {sim.robot.name!r} did not settle in {max_iter} "
                               f"relaxation steps (last motion {moved:.2e} m; u = {u.tolist()}, "
                               f"gravity = {relax_g.tolist()}, tol = {tol}){hint}")
-    rest = State.at_rest(x, history)
+    rest = State.at_rest(x, history, u=u)
     if sens is None:
         return rest
     dh = tuple(None if p is None else p[:, sens.nz:].copy() for p in (sens.P or (None,) * len(history)))
@@ -86,3 +87,34 @@ def placement_sensitivity(sim, system, params) -> tuple:
     dh = tuple(None if h is None else np.stack([c[i].ravel() for c in cols], axis=1)
                for i, h in enumerate(cols[0])) if cols else None
     return dX.reshape(-1, dX.shape[2]), dh
+
+
+class RestStates:
+    """The rest states of one simulator ``sim``, relaxed once per (controls, tolerance) and
+    kept (:meth:`state`), and their parameter sensitivities (:meth:`sensitivity`)."""
+
+    def __init__(self, sim):
+        self.sim = sim
+        self.states: dict = {}
+        self._sensitivities: dict = {}
+
+    def _controls(self, u) -> np.ndarray:
+        return np.zeros(self.sim.n_motors) if u is None else self.sim.inputs.controls(u)
+
+    def state(self, u, tol: float, max_iter: int) -> State:
+        """The rest :class:`~.state.State` under controls ``u`` (None: 0), its ``u`` set."""
+        u = self._controls(u)
+        key = (tuple(u.tolist()), tol)
+        if key not in self.states:
+            self.states[key] = relax(self.sim, u, tol, max_iter)
+        return self.states[key]
+
+    def sensitivity(self, params, u, tol: float, max_iter: int) -> tuple:
+        """``(x0, history0, dx0/dtheta, dhistory0/dtheta)`` of :meth:`state` for the checked
+        parameters ``params``."""
+        u = self._controls(u)
+        key = (tuple(u.tolist()), tol, params)
+        if key not in self._sensitivities:
+            rest, dx, dh = relax(self.sim, u, tol, max_iter, params)
+            self._sensitivities[key] = rest.x, rest.history, dx, dh
+        return self._sensitivities[key]

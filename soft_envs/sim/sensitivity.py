@@ -60,14 +60,23 @@ class ForwardSensitivities:
     (which includes the masses' own dependence) hold the results. Both blocks share each step's
     one multi-right-hand-side solve. ``params`` may also be a
     :class:`~.parameter_block.ParameterBlock` (design parameters, :mod:`soft_envs.sim.design`):
-    the block gives the three partial derivatives."""
+    the block gives the three partial derivatives.
+
+    Physics sub-steps (:mod:`.substeps`): the recurrence runs over every step of the solver
+    (``dudz`` holds the sub-steps' rows, :func:`~.substeps.substep_jacobian`) and records the
+    Jacobians of every ``record_every``-th state only, the ends of the control steps: the
+    arrays above then have ``K / record_every + 1`` entries."""
 
     def __init__(self, newton, masses: np.ndarray, dudz: np.ndarray, store_dxdz: bool = False,
                  params=(), dx0dtheta: np.ndarray | None = None, dhistory0dtheta: tuple | None = None,
-                 x0: np.ndarray | None = None):
+                 x0: np.ndarray | None = None, record_every: int = 1):
         self.newton = newton
         system = newton.system
         K, _, nz = dudz.shape
+        self.record_every = int(record_every)
+        if K % self.record_every:
+            raise ValueError(f"{K} steps are not a whole number of control steps of {record_every} sub-steps")
+        K //= self.record_every
         self.dudz = dudz
         self.masses = np.asarray(masses)
         self.total_mass = self.masses.sum()
@@ -149,6 +158,15 @@ class ForwardSensitivities:
                 for p, e in zip(self.P, self.block.history_jacobian(system, x, x_prev, history)):
                     if p is not None and e is not None:
                         p[:, nz:] += e
+        self.S2, self.S1 = self.S1, S
+        if (k + 1) % self.record_every == 0:
+            self._record((k + 1) // self.record_every - 1, x, S, U)
+
+    def _record(self, k: int, x: np.ndarray, S: np.ndarray, U: np.ndarray) -> None:
+        """Store the Jacobians of state ``k + 1`` (``S = dx/d[z | theta]`` there; ``U`` the
+        controls' ``du/dz`` of the step that reached it)."""
+        system = self.newton.system
+        nz = self.nz
         if nz:
             Sz = S[:, :nz]
             self.dcomdz[k + 1] = (self.masses @ Sz.reshape(-1, 3 * nz)).reshape(3, nz) / self.total_mass
@@ -159,7 +177,6 @@ class ForwardSensitivities:
         if self.params and k + 1 < len(self.dxdtheta):
             self.dxdtheta[k + 1] = S[:, nz:]
             self.dcomdtheta[k + 1] = self._dcom(x, S[:, nz:])
-        self.S2, self.S1 = self.S1, S
 
 
 def adjoint_pass(newton, xs: np.ndarray, us: np.ndarray, dobj_dx: np.ndarray, history0=None, *,

@@ -5,12 +5,14 @@
 >>> rest = sim.rest_state()                     # a State: positions, velocity 0, stick anchors
 >>> traj = sim.rollout(np.zeros((168, robot.n_motors)), x0=rest)   # the same as x0=None
 >>> state = sim.step(rest, np.zeros(robot.n_motors))               # one step: the next State
+>>> fine = Simulator(robot, substeps=4)         # 4 physics steps of 8.25 ms per control step
 
 Physics lives in :mod:`.system` (energies), :mod:`.integrator` (Newton per step) and
 :mod:`.sensitivity` (derivatives of whole rollouts); what a step carries to the next is a
 :class:`~.state.State`, advanced by :func:`~.state.advance` (the one loop body of steps,
-rollouts, the rest-state relaxation, the environments and the adjoint). This module only
-strings them together.
+rollouts, the rest-state relaxation, the environments and the adjoint); control steps and
+rollouts with their sub-steps are :mod:`.rollout`, the inputs' checks :mod:`.inputs`, the rest
+states :mod:`.rest`. This module only strings them together.
 """
 from __future__ import annotations
 
@@ -19,12 +21,15 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
+from .inputs import InputChecks, initial_placement
 from .integrator import FactorCache, NewtonOptions, NewtonSolver
 from .parameter_block import ParameterBlock
+from .rest import RestStates
+from .rollout import control_step, forward_sensitivities, run_rollout
 from .robot import Robot
-from .rest import relax
-from .sensitivity import ForwardSensitivities, adjoint_pass
+from .sensitivity import adjoint_pass
 from .state import State, advance
+from .substeps import check_substeps, control_step_gradient, newton_tolerance
 from .system import EnergySystem
 from .timing import DEFAULT_DT
 from .trajectory import Trajectory
@@ -38,45 +43,59 @@ class Simulator:
     Parameters
     ----------
     robot : Robot
-    dt : time step h [s] (default :data:`~soft_envs.sim.timing.DEFAULT_DT`, the paper's 0.033 s).
-        Fixed for the simulator's life: :attr:`dt` reads it from the Newton solver, its one
-        home at run time.
+    dt : the control step h [s] (default :data:`~soft_envs.sim.timing.DEFAULT_DT`, the paper's
+        0.033 s): one row of a control trajectory, one :meth:`step`. Fixed for the simulator's
+        life.
+    substeps : physics steps per control step (default 1, the paper's integration): the Newton
+        solver steps ``dt / substeps`` (:attr:`physics_dt`, its one home at run time) and the
+        controls are joined by straight lines inside a control step (:mod:`.substeps`).
     gravity : gravity vector [m/s^2]; rotate it for an incline (:func:`incline_gravity`).
     control : ``"length"`` (u = contracted cable length [m]) or ``"tension"`` (u = tension [N]).
-    newton : :class:`NewtonOptions` (tolerance, iterations, linear solver).
+    newton : :class:`NewtonOptions` (tolerance, iterations, linear solver); default
+        ``NewtonOptions()``, with a sub-stepped simulator's tolerance
+        (:func:`~.substeps.newton_tolerance`: 1e-7 m per physics step).
     """
 
     def __init__(self, robot: Robot, dt: float = DEFAULT_DT, gravity=(0.0, -9.81, 0.0),
-                 control: str = "length", newton: NewtonOptions | None = None):
+                 control: str = "length", newton: NewtonOptions | None = None, substeps: int = 1):
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be positive, got {dt!r}")
         self.robot = robot
+        self._dt = float(dt)
+        self.substeps = check_substeps(substeps)
         self.system = EnergySystem(robot, gravity=gravity, control=control)
-        self.newton = NewtonSolver(self.system, dt, newton or NewtonOptions())
+        self.newton = NewtonSolver(self.system, self._dt if self.substeps == 1 else self._dt / self.substeps,
+                                   newton or NewtonOptions(tol=newton_tolerance(self.substeps)))
         self.gravity = self.system.gravity
         self.control = control
-        self._rest_cache: dict = {}
-        self._history_layout: tuple | None = None
-        self._rest_sens_cache: dict = {}
+        self.inputs = InputChecks(robot, self.system, control)
+        self._rest = RestStates(self)
 
     @property
     def dt(self) -> float:
-        """The time step h [s] (the Newton solver's, which builds ``M / h^2`` from it)."""
+        """The control step h [s]: one row of a control trajectory, one :meth:`step`."""
+        return self._dt
+
+    @property
+    def physics_dt(self) -> float:
+        """The physics step [s], ``dt / substeps`` (the Newton solver's, which builds ``M / h^2``
+        from it)."""
         return self.newton.dt
 
     # ------------------------------------------------------------------ pickling
     def __getstate__(self) -> dict:
         """Pickle only what defines the simulator (the CHOLMOD objects do not pickle): robot,
-        time step, gravity, control mode, Newton options and the rest-state cache. The energy
-        system and the solver are rebuilt on unpickling (with no factorisation held, exactly
-        like a freshly constructed simulator)."""
-        return {"robot": self.robot, "dt": self.dt, "gravity": np.array(self.gravity),
-                "control": self.control, "newton": self.newton.options,
-                "rest_cache": dict(self._rest_cache)}
+        time step, sub-steps, gravity, control mode, Newton options and the rest-state cache.
+        The energy system and the solver are rebuilt on unpickling (with no factorisation held,
+        exactly like a freshly constructed simulator)."""
+        return {"robot": self.robot, "dt": self.dt, "substeps": self.substeps, "gravity": np.array(self.gravity),
+                "control": self.control, "newton": self.newton.options, "rest_cache": dict(self._rest.states)}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["robot"], dt=state["dt"], gravity=state["gravity"],
-                      control=state["control"], newton=state["newton"])
-        self._rest_cache.update({k: v if isinstance(v, State) else State.at_rest(*v)     # (x, history): older pickles
-                                 for k, v in state["rest_cache"].items()})
+        self.__init__(state["robot"], dt=state["dt"], gravity=state["gravity"], control=state["control"],
+                      newton=state["newton"], substeps=state.get("substeps", 1))
+        self._rest.states.update({k: v if isinstance(v, State) else State.at_rest(*v)     # (x, history): older pickles
+                                  for k, v in state["rest_cache"].items()})
 
     @property
     def n_motors(self) -> int:
@@ -86,90 +105,25 @@ class Simulator:
     def n_nodes(self) -> int:
         return self.robot.mesh.n_nodes
 
-    # ------------------------------------------------------------------ validation
+    # ------------------------------------------------------------------ validation (:mod:`.inputs`)
     def _check_u(self, u, K: int | None = None, check_bounds: bool = False) -> np.ndarray:
-        arr = np.array(u, dtype=np.float64)          # a copy: trajectories keep their own
-        shape = (self.n_motors,) if K is None else None
-        if K is None and arr.shape != shape:
-            raise ValueError(f"controls u must have shape ({self.n_motors},), got {arr.shape}")
-        if K is not None and (arr.ndim != 2 or arr.shape[1] != self.n_motors):
-            raise ValueError(f"controls u must have shape (K, {self.n_motors}), got {arr.shape}")
-        bad = ~np.isfinite(arr)
-        if bad.any():
-            raise ValueError(f"controls u contain NaN or inf at {np.argwhere(bad)[:5].tolist()}")
-        if self.control == "tension" and (arr < 0).any():
-            raise ValueError("tension controls must be >= 0 (cables can only pull)")
-        if check_bounds and self.control == "length" and self.n_motors:
-            self._check_bounds(arr.reshape(-1, self.n_motors))
-        return arr
-
-    def _check_bounds(self, u: np.ndarray) -> None:
-        """Contractions outside a motor's [u_min, u_max] are a ValueError naming the first one
-        (a unit slip, mm for m, is the usual cause)."""
-        lo, hi = self.robot.u_bounds[:, 0], self.robot.u_bounds[:, 1]
-        slack = 1e-12 * np.maximum(hi - lo, 1.0)
-        bad = (u < lo - slack) | (u > hi + slack)
-        if bad.any():
-            k, m = np.argwhere(bad)[0]
-            raise ValueError(f"controls u[{k}, {m}] = {float(u[k, m])!r} m lie outside motor "
-                             f"{self.robot.motors[m].name!r}'s range [{float(lo[m])!r}, {float(hi[m])!r}] m "
-                             f"({int(bad.sum())} entries out of range; pass check_bounds=False "
-                             "to simulate them anyway)")
+        return self.inputs.controls(u, K, check_bounds)
 
     def _check_x(self, x, name: str) -> np.ndarray:
-        if isinstance(x, State):
-            raise ValueError(f"{name} must be an array of node positions, got a State (its positions are "
-                             f"{name}.x; functions that start from a state, step and rollout, take the State)")
-        arr = np.asarray(x, dtype=np.float64)
-        if arr.shape != (self.n_nodes, 3):
-            raise ValueError(f"{name} must have shape ({self.n_nodes}, 3), got {arr.shape}")
-        if not np.isfinite(arr).all():
-            raise ValueError(f"{name} contains NaN or inf")
-        return arr
+        return self.inputs.positions(x, name)
 
     def check_history(self, history, x: np.ndarray, name: str = "history") -> tuple:
         """``history`` as the energy terms' tuple (None: at rest at ``x``, :meth:`initial_history`),
         checked against the terms (ValueError naming ``name`` and the entry otherwise)."""
-        if history is None:
-            return self.system.initial_history(x)
-        expected = self._history_shapes()
-        if not isinstance(history, (tuple, list)) or len(history) != len(expected):
-            raise ValueError(f"{name} must be a tuple of {len(expected)} entries (one per energy term), "
-                             f"got {type(history).__name__} of length {len(history) if hasattr(history, '__len__') else '?'}")
-        for i, (h, e) in enumerate(zip(history, expected)):
-            if (h is None) != (e is None):
-                raise ValueError(f"{name}[{i}] must be {'None' if e is None else 'an array'} for this contact law")
-            if h is not None and (np.shape(h) != e or not np.isfinite(h).all()):
-                raise ValueError(f"{name}[{i}] must be a finite array of shape {e}, got shape {np.shape(h)}")
-        return tuple(history)
-
-    def _history_shapes(self) -> tuple:
-        """The shape of each energy term's history (None for terms without one): fixed by the
-        robot and its terms, so worked out once (a step's check of its State reads it)."""
-        if self._history_layout is None:
-            self._history_layout = tuple(None if h is None else h.shape
-                                         for h in self.system.initial_history(self.initial_placement()))
-        return self._history_layout
+        return self.inputs.history(history, x, name)
 
     def _check_state(self, state: State, name: str = "state") -> State:
-        """A :class:`State` of this simulator (node count, finite positions, the terms' history)."""
-        if not isinstance(state, State):
-            raise ValueError(f"{name} must be a soft_envs.sim.State (e.g. sim.rest_state() or "
-                             f"sim.state_at_rest(x)), got {type(state).__name__}")
-        for field_name in ("x", "x_prev", "x_prev2"):
-            a = getattr(state, field_name)
-            if a is not None:
-                self._check_x(a, f"{name}.{field_name}")
-        self.check_history(state.history, state.x, f"{name}.history")
-        return state
+        return self.inputs.state(state, name)
 
     # ------------------------------------------------------------------ states
     def initial_placement(self) -> np.ndarray:
         """Rest mesh, lowered/raised to touch the ground (unless it has fixed nodes)."""
-        x = np.array(self.robot.mesh.points)
-        if self.robot.fixed_nodes.size == 0:
-            x[:, 1] -= x[:, 1].min()
-        return x
+        return initial_placement(self.robot)
 
     def state_at_rest(self, x, history: tuple | None = None) -> State:
         """The :class:`State` of the body standing still at positions ``x`` (n, 3): ``x_prev =
@@ -180,10 +134,11 @@ class Simulator:
 
     def rest_state(self, u=None, tol: float = 1e-9, max_iter: int = 200) -> State:
         """Static equilibrium under gravity with controls ``u`` (default 0), as a :class:`State`
-        (positions ``.x``, ``x_prev = x_prev2 = x``, its stick anchors ``.history``, ``k = 0``):
-        the robot standing on the ground, or the static solution of a clamped body. It is
-        where :meth:`rollout` starts by default, so ``rollout(u, x0=sim.rest_state())`` is
-        ``rollout(u)``. :meth:`rest_positions` gives a writeable copy of the positions.
+        (positions ``.x``, ``x_prev = x_prev2 = x``, its stick anchors ``.history``, ``k = 0``,
+        the controls ``.u``): the robot standing on the ground, or the static solution of a
+        clamped body. It is where :meth:`rollout` starts by default, so ``rollout(u,
+        x0=sim.rest_state())`` is ``rollout(u)``. :meth:`rest_positions` gives a writeable copy
+        of the positions.
 
         Computed by relaxation, implicit steps of 1 s from rest (:mod:`.rest`), to a state
         where friction exerts no force, so a rollout started there stays still. With the
@@ -191,18 +146,18 @@ class Simulator:
         an inclined simulator then uses only the normal component of gravity; the Coulomb law
         holds it under the full gravity, with loaded stick anchors that belong to the state.
         """
-        return self._rest(u, tol, max_iter)
+        return self._rest.state(u, tol, max_iter)
 
     def rest_positions(self, u=None, tol: float = 1e-9, max_iter: int = 200) -> np.ndarray:
         """The node positions (n, 3) of :meth:`rest_state` (a writeable copy). Starting a
         rollout from them (a bare array) re-anchors the nodes where they stand: pass the
         :meth:`rest_state` itself to start from the rest state."""
-        return self._rest(u, tol, max_iter).x.copy()
+        return self._rest.state(u, tol, max_iter).x.copy()
 
     def rest_history(self, u=None, tol: float = 1e-9, max_iter: int = 200) -> tuple:
         """The energy terms' history (stick anchors) of :meth:`rest_state`, i.e.
         ``rest_state(...).history`` (all None when the contact law keeps none)."""
-        return self._rest(u, tol, max_iter).history
+        return self._rest.state(u, tol, max_iter).history
 
     def rest_sensitivity(self, params, u=None, tol: float = 1e-9, max_iter: int = 200) -> tuple:
         """``(x0, history0, dx0/dtheta (3n, ntheta), dhistory0/dtheta)`` of :meth:`rest_state`
@@ -210,13 +165,7 @@ class Simulator:
         :data:`~soft_envs.sim.parameters.PARAMETERS`): the rest state is the end of the
         relaxation's implicit steps, differentiated through the same recurrence as rollouts
         (:class:`~.sensitivity.ForwardSensitivities`, each step starting at rest)."""
-        params = self._parameters(params)
-        u = np.zeros(self.n_motors) if u is None else self._check_u(u)
-        key = (tuple(u.tolist()), tol, params)
-        if key not in self._rest_sens_cache:
-            rest, dx, dh = relax(self, u, tol, max_iter, params)
-            self._rest_sens_cache[key] = rest.x, rest.history, dx, dh
-        return self._rest_sens_cache[key]
+        return self._rest.sensitivity(self._parameters(params), u, tol, max_iter)
 
     def _parameters(self, params):
         """Names of physical parameters checked against this robot, or a
@@ -225,18 +174,12 @@ class Simulator:
             return params.check(self.system)
         return self.system.check_parameters(params)
 
-    def _rest(self, u, tol: float, max_iter: int) -> State:
-        u = np.zeros(self.n_motors) if u is None else self._check_u(u)
-        key = (tuple(u.tolist()), tol)
-        if key not in self._rest_cache:
-            self._rest_cache[key] = relax(self, u, tol, max_iter)
-        return self._rest_cache[key]
-
     def step(self, state, *args, factor_cache: FactorCache | None = None, **kwargs):
-        """One implicit-Euler step (paper eq. 4): ``step(state, u) -> State``, the state after
-        the step from :class:`State` ``state`` under controls ``u`` (n_motors,) (positions
-        ``x_{k+1}``, ``x_prev = state.x``, the anchors updated, ``k + 1``). The same loop body
-        as :meth:`rollout`: K chained steps from a state give the rollout from it bit for bit
+        """One control step (paper eq. 4; with :attr:`substeps` > 1, that many implicit-Euler
+        steps along the straight line from ``state.u`` to ``u``): ``step(state, u) -> State``,
+        the state after the step from :class:`State` ``state`` under controls ``u`` (n_motors,)
+        (positions ``x_{k+1}``, ``x_prev`` the positions one physics step before, the anchors
+        updated, ``k + 1``, ``u``). The same loop body as :meth:`rollout`: K chained steps from a state give the rollout from it bit for bit
         when they share one ``factor_cache`` (a :class:`FactorCache`, which lets a step reuse
         the factorisation of the step before, as a rollout does); without it a step starts
         afresh and its result depends on its inputs only. Raises :class:`SimulationError` on
@@ -254,7 +197,8 @@ class Simulator:
         if len(args) + len(kwargs) != 1 or set(kwargs) - {"u"}:
             raise TypeError("Simulator.step(state, u, *, factor_cache=None) takes the State and the controls u")
         u = args[0] if args else kwargs["u"]
-        return advance(self.newton, self._check_state(state), self._check_u(u), cache=factor_cache)[0]
+        return control_step(self.newton, self._check_state(state), self._check_u(u), self.substeps, self.robot.u_rest,
+                            cache=factor_cache)
 
     def _step_positions(self, x_prev, x_prev2, u, k: int | None = None, x_prev3=None,
                         factor_cache: FactorCache | None = None, history: tuple | None = None) -> np.ndarray:
@@ -302,9 +246,12 @@ class Simulator:
 
     def rollout(self, u, x0=None, dudz=None, *, x_prev0=None, store_dxdz: bool = False,
                 check_bounds: bool = True, history0: tuple | None = None, params=None,
-                dx0dtheta: np.ndarray | None = None, dhistory0dtheta: tuple | None = None) -> Trajectory:
+                dx0dtheta: np.ndarray | None = None, dhistory0dtheta: tuple | None = None,
+                keep_substeps: bool = False) -> Trajectory:
         """Simulate controls ``u`` (K, n_motors) from the state ``x0``: K chained
-        :meth:`step`\\ s sharing one factorisation cache.
+        :meth:`step`\\ s sharing one factorisation cache (:func:`~.rollout.run_rollout`). The
+        trajectory holds the ends of the control steps; ``keep_substeps`` also keeps the
+        sub-steps' positions and controls in ``traj.info["substep_x"]``, ``["substep_u"]``.
 
         ``x0`` is one of
 
@@ -343,42 +290,12 @@ class Simulator:
             start = self._start_state(x_rest, x_prev0, rest_h if history0 is None else history0)
         else:
             start = self._start_state(x0, x_prev0, history0)
-        sens = None
-        if dudz is not None:
-            dudz = np.asarray(dudz, dtype=np.float64)
-            if dudz.ndim != 3 or dudz.shape[:2] != (K, self.n_motors):
-                raise ValueError(f"dudz must have shape ({K}, {self.n_motors}, nz), got {dudz.shape}")
-            if not np.isfinite(dudz).all():
-                raise ValueError(f"dudz contains NaN or inf at {np.argwhere(~np.isfinite(dudz))[:5].tolist()}")
-        want_z = dudz is not None
-        if want_z or params:
-            dudz = np.zeros((K, self.n_motors, 0)) if dudz is None else dudz
-            sens = ForwardSensitivities(self.newton, self.robot.node_masses, dudz, store_dxdz, params=params,
-                                        dx0dtheta=dx0dtheta, dhistory0dtheta=dhistory0dtheta, x0=start.x)
-        cables = self.system.cables
-        xs = np.empty((K + 1, self.n_nodes, 3))
-        xs[0] = start.x
-        gam = np.empty((K + 1, cables.n_tendons))
-        gam[0] = cables.deformation(start.x, self.robot.u_rest)      # before the first control
-        iters = np.zeros(K, dtype=np.int64)
-        cache = FactorCache()
-        state = start
-        for k in range(K):
-            new, info = advance(self.newton, state, u[k], cache=cache, need_exact=sens is not None)
-            xs[k + 1] = new.x
-            iters[k] = info.iterations
-            gam[k + 1] = cables.deformation(new.x, u[k])
-            if sens is not None:
-                sens.step(k, info.solver, new.x, state.x, u[k], state.history, x_prev2=state.x_prev)
-            state = new
-        masses = self.robot.node_masses
-        com = np.einsum("kni,n->ki", xs, masses) / masses.sum()
-        traj = Trajectory(x=xs, com=com, cable_deformation=gam, u=u, newton_iterations=iters,
-                          info={"history": state.history, "state": state, "start": start})
-        if want_z:
-            traj.dcomdz, traj.dgammadz, traj.dxdz = sens.dcomdz, sens.dgammadz, sens.dxdz
+        sens = forward_sensitivities(self.newton, self.robot.node_masses, dudz, K, self.n_motors, self.substeps,
+                                     store_dxdz=store_dxdz, params=params, dx0dtheta=dx0dtheta,
+                                     dhistory0dtheta=dhistory0dtheta, x0=start.x)
+        traj = run_rollout(self.newton, self.robot, start, u, self.substeps, sens, want_z=dudz is not None,
+                           keep_substeps=keep_substeps)
         if params:
-            traj.dxdtheta, traj.dcomdtheta = sens.dxdtheta, sens.dcomdtheta
             traj.info["parameters"] = params.names if isinstance(params, ParameterBlock) else params
         return traj
 
@@ -389,16 +306,29 @@ class Simulator:
         ``dobj_dx`` (K+1, n, 3) holds ``do/dx_k`` (entry 0 ignored). Returns ``dO/du`` (K,
         n_motors), or ``dO/dz`` (nz,) when ``dudz`` is given. ``x0`` and ``history0`` as in
         :meth:`rollout`. Pass the ``traj`` of the same rollout to skip re-simulating it (with
-        ``x0`` and ``history0`` None, the gradient is of the rollout ``traj`` came from)."""
+        ``x0`` and ``history0`` None, the gradient is of the rollout ``traj`` came from; with
+        sub-steps it must hold them, ``rollout(..., keep_substeps=True)``, else the rollout is
+        simulated again). With sub-steps the adjoint runs over every physics step and its
+        gradient is carried back to the control steps (:func:`~.substeps.control_step_gradient`)."""
         u = self._check_u(u, K=len(np.asarray(u)))
-        if traj is None:
-            traj = self.rollout(u, x0=x0, check_bounds=False, history0=history0)
+        n = self.substeps
+        if traj is None or (n > 1 and "substep_x" not in traj.info):
+            if traj is not None and x0 is None and history0 is None:
+                x0 = traj.info.get("start")
+            traj = self.rollout(u, x0=x0, check_bounds=False, history0=history0, keep_substeps=n > 1)
+            x0 = history0 = None
         dobj_dx = np.asarray(dobj_dx, dtype=np.float64)
         if dobj_dx.shape != traj.x.shape:
             raise ValueError(f"dobj_dx must have shape {traj.x.shape}, got {dobj_dx.shape}")
         start = traj.info.get("start") if x0 is None and history0 is None else None
         start = self._start_state(x0, None, history0) if start is None else start
-        dOdu = adjoint_pass(self.newton, traj.x, u, dobj_dx, start=start)
+        if n == 1:
+            dOdu = adjoint_pass(self.newton, traj.x, u, dobj_dx, start=start)
+        else:                            # the objective sees the ends of the control steps only
+            fine = np.zeros(traj.info["substep_x"].shape)
+            fine[::n] = dobj_dx
+            dOdu = control_step_gradient(adjoint_pass(self.newton, traj.info["substep_x"], traj.info["substep_u"],
+                                                      fine, start=start), n)
         if dudz is None:
             return dOdu
         return np.einsum("km,kmz->z", dOdu, np.asarray(dudz, dtype=np.float64))

@@ -55,7 +55,13 @@ class State:
         stick anchors (a (c, 2) array of anchor x, z [m] per contact node), None for terms that
         keep none (the paper's law keeps none: all entries None).
     k : int
-        Steps taken since the start (``x`` is ``x_k``; a rest state has ``k = 0``).
+        Control steps taken since the start (``x`` is ``x_k``; a rest state has ``k = 0``). With
+        physics sub-steps (:mod:`.substeps`) the states inside a control step are not counted.
+    u : (n_motors,) array or None
+        The controls the state was reached with (the last step's; a rest state's: the
+        controls it was relaxed under), or None when not known. Sub-steps join the next
+        control step's controls to these by straight lines (:mod:`.substeps`); None there
+        means the robot's rest controls.
 
     At rest (:meth:`at_rest`): ``x_prev = x_prev2 = x``. States compare by identity; compare
     fields with ``np.array_equal``."""
@@ -65,6 +71,7 @@ class State:
     x_prev2: np.ndarray | None
     history: tuple
     k: int = 0
+    u: np.ndarray | None = None
 
     def __post_init__(self):
         x = _frozen(self.x, "x")
@@ -81,24 +88,28 @@ class State:
         history = tuple(None if h is None else _frozen(h, f"history[{i}]") for i, h in enumerate(self.history))
         if isinstance(self.k, bool) or not isinstance(self.k, (int, np.integer)) or self.k < 0:
             raise ValueError(f"State.k must be an integer >= 0, got {self.k!r}")
-        for name, value in {**arrays, "history": history, "k": int(self.k)}.items():
+        u = None if self.u is None else _frozen(self.u, "u")
+        if u is not None and u.ndim != 1:
+            raise ValueError(f"State.u must be a 1-D array of controls, got shape {u.shape}")
+        for name, value in {**arrays, "history": history, "k": int(self.k), "u": u}.items():
             object.__setattr__(self, name, value)
 
     def __reduce__(self):
         """Pickle (and copy) through the constructor, so an unpickled state is read-only too."""
-        return State, (self.x, self.x_prev, self.x_prev2, self.history, self.k)
+        return State, (self.x, self.x_prev, self.x_prev2, self.history, self.k, self.u)
 
     @classmethod
-    def at_rest(cls, x, history: tuple, k: int = 0) -> "State":
+    def at_rest(cls, x, history: tuple, k: int = 0, u=None) -> "State":
         """The body standing still at ``x``: ``x_prev = x_prev2 = x``, with the terms'
-        ``history`` (``Simulator.state_at_rest(x)`` supplies the anchors where it stands)."""
+        ``history`` (``Simulator.state_at_rest(x)`` supplies the anchors where it stands) and
+        the controls ``u`` it stands under (None: not known)."""
         x = _frozen(x, "x")
-        return cls(x, x, x, history, k)
+        return cls(x, x, x, history, k, u)
 
-    def advanced(self, x, history: tuple) -> "State":
-        """The state one step later: positions ``x`` (``x_{k+1}``) and the terms' ``history``
-        after the step."""
-        return State(x, self.x, self.x_prev, history, self.k + 1)
+    def advanced(self, x, history: tuple, u=None) -> "State":
+        """The state one step later: positions ``x`` (``x_{k+1}``), the terms' ``history``
+        after the step and the step's controls ``u``."""
+        return State(x, self.x, self.x_prev, history, self.k + 1, u)
 
     def replace(self, **changes) -> "State":
         """A copy with some fields changed (``dataclasses.replace``)."""
@@ -106,13 +117,13 @@ class State:
         return replace(self, **changes)
 
 
-def next_state(system, state: State, x: np.ndarray) -> State:
-    """The state after the step from ``state`` to positions ``x``: the terms' histories are
-    updated (``system.next_history``, the Coulomb anchors' stick or slide) when ``system`` keeps
-    any, else carried over. What a step does after solving eq. 4, and what the adjoint pass
-    re-walks."""
+def next_state(system, state: State, x: np.ndarray, u=None) -> State:
+    """The state after the step from ``state`` to positions ``x`` under controls ``u``: the
+    terms' histories are updated (``system.next_history``, the Coulomb anchors' stick or slide)
+    when ``system`` keeps any, else carried over. What a step does after solving eq. 4, and what
+    the adjoint pass re-walks."""
     history = system.next_history(x, state.x, state.history) if system.has_history else state.history
-    return state.advanced(x, history)
+    return state.advanced(x, history, u)
 
 
 def advance(newton, state: State, u: np.ndarray, *, cache=None, need_exact: bool = False):
@@ -125,4 +136,4 @@ def advance(newton, state: State, u: np.ndarray, *, cache=None, need_exact: bool
     x, info = newton.step(state.x, state.x_prev, u, state.k, need_exact=need_exact, x_prev3=state.x_prev2,
                           cache=cache, history=state.history)
     x.flags.writeable = False              # the solver's fresh array: the new state keeps it
-    return next_state(newton.system, state, x), info
+    return next_state(newton.system, state, x, u), info

@@ -59,6 +59,9 @@ def _add_optimize(sub) -> None:
                         "(II-C, viscous-like friction, Table I); default: the robot file's (the shipped "
                         "robots': coulomb), coulomb for the turn (it pivots on a foot that sticks); any law "
                         "registered in soft_envs.sim.contact.CONTACT_LAWS")
+    p.add_argument("--substeps", type=positive_int, default=None, metavar="N",
+                   help="physics steps per 0.033 s control step (default: the contact law's, 4 for coulomb, "
+                        "1 for paper, where the gaits' speeds converge: docs/fidelity.md)")
     sym = p.add_mutually_exclusive_group()
     sym.add_argument("--symmetry", dest="symmetry", action="store_true", default=None,
                      help="bilateral symmetry on (default for walk and incline)")
@@ -105,6 +108,9 @@ def _add_result_commands(sub) -> None:
     p.add_argument("--cycles", type=cycles, default=None, help="cycles to play (default: as optimised)")
     p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
     p.add_argument("--json", action="store_true", help="print the evaluation as one JSON object (for scripts)")
+    p.add_argument("--fidelity", action="store_true",
+                   help="also replay it with 2x, 4x and 8x finer physics steps and print each speed and the "
+                        "spread (how much the speed is the robot's and not the time step's: docs/fidelity.md)")
     p.set_defaults(func=_cmd_evaluate)
     n_cycles = GaitSpec().n_cycles
     p = sub.add_parser("render", help="animate a result (GIF through Pillow, MP4 with imageio-ffmpeg)",

@@ -31,13 +31,13 @@ __all__ = ["add_rl_parser"]
 def add_rl_parser(sub) -> argparse.ArgumentParser:
     """Add ``rl`` (with ``train``, ``evaluate``, ``export``) to the ``trajopt`` sub-parsers."""
     rl = sub.add_parser("rl", help="RL baseline (Stable-Baselines3 PPO / SAC) on the same simulator",
-                        description="RL baseline: Stable-Baselines3 PPO and SAC on SoftTripod-v1 / "
-                                    "SoftPuppy-v1, scored with trajopt's metric. Needs "
+                        description="RL baseline: Stable-Baselines3 PPO and SAC on SoftTripod-v2 / "
+                                    "SoftPuppy-v2, scored with trajopt's metric. Needs "
                                     "pip install soft-envs[rl].")
     rsub = rl.add_subparsers(dest="rl_command", required=True)
 
     p = rsub.add_parser("train", help="train a policy (checkpoints, TensorBoard + CSV logs)")
-    p.add_argument("robot", choices=sorted(ROBOTS), help="robot (environment SoftTripod-v1 / SoftPuppy-v1)")
+    p.add_argument("robot", choices=sorted(ROBOTS), help="robot (environment SoftTripod-v2 / SoftPuppy-v2)")
     p.add_argument("--algo", choices=ALGOS, default="ppo")
     p.add_argument("--timesteps", type=positive_int, default=30_000, help="environment steps to train for")
     p.add_argument("--seed", type=SEED, default=0)
@@ -53,7 +53,7 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--incline", type=slope_deg, default=0.0, help="ground slope [deg]")
     p.add_argument("--contact", type=contact_law, default=None, metavar="LAW",
                    help="ground contact law: coulomb (the default, feet that stick) or paper (II-C, Table I's; "
-                        "made as contact=\"paper\" on the -v1 id)")
+                        "made as contact=\"paper\" on the -v2 id)")
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--checkpoint-every", type=positive_int, default=None,
                    help="environment steps between checkpoints (default: a tenth of the budget)")

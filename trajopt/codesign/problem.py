@@ -98,10 +98,11 @@ class CodesignWeights:
         return asdict(self)
 
 
-def design_env(robot, contact: str, newton: Any = None):
-    """A gradient environment of a design's robot under ``contact``, with Newton options
-    ``newton`` (None: the environment's)."""
-    env = as_gradient_env(robot, contact=contact)
+def design_env(robot, contact: str, newton: Any = None, substeps: int | None = None):
+    """A gradient environment of a design's robot under ``contact`` with ``substeps`` physics
+    steps per control step (None: the law's default), with Newton options ``newton`` (None: the
+    environment's)."""
+    env = as_gradient_env(robot, contact=contact, substeps=substeps)
     if newton is not None:
         env.simulator.newton.options = newton
     return env
@@ -130,6 +131,7 @@ class CodesignProblem:
             raise ValueError("the design parameters must be built for the environment's robot "
                              "(load_design(env.robot, ...))")
         self.contact = self.env.contact_model
+        self.substeps = int(self.env.substeps)          # every design is simulated with the base's physics
         self.shipped = design
         self.block = design
         self.anchor = design.values.copy()         # the optimiser's theta of the block (move_to)
@@ -180,7 +182,7 @@ class CodesignProblem:
     def env_of(self, robot):
         """The gradient environment of a design's robot (same contact law; the last one is kept)."""
         if self._env_robot is not robot:
-            self._env, self._env_robot = design_env(robot, self.contact, self.newton), robot
+            self._env, self._env_robot = design_env(robot, self.contact, self.newton, self.substeps), robot
         return self._env
 
     def robot_at(self, theta: np.ndarray):

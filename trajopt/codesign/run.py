@@ -207,7 +207,7 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     say(f"wrote the designed robot {robot_file}")
     from .checks import check_designed_robot, format_checks
     checks = check_designed_robot(shipped.source, robot_file)
-    new_env = make_gradient_env(str(robot_file), contact=env.contact_model)
+    new_env = make_gradient_env(str(robot_file), contact=env.contact_model, substeps=env.substeps)
     name = run.name or f"{shipped.name}_walk"
     result = _gait_on_written_robot(run, new_env, gait, z_best, state, robot_file)
     result_file = run.out / f"{name}.npz"

@@ -159,6 +159,7 @@ class _ScoreJob:
     robot: Any
     contact: str
     newton: Any
+    substeps: int
     gait: Any
     target: float
     settings: ScreenSettings
@@ -169,7 +170,7 @@ class _ScoreJob:
 def _score(job: _ScoreJob):
     """:func:`_gait` of a job on a fresh environment of its robot, or ``SimulationError``'s text
     (a failed candidate, not a failed screening)."""
-    env = design_env(job.robot, job.contact, job.newton)
+    env = design_env(job.robot, job.contact, job.newton, job.substeps)
     try:
         return _gait(env, job.gait, job.target, job.settings, job.z0, job.search)
     except SimulationError as err:
@@ -297,7 +298,7 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
         if why is not None:
             rows[-1]["status"] = f"skipped: {why}"
             continue
-        jobs.append(_ScoreJob(robot, problem.contact, problem.newton, problem.gait, target, settings,
+        jobs.append(_ScoreJob(robot, problem.contact, problem.newton, problem.substeps, problem.gait, target, settings,
                               start_z if settings.score == "warm" else None, search))
     scores = scorer.map(jobs)                  # in the order of the rows left unscored above
     scored: list[tuple[float, str, np.ndarray, np.ndarray]] = []

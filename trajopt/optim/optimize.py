@@ -2,7 +2,7 @@
 
 >>> import gymnasium as gym, soft_envs
 >>> from trajopt import optimize_gait
->>> result = optimize_gait(gym.make("SoftTripod-v1"), task="walk")
+>>> result = optimize_gait(gym.make("SoftTripod-v2"), task="walk")
 >>> result.save("tripod_walk.npz")
 
 Tasks (:data:`trajopt.tasks.TASKS`): ``"walk"`` (straight line at ``speed_bl_per_min`` along
@@ -49,7 +49,7 @@ TASK_CONTACT = {name: t.contact for name, t in TASKS.items() if t.contact is not
 DEFAULT_SPEED = {"tripod": 8.0, "puppy": 10.0}
 #: the settings a resumed run must share with the interrupted one (besides the task)
 RESUME_KEYS = ("n_prep", "n_cycle", "n_cycles", "n_keyframes", "symmetry", "interpolation", "speed_bl_per_min", "heading_deg",
-               "turn", "incline_deg", "contact", "motor_limit")
+               "turn", "incline_deg", "contact", "substeps", "motor_limit")
 
 
 class GaitProblem:
@@ -145,7 +145,8 @@ def check_resume(resume: Result, task: str, settings: dict[str, Any],
     """The one check that an interrupted run ``resume`` can be continued with ``settings`` on
     the robot of ``fingerprint`` (the error names ``resume.settings["source"]``, its file, when set)."""
     saved = {**resume.settings, **GaitSpec.from_settings(resume.settings).to_settings(),
-             "contact": resume.settings.get("contact", "paper")}        # older results: the paper's law
+             "contact": resume.settings.get("contact", "paper"),         # older results: the paper's law,
+             "substeps": resume.settings.get("substeps", 1)}             # one physics step per control step
     differ = {k: (saved.get(k), settings[k]) for k in RESUME_KEYS if k in settings and saved.get(k) != settings[k]}
     source = resume.settings.get("source")
     if differ or resume.task != task:
@@ -330,7 +331,7 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
                 "incline_deg": float(env.incline_deg), "weights": weights.to_dict(),
                 "gauss_newton": asdict(options), "eval_cycles": eval_cycles,
                 "warm_start": warm_start.settings.get("source") if warm_start is not None else None,
-                "control": "length", "contact": env.contact_model}
+                "control": "length", "contact": env.contact_model, "substeps": int(env.substeps)}
     max_step = max_step_of_env(env) if motor_limit else None
     settings["motor_limit"] = settings_entry(robot, max_step, env.timestep)
     if resume is not None:

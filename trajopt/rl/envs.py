@@ -1,7 +1,7 @@
 """The environments the RL baseline trains and is evaluated on.
 
 The physics is the registered Gymnasium environment, unchanged (the latest ids,
-``SoftTripod-v1`` / ``SoftPuppy-v1``, under the Coulomb law by default or the paper's with
+``SoftTripod-v2`` / ``SoftPuppy-v2``, under the Coulomb law by default or the paper's with
 ``contact="paper"``: same simulator, motor speed limit, reward and termination as documented in
 :class:`soft_envs.envs.tripod.SoftTripodEnv`). Two choices are made here, both recorded in the
 run's ``rl_config.json``:
@@ -33,7 +33,7 @@ from gymnasium import spaces
 from ..optim.gait import DEFAULT_EVAL_CYCLES, GaitSpec
 
 __all__ = ["ROBOTS", "ROBOT_IDS", "COULOMB_IDS", "GAIT", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES",
-           "DropHorizontalPosition", "make_env", "robot_name", "env_id", "run_contact"]
+           "DropHorizontalPosition", "make_env", "robot_name", "env_id", "run_contact", "run_substeps"]
 
 #: robots of the RL baseline: the shipped robots (their Gymnasium ids: ``soft_envs.ENV_IDS_BY_ROBOT``)
 ROBOTS = ("tripod", "puppy")
@@ -44,7 +44,7 @@ TRAIN_HORIZON = GAIT.n_steps()
 
 
 def __getattr__(name: str):
-    """``ROBOT_IDS`` (robot -> ``-v0`` id) and ``COULOMB_IDS`` (robot -> ``-v1`` id), read from
+    """``ROBOT_IDS`` (robot -> ``-v0`` id) and ``COULOMB_IDS`` (robot -> the latest id, ``-v2``), read from
     ``soft_envs.ENV_IDS_BY_ROBOT`` on first use (``trajopt --help`` imports no soft_envs)."""
     law = {"ROBOT_IDS": "paper", "COULOMB_IDS": "coulomb"}.get(name)
     if law is None:
@@ -54,19 +54,18 @@ def __getattr__(name: str):
 
 
 def robot_name(robot: str) -> str:
-    """``"tripod"`` for ``"tripod"``, ``"SoftTripod-v0"`` or ``"SoftTripod-v1"`` (likewise the Puppy)."""
-    from soft_envs import ENV_IDS_BY_ROBOT
+    """``"tripod"`` for ``"tripod"``, ``"SoftTripod-v0"``, ``-v1`` or ``-v2`` (likewise the Puppy)."""
+    from soft_envs import ENV_ROBOTS
     if robot in ROBOTS:
         return robot
-    for name in ROBOTS:
-        if robot in ENV_IDS_BY_ROBOT[name].values():
-            return name
-    all_ids = sorted(i for name in ROBOTS for i in ENV_IDS_BY_ROBOT[name].values())
+    if ENV_ROBOTS.get(robot) in ROBOTS:
+        return ENV_ROBOTS[robot]
+    all_ids = sorted(i for i, name in ENV_ROBOTS.items() if name in ROBOTS)
     raise ValueError(f"robot must be one of {sorted(ROBOTS)} (or their ids {all_ids}), got {robot!r}")
 
 
 def env_id(robot: str) -> str:
-    """The registered id the RL baseline makes for ``robot``: the latest (``-v1``), under any
+    """The registered id the RL baseline makes for ``robot``: the latest (``-v2``), under any
     contact law given as its ``contact`` keyword (the paper's law is ``contact="paper"`` on it,
     not ``-v0``, which Gymnasium reports out of date)."""
     from soft_envs import LATEST_ENV_IDS
@@ -80,6 +79,17 @@ def run_contact(config: Mapping[str, Any]) -> str:
     from soft_envs import ENV_KWARGS
     kwargs = (config.get("env") or {}).get("env_kwargs") or {}
     return kwargs.get("contact") or ENV_KWARGS.get(config.get("env_id"), {}).get("contact", "paper")
+
+
+def run_substeps(config: Mapping[str, Any]) -> int | None:
+    """The physics steps per control step of a run from its ``rl_config.json``: its
+    ``env_kwargs["substeps"]`` (runs record it since sub-steps exist), else its id's (``-v0`` and
+    ``-v1``: 1; runs without an id: 1, made before sub-steps)."""
+    from soft_envs import ENV_KWARGS
+    kwargs = (config.get("env") or {}).get("env_kwargs") or {}
+    if kwargs.get("substeps") is not None:
+        return int(kwargs["substeps"])
+    return ENV_KWARGS.get(config.get("env_id"), {"substeps": 1}).get("substeps")
 
 
 class DropHorizontalPosition(gym.ObservationWrapper):

@@ -35,7 +35,7 @@ from ..optim.gait import GaitSpec
 from ..results.result import Result
 from ..results.robot_match import fingerprint_of
 from . import require_sb3
-from .envs import DEFAULT_EVAL_CYCLES, GAIT, make_env, run_contact
+from .envs import DEFAULT_EVAL_CYCLES, GAIT, make_env, run_contact, run_substeps
 from .training import CONFIG_NAME, MODEL_NAME, VECNORM_NAME
 
 __all__ = ["LoadedPolicy", "load_policy", "run_policy", "evaluate_policy_metric", "export_result",
@@ -156,6 +156,7 @@ def _eval_env(policy: LoadedPolicy, n_env_steps: int, reset_noise_scale: float):
     cfg = policy.config["env"]
     kwargs = dict(cfg.get("env_kwargs", {}))
     kwargs["contact"] = run_contact(policy.config)          # runs made before it was recorded: their id's law
+    kwargs["substeps"] = run_substeps(policy.config)        # ... and their id's physics steps
     kwargs.update(reset_noise_scale=float(reset_noise_scale), terminate_when_unhealthy=False)
     return make_env(cfg["robot"], frame_skip=int(cfg.get("frame_skip", 1)), max_episode_steps=n_env_steps,
                     drop_com_xz=bool(cfg.get("drop_com_xz", True)), env_kwargs=kwargs)
@@ -245,6 +246,7 @@ def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLik
         "env_kwargs": env_kwargs, "reset_noise_scale": float(reset_noise_scale),
         "heading_deg": float(env_kwargs.get("target_heading_deg", 0.0)),
         "incline_deg": float(env_kwargs.get("incline_deg", 0.0)), "contact": base.contact_model,
+        "substeps": int(base.substeps),
         "motor_speed_rpm": motor_rpm if motor_rpm != MOTOR_SPEED_FROM_ROBOT else [m.max_speed_rpm for m in robot.motors],
         "control": "length", "source": str(policy.path),
     }

@@ -1,4 +1,4 @@
-"""Training PPO / SAC (Stable-Baselines3) on ``SoftTripod-v1`` / ``SoftPuppy-v1`` (the Coulomb
+"""Training PPO / SAC (Stable-Baselines3) on ``SoftTripod-v2`` / ``SoftPuppy-v2`` (the Coulomb
 law by default, the paper's with ``contact="paper"``).
 
 A run writes one directory, ``OUT/NAME`` (default ``NAME = ROBOT_ALGO_seedS``)::
@@ -108,7 +108,10 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     env_kwargs.setdefault("task", "walk")
     # the law is recorded explicitly, so the run replays with it whatever the default becomes
     from soft_envs import ENV_KWARGS
+    from soft_envs.envs import CONTACT_LAWS
     env_kwargs.setdefault("contact", ENV_KWARGS[env_id(robot)]["contact"])
+    if env_kwargs.get("substeps") is None:          # and its physics steps (the law's default)
+        env_kwargs["substeps"] = int(CONTACT_LAWS[env_kwargs["contact"]].default_substeps)
     hp = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
     hp.update(hyperparams or {})
     checkpoint_every = int(checkpoint_every or max(timesteps // 10, 1))

@@ -40,7 +40,7 @@ def robustness_jobs(res: Result, cycles: int, samples: int, seed: int) -> tuple[
     s = res.settings
     common = dict(robot=res.robot, u=u, dt=float(res.dt), n_prep=n_prep, n_cycle=n_cycle,
                   heading_deg=float(s.get("heading_deg", 0.0)), incline_deg=float(s.get("incline_deg", 0.0)),
-                  seed=int(seed), contact=env.contact_model)
+                  seed=int(seed), contact=env.contact_model, substeps=int(env.substeps))
     return (SampleJob(index=-1, **common),
             [SampleJob(index=i, perturbation=draw_perturbation(seed, i), **common) for i in range(samples)])
 

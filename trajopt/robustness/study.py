@@ -96,6 +96,7 @@ class SampleJob:
     index: int
     perturbation: dict | None = None          # None: the nominal replay
     contact: str | None = None                # the gait's contact law (None: the robot file's)
+    substeps: int | None = None               # the gait's physics steps per control step (None: the law's)
 
 
 def perturbed_slope(incline_deg: float, uphill_deg: float, slope_deg: float, direction_deg: float
@@ -153,7 +154,8 @@ def run_sample(job: SampleJob) -> dict[str, Any]:
         out["slope_along_heading_deg"] = p["slope_deg"] * math.cos(math.radians(p["slope_direction_deg"]
                                                                                - job.heading_deg))
     try:
-        env = make_gradient_env(robot, incline_deg=incline, heading_deg=uphill, timestep=job.dt)
+        env = make_gradient_env(robot, incline_deg=incline, heading_deg=uphill, timestep=job.dt,
+                                substeps=job.substeps)
         traj = env.rollout(u)
     except SimulationError as err:
         out.update(speed_bl_per_min=float("nan"), upright=False, heading_drift_deg_per_cycle=float("nan"),

@@ -17,7 +17,10 @@ A law declares, as class attributes:
   for a law without friction;
 * ``parameters``: the physical parameters its gradient depends on
   (:meth:`~soft_envs.sim.terms.EnergyTerm.add_parameter_jacobian`); unless a law sets it,
-  ``contact_stiffness`` and its friction parameter.
+  ``contact_stiffness`` and its friction parameter;
+* ``default_substeps``: the physics steps per 0.033 s control step it is simulated with when
+  none are asked for (the environments' ``substeps=None``, ``trajopt``'s default): the sub-steps
+  that make its gaits' speeds converge (docs/fidelity.md). 1 unless a law sets it.
 """
 from __future__ import annotations
 
@@ -81,6 +84,7 @@ class ContactLaw(EnergyTerm):
     contact_parameters: tuple[ContactParameter, ...] = (STIFFNESS, BLEND)
     friction_parameter: str | None = None
     parameters: tuple[str, ...] = ("contact_stiffness",)
+    default_substeps: int = 1
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

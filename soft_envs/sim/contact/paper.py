@@ -104,6 +104,10 @@ class GroundContact(ContactLaw):
     model = "paper"
     contact_parameters = (STIFFNESS, BLEND, FRICTION_WEIGHT)
     friction_parameter = "friction"
+    #: the paper's physics: one implicit-Euler step of 0.033 s per control step. Its friction
+    #: force is proportional to the step (``2 mu_f N v h``), so the law is defined at its step
+    #: and Table I is made with it (``-v0``)
+    default_substeps = 1
 
     def __init__(self, robot):
         super().__init__(robot)
