@@ -16,8 +16,9 @@ Exit codes of :func:`run_play`:
 * 2 -- invalid input (result file, hardware TOML, trajectory limits): nothing was sent;
 * 3 -- some motor was NOT confirmed stopped (whatever else happened): the message names it;
 * 128 + the signal's number -- interrupted, every motor confirmed stopped: 130 Ctrl-C (SIGINT),
-  143 SIGTERM, 129 SIGHUP (also when the signal came during the stop sequence, which it
-  never cuts short).
+  143 SIGTERM, 129 SIGHUP, 131 Ctrl-\\ (SIGQUIT), 138 SIGUSR1 ... (every catchable signal whose
+  default action ends the process; also when the signal came during the stop sequence, which
+  it never cuts short).
 
 Every way out -- the last step, an error, any exception, a signal, the port vanishing -- runs
 the same stop sequence and prints the same report (``motors confirmed stopped: ...``).
@@ -60,7 +61,8 @@ def add_play_parser(subparsers: Any) -> argparse.ArgumentParser:
                     "zeroed before playing.",
         epilog="exit codes: 0 played, every motor confirmed stopped; 1 error, every motor confirmed stopped; "
                "2 bad input, nothing sent; 3 some motor NOT confirmed stopped (cut its power); "
-               "128+N ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), every motor confirmed stopped")
+               "128+N ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT ...), every motor "
+               "confirmed stopped")
     parser.add_argument("result", metavar="RESULT", help="trajectory-optimisation result (trajopt.results.Result)")
     parser.add_argument("--hardware", required=True, metavar="HW.toml", help="hardware description (TOML)")
     parser.add_argument("--dry-run", action="store_true", help="check and describe the plan, open no port")

@@ -14,7 +14,8 @@ motor per step on the grid ``start + k * dt`` (absolute deadlines, so sleep
 errors never accumulate), read every encoder back, append commanded vs
 measured counts to a CSV flushed after each row and abort when a motor stays
 off its target (:class:`~.monitor.TrackingMonitor`); finally -- also on any
-exception, Ctrl-C (SIGINT), SIGTERM or SIGHUP (:class:`~.signals.StopSignals`
+exception, Ctrl-C (SIGINT), SIGTERM, SIGHUP, Ctrl-\\ (SIGQUIT) or any other catchable signal that
+would end the process (:class:`~.signals.StopSignals`
 raises them as KeyboardInterrupt / :class:`~.signals.Terminated` until the stop
 begins, then holds them) -- stop both channels of every reachable controller
 and confirm each stop by reading it back (:func:`~.stop.stop_motors`).  The
@@ -289,7 +290,7 @@ def play_trajectory(u_post: Any, dt: float, motor_names: Sequence[str], config: 
         PlaybackError: pre-flight failure (e.g. low battery, unsupported firmware);
             :class:`TrackingError` when a motor stays off its target.
         RoboClawError: communication failure.
-        KeyboardInterrupt / :class:`~.signals.Terminated`: SIGINT / SIGTERM, SIGHUP received
+        KeyboardInterrupt / :class:`~.signals.Terminated`: SIGINT / SIGTERM, SIGHUP, SIGQUIT ... received
             (during the playback or its stop).
         Any of these only after the stop sequence ran: its :class:`StopReport` is
         ``exc.stop_report`` (and a note on the exception).
@@ -307,7 +308,7 @@ def play_trajectory(u_post: Any, dt: float, motor_names: Sequence[str], config: 
         except OSError as exc:
             raise ValueError(f"cannot write the playback log {os.fspath(log_path)}: {exc}") from exc
     guard = StopSignals(notify=run.progress.say)
-    with guard:  # SIGINT / SIGTERM / SIGHUP: raised (into the stop below) until the stop begins, then held
+    with guard:  # SIGINT, SIGTERM, SIGHUP, SIGQUIT ...: raised (into the stop below) until the stop begins, then held
         try:
             run.open(open_port or _default_open)
             run.preflight(zero_encoders)
