@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from ..evaluation import evaluate_result
+from ..hardware.signals import Terminated
 from ..results.files import RESULTS_DIR
 from ..optimize_run import OptimizeRun, run_optimization
 from ..progress import IterationProgress
@@ -76,6 +77,8 @@ def run_optimize(args) -> int:
                                 (lambda first: IterationProgress(run.iterations, first=first)))
     except KeyboardInterrupt:              # the checkpoint is saved and the way on printed
         return 130
+    except Terminated as exc:              # SIGTERM, SIGHUP: as Ctrl-C
+        return 128 + exc.signum
     if done is not None:
         _report(*done, time.perf_counter() - t0)
     return 0
