@@ -26,6 +26,7 @@ from .optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
 from .optim.optimize import optimize_gait
 from .results.reservation import lock_path, reserve
+from .results.robot_match import robot_reference
 from .results.result import Result, partial_path, result_path
 from .tasks.registry import get_task
 
@@ -256,7 +257,7 @@ def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Resul
         print(f"resuming the --speed max search in {folder}")
     try:
         res, rows = fastest_gait(env, settings=settings, cycle_steps=run.cycle_steps, heading_deg=run.heading,
-                                 robot_spec=run.robot, quiet=run.quiet, checkpoint=folder, resume=resume)
+                                 robot_spec=robot_reference(run.robot), quiet=run.quiet, checkpoint=folder, resume=resume)
     except (KeyboardInterrupt, Terminated) as exc:
         by = "" if isinstance(exc, KeyboardInterrupt) else f" by {signal_label(exc.signum)}"
         n = _finished_runs(folder)
@@ -313,7 +314,7 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
     try:
         res = optimize_gait(env, task.name, gait=gait, speed_bl_per_min=run.speed, heading_deg=run.heading,
                             turn=run.turn, options=options, warm_start=warm, n_seeds=run.seeds,
-                            eval_cycles=run.cycles, robot_spec=run.robot, callback=checkpoint, resume=resume,
+                            eval_cycles=run.cycles, robot_spec=robot_reference(run.robot), callback=checkpoint, resume=resume,
                             motor_limit=not run.no_motor_limit)
     except (KeyboardInterrupt, Terminated) as exc:     # Ctrl-C, SIGTERM, SIGHUP: the same way out
         if progress is not None:

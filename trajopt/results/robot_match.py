@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["RobotMismatchError", "IGNORE_FLAG", "fingerprint_of", "describe_difference", "check_robot",
-           "check_hardware_robot", "check_for_play"]
+           "check_hardware_robot", "check_for_play", "robot_reference", "locate_robot"]
 
 IGNORE_FLAG = "--ignore-robot-mismatch"
 #: robot.toml fields a result records itself and replays with, whatever the file says now: the
@@ -31,6 +31,36 @@ RESULT_OWNED_FIELDS = frozenset({"[contact].model"})
 
 class RobotMismatchError(ValueError):
     """A result used with a robot other than the one it was made for."""
+
+
+def _is_path(robot: str) -> bool:
+    """A robot given as a ``robot.toml`` path, not a shipped name (as ``load_robot`` tells them apart)."""
+    p = Path(robot)
+    return p.suffix == ".toml" or p.is_file()
+
+
+def robot_reference(robot: Any) -> str:
+    """How a result records its robot: a shipped name as given, a ``robot.toml`` path made
+    absolute (a relative one would only be found from the folder the result was made in)."""
+    text = str(robot)
+    return str(Path(text).resolve()) if _is_path(text) else text
+
+
+def locate_robot(res: Any) -> str:
+    """The robot a result names, as it can be found now: its ``robot`` (a shipped name, or a
+    robot.toml path: absolute since issue #40, relative to where it was made before), else, when
+    that path is not found, the file of that name beside the result, or the path taken relative
+    to the result's folder (a result folder copied or moved with its robot, e.g. a co-design's).
+    Whether the robot found is the one the result was made for is :func:`check_robot`'s to say."""
+    robot = str(res.robot)
+    p = Path(robot)
+    if not _is_path(robot) or p.is_file() or not getattr(res, "path", None):
+        return robot
+    folder = Path(res.path).parent
+    for candidate in (folder / p.name, *(() if p.is_absolute() else (folder / p,))):
+        if candidate.is_file():
+            return str(candidate)
+    return robot
 
 
 def fingerprint_of(robot: Any) -> dict[str, Any]:
@@ -154,7 +184,7 @@ def check_for_play(res: Any, hw_robot: str, hw_path: str, *, src: str, ignore: b
         notes.append(note)
     if getattr(res, "robot_fingerprint", None):
         try:
-            current = fingerprint_of(res.robot)
+            current = fingerprint_of(locate_robot(res))
         except ImportError:
             notes.append(f"the robot files of {src} were not checked (soft_envs is not installed)")
         except ValueError as exc:
