@@ -206,6 +206,8 @@ def _add_identification_commands(sub) -> None:
                         "above 3x what it explains is refused (docs/calibration.md)")
     p.add_argument("--force", action="store_true",
                    help="write the robot even when a check of the tracks or the fit fails (printed as warnings)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a calibration in --out (robot.toml, calibration.json, tracks.png)")
     p.add_argument("--contact", type=contact_law, default=None, metavar="LAW",
                    help="ground contact law of the fit: coulomb or paper (default: the robot file's; the "
                         "shipped examples/data tracks were made under the paper's law); written to the new robot.toml")
