@@ -145,8 +145,10 @@ def check_hardware_robot(hw_robot: str, hw_path: str, res: Any, *, src: str, ign
                          fingerprint: Any = fingerprint_of) -> str | None:
     """Check the hardware file's ``robot`` (a robot name, or a ``robot.toml`` path relative to
     the hardware file) against the robot ``res`` was made for, as :func:`check_robot` does
-    (raise, or return a warning with ``ignore``). An empty ``robot`` is not checked; a path is
-    compared by fingerprint when ``soft_envs`` is importable, by file otherwise."""
+    (raise, or return a warning with ``ignore``). An empty ``robot`` is not checked. A path, and
+    a shipped robot's name, are compared by fingerprint when ``soft_envs`` is importable (a
+    co-designed or edited robot keeps its name, and is another robot); by file, or by name,
+    otherwise."""
     if not hw_robot or getattr(res, "robot", None) is None:       # nothing to compare
         return None
     saved = getattr(res, "robot_fingerprint", None) or {}
@@ -163,6 +165,14 @@ def check_hardware_robot(hw_robot: str, hw_path: str, res: Any, *, src: str, ign
     else:
         same = hw_robot in (res.robot, saved.get("name"))
         label = f"robot {hw_robot!r}"
+        if same and saved:                 # the name is not enough: the shipped robot of that name
+            try:
+                theirs = fingerprint(hw_robot)
+            except (ImportError, ValueError):     # no simulator here, or no shipped robot of that name
+                theirs = None
+            if theirs:
+                what = describe_difference(saved, theirs)
+                same, label = what is None, f"{_label(theirs)}, the shipped robot of that name"
     if same:
         return None
     made_for = _label(saved) if saved else f"robot {res.robot!r}"
