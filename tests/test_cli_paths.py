@@ -199,3 +199,19 @@ def test_a_result_of_a_relative_robot_path_is_found_from_anywhere(robot_dir, tmp
     folder.rename(moved)
     assert main(["evaluate", str(moved / "r.npz"), "--cycles", "1"]) in (0, 1), capsys.readouterr().err
     assert "not found" not in capsys.readouterr().err
+
+
+def test_evaluate_says_a_gait_was_made_without_the_motor_limit(tmp_path, capsys):
+    """Issue #40: evaluate of a --no-motor-limit gait said nothing about the limit it breaks."""
+    assert optimize(tmp_path, "--iterations", "0", "--no-motor-limit", "--name", "free") == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(tmp_path / "free.npz"), "--cycles", "1"]) in (0, 1)
+    out = capsys.readouterr().out
+    assert "motor limit" in out and "made without it (--no-motor-limit)" in out and "largest step" in out, out
+    assert main(["evaluate", str(tmp_path / "free.npz"), "--cycles", "1", "--json"]) in (0, 1)
+    import json
+    assert json.loads(capsys.readouterr().out)["within_motor_limit"] is False
+    assert optimize(tmp_path, "--iterations", "0", "--name", "limited") == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(tmp_path / "limited.npz"), "--cycles", "1"]) in (0, 1)
+    assert "made without it" not in capsys.readouterr().out
