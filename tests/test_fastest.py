@@ -240,3 +240,24 @@ def test_a_plain_overwrite_removes_an_earlier_searchs_table(speed_max, tmp_path)
                  "1", "--cycles", "1", "--quiet", "--overwrite", "--out", str(tmp_path)]) == 0
     assert "search" not in Result.load(tmp_path / "tripod_walk.npz").settings
     assert not any(p.exists() for p in search_table_paths(tmp_path / "tripod_walk.npz"))
+
+
+def test_a_search_checkpoint_of_another_search_or_damaged_is_refused(tmp_path):
+    """--speed max --resume checks its checkpoint: another search's (settings, robot, law) is
+    refused naming what differs; a damaged state.json names the file."""
+    import json
+
+    from trajopt.fastest import SearchCheckpoint
+    identity = {"settings": {"seeds": 1, "keyframes": [4]}, "contact": "coulomb"}
+    store = SearchCheckpoint(tmp_path / "m.search.partial", identity)
+    store.start([])
+    assert store.load() == ([], "running")
+    other = SearchCheckpoint(store.folder, {"settings": {"seeds": 2, "keyframes": [4]}, "contact": "coulomb"})
+    with pytest.raises(ValueError, match=r"cannot resume: .*settings\.seeds: 1 -> 2.*--overwrite"):
+        other.load()
+    store.state_file.write_text(json.dumps({"identity": identity, "rows": [{"stage": "coarse"}]}))
+    with pytest.raises(ValueError, match=r"state\.json: field 'rows'"):
+        store.load()
+    store.state_file.write_text('{"identity": {')
+    with pytest.raises(ValueError, match=r"state\.json: not JSON"):
+        store.load()
