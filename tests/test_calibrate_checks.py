@@ -170,3 +170,68 @@ def test_non_utf8_tracks_name_the_file_and_byte_offset(setup, tmp_path, capsys):
     code = main(["calibrate", "tripod", "--markers", str(f), "--controls", str(setup["gait"]),
                  "--fit", "youngs_modulus", "--marker-points", str(bad_points), "--out", str(tmp_path / "o")])
     assert code == 2 and "points.csv: not UTF-8 text: byte 0xff at offset" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------- issue #40
+def test_tracks_in_centimetres_get_a_centimetre_hint(setup, tmp_path, capsys):
+    """Tracks in centimetres were told "millimetres: divide by 1000"."""
+    code, out = calibrate(setup, tmp_path, setup["times"], 100.0 * setup["pos"])
+    err = capsys.readouterr().err
+    assert code == 2 and refused(out), err
+    assert "tracks look like centimetres: divide x, y, z by 100" in err and "1000" not in err, err
+
+
+def test_an_offset_hidden_by_a_large_noise_is_caught_as_a_model_misfit(setup, tmp_path, capsys):
+    """``--noise 0.05`` with a 5 cm offset passed every check and wrote a far wrong E: the
+    residual is mostly a constant offset per marker, which no physical parameter explains."""
+    code, out = calibrate(setup, tmp_path, setup["times"], setup["pos"] + 0.05, "--noise", "0.05")
+    err = capsys.readouterr().err
+    assert code == 2 and refused(out), err
+    assert "model-misfit" in err and "constant offset" in err and "--noise 0.05" in err, err
+
+
+def test_a_second_calibration_into_the_same_folder_needs_overwrite(setup, tmp_path, capsys):
+    """Defect 5: a second calibrate into the same --out replaced the first's files."""
+    code, out = calibrate(setup, tmp_path, setup["times"], setup["pos"])
+    assert code == 0
+    first = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert {"robot.toml", "calibration.json", "tracks.png"} <= set(first)
+    code, _ = calibrate(setup, tmp_path, setup["times"], setup["pos"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--overwrite" in err and "holds a calibration" in err, err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == first
+    code, _ = calibrate(setup, tmp_path, setup["times"], setup["pos"], "--overwrite")
+    assert code == 0 and (out / "calibration.json").read_bytes() != first["calibration.json"]
+
+
+def test_a_calibration_folder_is_reserved_while_a_run_lives(setup, tmp_path, capsys):
+    import json
+    import os
+    import platform
+    import time
+    out = tmp_path / "calib"
+    out.mkdir()
+    (out / "calibrate.lock").write_text(json.dumps({"pid": os.getppid(), "host": platform.node(),
+                                                    "started": time.time(), "command": "trajopt calibrate"}))
+    code, _ = calibrate(setup, tmp_path, setup["times"], setup["pos"])
+    err = capsys.readouterr().err
+    assert code == 2 and "calibrate.lock" in err and f"pid {os.getppid()} " in err, err
+    assert sorted(p.name for p in out.iterdir()) == ["calibrate.lock"]
+
+
+def test_the_shipped_tracks_with_an_offset_and_a_large_noise_are_refused(tmp_path, capsys):
+    """The red team's case: the shipped example tracks 5 cm off, --noise 0.05: every check
+    passed and a wrong E was written. The model-misfit check refuses it."""
+    root = Path(__file__).resolve().parents[1] / "examples" / "data"
+    lines = (root / "tripod_tracks.csv").read_text().splitlines()
+    moved = [lines[0]] + [",".join(r.split(",")[:2] + [f"{float(v) + 0.05!r}" for v in r.split(",")[2:5]])
+                          for r in lines[1:] if r.strip()]
+    tracks = tmp_path / "offset.csv"
+    tracks.write_text("\n".join(moved) + "\n")
+    out = tmp_path / "calib"
+    code = main(["calibrate", "tripod", "--markers", str(tracks), "--controls", str(root / "tripod_gait.npz"),
+                 "--marker-points", str(root / "tripod_markers.csv"), "--fit", "youngs_modulus", "--contact", "paper",
+                 "--noise", "0.05", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and refused(out), err
+    assert "model-misfit" in err and "constant offset" in err, err

@@ -167,3 +167,51 @@ def test_play_a_real_result_on_the_emulator(tmp_path, capsys):
     expected = np.rint(res.u_post / 0.005 / (2.0 * math.pi) * 3575.04)
     np.testing.assert_array_equal(data[:, [2, 4]], expected)
     assert np.abs(data[:, [3, 5]]).max() > 0.5 * np.abs(expected).max()      # the motors moved
+
+
+def test_play_loops_an_optimised_gaits_cycles_not_its_prep(walk, capsys):
+    """Issue #40: ``play --loops N`` replayed the prep phase, so every optimised gait was refused
+    (the jump from the last cycle back to rest); the prep is played once, the cycles N times."""
+    from trajopt.hardware.config import EXAMPLE_TRIPOD
+    capsys.readouterr()
+    assert main(["play", str(walk), "--hardware", str(EXAMPLE_TRIPOD), "--dry-run", "--loops", "3"]) == 0, \
+        capsys.readouterr().err
+    text = capsys.readouterr()
+    assert f"{4 + 3 * 2 * 12} steps (4 prep samples once, then 24 samples of cycles x 3 loops)" in text.out + text.err
+
+
+def test_a_result_of_a_relative_robot_path_is_found_from_anywhere(robot_dir, tmp_path, monkeypatch, capsys):
+    """Issue #40: a result recorded its robot path as typed (relative): evaluated from another
+    folder, "robot file not found". It records the absolute path, and a robot.toml beside the
+    result is found when the recorded one is gone (a folder moved with its robot)."""
+    import shutil
+    folder = tmp_path / "robots"
+    folder.mkdir()
+    for name in ("robot.toml", "tripod.vtu"):
+        shutil.copy(robot_dir / name, folder / name)
+    monkeypatch.chdir(tmp_path)
+    assert main(["optimize", "robots/robot.toml", *TINY, "--iterations", "0", "--out", "robots", "--name", "r"]) == 0
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert main(["evaluate", str(folder / "r.npz"), "--cycles", "1"]) in (0, 1)
+    moved = tmp_path / "moved"
+    folder.rename(moved)
+    assert main(["evaluate", str(moved / "r.npz"), "--cycles", "1"]) in (0, 1), capsys.readouterr().err
+    assert "not found" not in capsys.readouterr().err
+
+
+def test_evaluate_says_a_gait_was_made_without_the_motor_limit(tmp_path, capsys):
+    """Issue #40: evaluate of a --no-motor-limit gait said nothing about the limit it breaks."""
+    assert optimize(tmp_path, "--iterations", "0", "--no-motor-limit", "--name", "free") == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(tmp_path / "free.npz"), "--cycles", "1"]) in (0, 1)
+    out = capsys.readouterr().out
+    assert "motor limit" in out and "made without it (--no-motor-limit)" in out and "largest step" in out, out
+    assert main(["evaluate", str(tmp_path / "free.npz"), "--cycles", "1", "--json"]) in (0, 1)
+    import json
+    assert json.loads(capsys.readouterr().out)["within_motor_limit"] is False
+    assert optimize(tmp_path, "--iterations", "0", "--name", "limited") == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(tmp_path / "limited.npz"), "--cycles", "1"]) in (0, 1)
+    assert "made without it" not in capsys.readouterr().out

@@ -102,3 +102,41 @@ def test_scratch_scored_screening_runs(tmp_path, done):
                  "--baseline", str(done / "baseline_walk.npz"), "--out", str(out)]) == 0
     summary = json.loads((out / "codesign.json").read_text())
     assert summary["checks_passed"] and summary["after_bl_per_min"] > 0
+
+
+def _contents(folder):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def test_resume_of_a_finished_codesign_has_nothing_to_do(done, capsys):
+    """Issue #40 defect 2: --resume on a finished folder ran again and replaced it."""
+    before = _contents(done)
+    assert main(["codesign", "tripod", "--quick", "--quiet", "--resume", "--out", str(done)]) == 0
+    assert "nothing to resume" in capsys.readouterr().out
+    assert _contents(done) == before
+
+
+def test_resume_of_a_finished_codesign_with_another_vary_is_refused(done, capsys):
+    before = _contents(done)
+    assert main(["codesign", "tripod", "--quick", "--quiet", "--resume", "--vary", "legs", "--out", str(done)]) == 2
+    err = capsys.readouterr().err
+    assert "varied stiffness,routing,legs, not --vary legs" in err and "--overwrite" in err, err
+    assert _contents(done) == before
+
+
+def test_a_codesign_folder_moved_elsewhere_still_works(done, tmp_path, monkeypatch):
+    """Issue #40: the written robot pointed to the shipped mesh by a relative path and its
+    results to the robot by the path typed: a copied or moved folder broke. The folder holds
+    its mesh, and its results find the robot beside them."""
+    from soft_envs.sim.robot_file import read_robot_toml
+    assert read_robot_toml(done / "robot.toml")["robot"]["mesh"] == "mesh.vtu"
+    moved = tmp_path / "far" / "away"
+    moved.parent.mkdir()
+    done.rename(moved)
+    try:
+        monkeypatch.chdir(tmp_path)
+        for name in ("tripod_walk.npz", "tripod_walk_reoptimised.npz"):
+            ev = evaluate_result(Result.load(moved / name), 1)
+            assert ev["cycles"] == 1
+    finally:
+        moved.rename(done)

@@ -74,16 +74,19 @@ def test_workers_and_resume_give_the_serial_result(serial):
     assert again.path == end.path and p.sim_steps == steps
 
 
-def test_an_interruption_mid_round_stops_every_worker():
+@pytest.mark.parametrize("error", [KeyboardInterrupt, RuntimeError])
+def test_an_interruption_or_an_error_mid_round_stops_every_worker(error):
+    """Ctrl-C (or SIGTERM, SIGHUP: raised as exceptions by the command line) or an exception
+    in the main process while the workers score (issue #40 defect 4: every way out)."""
     p = _problem()
     rows = []
 
     def interrupt(row):
         rows.append(row)
         if len(rows) == 2:
-            raise KeyboardInterrupt
+            raise error("stop")
 
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(error):
         _screen(p, workers=2, done=interrupt)
     assert multiprocessing.active_children() == []
 

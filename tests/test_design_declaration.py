@@ -156,6 +156,23 @@ def test_a_written_design_loads_back_and_is_another_robot(robot_dir, tmp_path):
         write_designed_robot(design, theta, robot_dir)
 
 
+def test_a_written_design_is_a_self_contained_folder(robot_dir, tmp_path):
+    """Issue #40: a design that keeps the mesh pointed to the source's mesh by a relative path,
+    so a copied (or moved) folder broke; its mesh is copied in, and any copy of the folder
+    loads as the same robot."""
+    robot = with_design(robot_dir)
+    design = load_design(robot, ["stiffness"])
+    theta = design.values.copy()
+    theta[0] *= 1.7
+    path = write_designed_robot(design, theta, tmp_path / "a" / "designed")
+    assert read_robot_toml(path)["robot"]["mesh"] == "mesh.vtu" and (path.parent / "mesh.vtu").is_file()
+    copy = Path(shutil.copytree(path.parent, tmp_path / "elsewhere" / "deeper" / "copy"))
+    shutil.rmtree(path.parent)
+    back = load_robot(copy / "robot.toml")
+    assert np.allclose(back.element_lame()[0], design.robot_at(theta).element_lame()[0])
+    assert robot_fingerprint(copy / "robot.toml")["mesh_sha256"] == robot_fingerprint(robot)["mesh_sha256"]
+
+
 @pytest.mark.parametrize("name", ["tripod", "puppy"])
 def test_shipped_via_points_sit_on_the_clearance_bound(name):
     """Every tendon point of the shipped robots lies at least 2 mm inside the body, most exactly

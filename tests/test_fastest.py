@@ -130,7 +130,6 @@ def test_speed_max_pins_the_cycle(tmp_path, monkeypatch):
     (["--task", "turn"], "--speed max finds the fastest walk: it needs --task walk, got --task turn"),
     (["--task", "incline"], "--speed max finds the fastest walk: it needs --task walk, got --task incline"),
     (["--no-motor-limit"], "--speed max cannot be combined with --no-motor-limit"),
-    (["--resume"], "--speed max cannot be combined with --resume"),
 ])
 def test_speed_max_refuses_what_it_cannot_do(tmp_path, capsys, args, message):
     assert main(["optimize", "tripod", "--speed", "max", *args, "--quiet", "--out", str(tmp_path)]) == 2
@@ -203,3 +202,62 @@ def test_revisit_runs_the_shorter_cycles_from_the_fastest_coarse_gait():
     none_upright = Search([run_of(8, 4, 26.6, upright=False)])
     _revisit(none_upright, settings, candidates)
     assert none_upright.calls == []
+
+
+@pytest.mark.parametrize("budget", [None, 100_000])
+def test_no_candidate_that_can_be_simulated_is_said_so(tmp_path, capsys, monkeypatch, budget):
+    """Issue #40 defect 6: every candidate failing to simulate ended in a TypeError traceback
+    (a budget of None formatted), or with --max-sim-steps blamed the budget."""
+    import trajopt.fastest as fastest
+    from soft_envs.envs import SimulationError
+
+    def fails(*args, **kw):
+        raise SimulationError("Newton did not converge")
+
+    monkeypatch.setattr(fastest, "optimize_gait", fails)
+    monkeypatch.setenv("SOFT_ENVS_QUICK", "1")
+    extra = [] if budget is None else ["--max-sim-steps", str(budget)]
+    assert main(["optimize", "tripod", "--speed", "max", *extra, "--quiet", "--out", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "no candidate could be simulated" in err and "Newton did not converge" in err and "budget" not in err, err
+    assert not (tmp_path / "tripod_walk.npz").exists()
+
+
+def test_max_sim_steps_without_speed_max_is_refused(tmp_path, capsys):
+    """Issue #40: --max-sim-steps was silently ignored without --speed max."""
+    assert main(["optimize", "tripod", "--max-sim-steps", "500", "--quiet", "--out", str(tmp_path)]) == 2
+    assert "--max-sim-steps 500 is the budget of the --speed max search" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_plain_overwrite_removes_an_earlier_searchs_table(speed_max, tmp_path):
+    """Issue #40: a plain --overwrite left the old --speed max result's NAME.search.csv/.md
+    beside a result that no search made."""
+    import shutil
+    for p in (speed_max, speed_max.with_suffix(".json"), *search_table_paths(speed_max)):
+        shutil.copy(p, tmp_path / p.name)
+    assert main(["optimize", "tripod", "--iterations", "0", "--prep-steps", "4", "--cycle-steps", "12", "--seeds",
+                 "1", "--cycles", "1", "--quiet", "--overwrite", "--out", str(tmp_path)]) == 0
+    assert "search" not in Result.load(tmp_path / "tripod_walk.npz").settings
+    assert not any(p.exists() for p in search_table_paths(tmp_path / "tripod_walk.npz"))
+
+
+def test_a_search_checkpoint_of_another_search_or_damaged_is_refused(tmp_path):
+    """--speed max --resume checks its checkpoint: another search's (settings, robot, law) is
+    refused naming what differs; a damaged state.json names the file."""
+    import json
+
+    from trajopt.fastest import SearchCheckpoint
+    identity = {"settings": {"seeds": 1, "keyframes": [4]}, "contact": "coulomb"}
+    store = SearchCheckpoint(tmp_path / "m.search.partial", identity)
+    store.start([])
+    assert store.load() == ([], "running")
+    other = SearchCheckpoint(store.folder, {"settings": {"seeds": 2, "keyframes": [4]}, "contact": "coulomb"})
+    with pytest.raises(ValueError, match=r"cannot resume: .*settings\.seeds: 1 -> 2.*--overwrite"):
+        other.load()
+    store.state_file.write_text(json.dumps({"identity": identity, "rows": [{"stage": "coarse"}]}))
+    with pytest.raises(ValueError, match=r"state\.json: field 'rows'"):
+        store.load()
+    store.state_file.write_text('{"identity": {')
+    with pytest.raises(ValueError, match=r"state\.json: not JSON"):
+        store.load()

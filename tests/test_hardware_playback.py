@@ -384,3 +384,58 @@ def test_cli_input_errors(fake_results: dict, tmp_path: Path, capsys: pytest.Cap
     fake_results["fast.npz"] = types.SimpleNamespace(u_post=smooth_u(), dt=DT / 10, motor_names=["front", "back"])
     assert run_play(parse(["play", "fast.npz", "--hardware", str(EXAMPLE_TRIPOD), "--dry-run"])) == 2
     assert "exceeds" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- issue #40
+def test_loops_repeat_the_cycles_not_the_prep() -> None:
+    """``--loops N`` of an optimised gait: the prep phase once (from rest), then its cycles N
+    times; the wrap-around checked is the cycle's, not the jump back to the prep's start."""
+    prep = 0.004 * np.linspace(0.0, 1.0, 8)[:, None] * np.ones((1, 2))          # from rest up to the cycle
+    s = np.arange(24) / 12.0
+    cycles = 0.004 + 0.002 * np.stack([np.sin(2 * np.pi * s), np.cos(2 * np.pi * s) - 1], axis=1)
+    u = np.vstack([prep, cycles])
+    with pytest.raises(TrajectoryLimitError, match="loop wrap-around"):    # the whole, looped: a jump to rest
+        plan_trajectory(u, DT, ["front", "back"], tripod_config(), loops=3)
+    plan = plan_trajectory(u, DT, ["front", "back"], tripod_config(), loops=3, loop_start=8)
+    assert plan.n_steps == 8 + 3 * 24
+    cfg = tripod_config()
+    expected = [cfg.motors["front"].to_counts(v) for v in np.concatenate([u[:, 0], np.tile(u[8:, 0], 2)])]
+    assert [int(plan.sample(k)[0]) for k in range(plan.n_steps)] == expected
+    time = VirtualTime()
+    with RoboClawEmulator(clock=time.clock) as emu:
+        summary = play_trajectory(u, DT, ["front", "back"], cfg, port_override=emu.port, loops=3, loop_start=8,
+                                  clock=time.clock, sleep=time.sleep)
+    assert summary.steps_sent == 8 + 3 * 24
+
+
+class SuspendedTime(VirtualTime):
+    """Virtual time, and a stall of ``seconds`` (Ctrl-Z then fg, a host that froze) before step ``at``."""
+
+    def __init__(self, at_sleep: int, seconds: float) -> None:
+        super().__init__()
+        self.calls, self.at, self.stall = 0, at_sleep, seconds
+
+    def sleep(self, seconds: float) -> None:
+        super().sleep(seconds)
+        self.calls += 1
+        if self.calls == self.at:
+            self.t += self.stall
+
+
+def test_a_stall_holds_the_trajectory_instead_of_a_burst(tmp_path: Path) -> None:
+    """Issue #40: after a suspension the missed steps went out at once (a 17 mm jump of
+    targets) and the playback exited 0 silently. The trajectory is held where it stopped and
+    re-timed from there; the summary says so."""
+    cfg = tripod_config()
+    u = smooth_u()
+    time = SuspendedTime(at_sleep=20, seconds=1.0)
+    log = tmp_path / "p.csv"
+    with RoboClawEmulator(clock=time.clock) as emu:
+        summary = play_trajectory(u, DT, ["front", "back"], cfg, port_override=emu.port, log_path=log,
+                                  clock=time.clock, sleep=time.sleep)
+    assert summary.steps_sent == 60
+    _, rows = read_log(log)
+    gaps = np.diff(rows[:, 0])
+    assert gaps.max() > 0.9 and np.sort(gaps)[-2] < 2 * DT       # one hold, then a step per dt again
+    assert any("stalled" in w and "held" in w for w in summary.warnings), summary.warnings
+    assert "warning: playback stalled" in str(summary)

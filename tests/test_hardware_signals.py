@@ -74,7 +74,7 @@ def safety_net() -> Iterator[list[int]]:
 
 
 def _default_dispositions() -> None:  # in the child: as from an interactive shell, whatever ran pytest
-    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT, signal.SIGUSR1, signal.SIGUSR2):
         signal.signal(s, signal.SIG_DFL)
 
 
@@ -108,6 +108,8 @@ def moves_after_the_signal(emu: RoboClawEmulator) -> int:
     (signal.SIGTERM, 143, "terminated by SIGTERM"),
     (signal.SIGHUP, 129, "terminated by SIGHUP"),
     (signal.SIGINT, 130, "interrupted"),
+    (signal.SIGQUIT, 131, "terminated by SIGQUIT"),      # Ctrl-\ (issue #40: it left the motors running)
+    (signal.SIGUSR1, 138, "terminated by SIGUSR1"),
 ])
 def test_signal_during_play_stops_every_motor(emu: RoboClawEmulator, tmp_path: Path, long_result: str,
                                               signum: int, code: int, said: str) -> None:
@@ -253,3 +255,34 @@ def test_stop_signals_raise_until_holding_then_record(safety_net: list[int]) -> 
         signal.raise_signal(signal.SIGTERM)
         signal.raise_signal(signal.SIGINT)
     assert guard.held == [signal.SIGTERM, signal.SIGINT] and safety_net == []
+
+
+def test_every_catchable_signal_that_would_end_the_process_is_handled() -> None:
+    """Issue #40: SIGQUIT, SIGUSR1 ... end a process by default: each must run the stop sequence;
+    the signals whose default is to stop, continue or ignore the process are left alone, and so
+    are the faults (SIGSEGV ...) a handler cannot recover from."""
+    from trajopt.hardware.signals import STOP_SIGNALS
+    ending = {"SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT", "SIGUSR1", "SIGUSR2", "SIGALRM", "SIGVTALRM", "SIGPROF",
+              "SIGXCPU", "SIGIO", "SIGPWR", "SIGSTKFLT"}
+    names = {signal.Signals(s).name for s in STOP_SIGNALS if s in signal.Signals._value2member_map_}
+    assert ending & set(dir(signal)) <= names
+    assert not names & {"SIGKILL", "SIGSTOP", "SIGTSTP", "SIGCONT", "SIGCHLD", "SIGWINCH", "SIGSEGV", "SIGBUS",
+                        "SIGFPE", "SIGILL", "SIGABRT"}
+    if hasattr(signal, "SIGRTMIN"):
+        assert {signal.SIGRTMIN, signal.SIGRTMAX} <= set(STOP_SIGNALS)
+
+
+def test_stop_signals_raise_sigquit_and_sigusr1_as_terminated() -> None:
+    caught: list[int] = []
+    previous = {s: signal.signal(s, lambda signum, frame: caught.append(signum))
+                for s in (signal.SIGQUIT, signal.SIGUSR1)}
+    try:
+        with StopSignals():
+            for s in (signal.SIGQUIT, signal.SIGUSR1):
+                with pytest.raises(Terminated) as info:
+                    signal.raise_signal(s)
+                assert info.value.signum == s
+        assert caught == []
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)

@@ -149,3 +149,36 @@ def test_robustness_and_rl_train_refuse_a_held_folder(tmp_path, holder, capsys):
     err = capsys.readouterr().err
     assert "r.lock" in err and f"pid {proc.pid} " in err
     assert not (tmp_path / "runs" / "r").exists()
+
+
+def test_a_lock_naming_a_reused_pid_is_taken_over(tmp_path):
+    """Issue #40: the pid of a lock written long before its process started is another process's
+    now (pid reuse): the lock is stale, although the pid runs."""
+    if not Path(f"/proc/{os.getppid()}/stat").is_file():
+        pytest.skip("needs /proc to read a process's start time")
+    lock = tmp_path / "run.lock"
+    proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        lock.write_text(json.dumps({"pid": proc.pid, "host": platform.node(), "started": 1000.0, "command": "old"}))
+        with pytest.warns(StaleReservationWarning, match=f"pid {proc.pid} "):
+            with reserve(lock):
+                assert read_owner(lock)["pid"] == os.getpid()
+        # the same live pid with a start time after its process started: a live owner, refused
+        import time
+        lock.write_text(json.dumps({"pid": proc.pid, "host": platform.node(), "started": time.time(),
+                                    "command": "live"}))
+        with pytest.raises(ReservationRefused, match=f"pid {proc.pid} "):
+            with reserve(lock):
+                pass
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def test_a_dangling_symlink_lock_is_refused_naming_what_it_is(tmp_path):
+    lock = tmp_path / "run.lock"
+    lock.symlink_to(tmp_path / "nowhere")
+    with pytest.raises(ReservationRefused, match="symbolic link.*nowhere.*remove it"):
+        with reserve(lock):
+            pass
+    assert lock.is_symlink()

@@ -82,3 +82,23 @@ def test_non_finite_numbers_are_refused_naming_the_field(robot_dir, old, new, fi
     path.write_text(text.replace(old, new.format(value), 1))
     with pytest.raises(ValueError, match=rf"{re.escape(str(path))}: {field} must be a finite number, got {value}"):
         load_robot(path)
+
+
+def test_a_rest_state_that_fails_names_the_material(tmp_path):
+    """Issue #40: a Puppy with E = 5 Pa failed with "rest_state of robot 'puppy' failed (u = ...,
+    gravity = ...): Newton did not converge", naming no material: a unit mistake did not show."""
+    import shutil
+
+    from soft_envs.sim import Simulator, SimulationError
+    from soft_envs.sim.robot_file import asset_path
+    src = asset_path("puppy").parent
+    shutil.copy(src / "puppy.vtu", tmp_path / "puppy.vtu")
+    text = (src / "robot.toml").read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith("youngs_modulus ="))
+    (tmp_path / "robot.toml").write_text(text.replace(line, "youngs_modulus = 5"))
+    robot = load_robot(tmp_path / "robot.toml")
+    with pytest.raises(SimulationError) as err:
+        Simulator(robot).rest_state()
+    text = str(err.value)
+    assert "Young's modulus 5 Pa" in text and f"Poisson ratio {robot.poisson_ratio:g}" in text
+    assert f"density {robot.density:g} kg/m^3" in text and "puppy" in text

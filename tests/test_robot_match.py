@@ -215,3 +215,18 @@ def test_a_result_from_before_the_coulomb_default_is_still_the_same_robot(tmp_pa
     res.save(tmp_path / "old.npz")
     code, out, err = run(["evaluate", tmp_path / "old.npz", "--cycles", "1"], capsys)
     assert code == 0 and "was made for" not in err, err
+
+
+def test_a_hardware_file_naming_a_shipped_robot_refuses_another_robot_of_that_name(tmp_path, capsys):
+    """Issue #40: the hardware file compared robots by name, so the shipped Tripod's accepted a
+    gait of a co-designed Tripod (its robot.toml keeps the name). The shipped robot's fingerprint
+    is compared; the robot files of the result itself are as they were made."""
+    toml = copy_robot("tripod", tmp_path / "designed")
+    toml.write_text(toml.read_text().replace("u_max = 0.02", "u_max = 0.015"))      # another Tripod
+    path = gait_for(toml).save(tmp_path / "gait")
+    from trajopt.hardware import EXAMPLE_TRIPOD
+    code, _, err = run(["play", path, "--dry-run", "--hardware", EXAMPLE_TRIPOD], capsys)
+    assert code == 2 and "example_tripod.toml describes robot 'tripod'" in err, err
+    assert "motors[0].u_max: 0.015 -> 0.02" in err and "--ignore-robot-mismatch" in err
+    code, _, err = run(["play", path, "--dry-run", "--hardware", EXAMPLE_TRIPOD, "--ignore-robot-mismatch"], capsys)
+    assert code == 0 and "played anyway" in err

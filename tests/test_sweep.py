@@ -38,6 +38,55 @@ def digest(path: Path) -> dict[str, str]:
             for p in sorted(path.rglob("*")) if p.is_file()}
 
 
+# ----------------------------------------------------------------------------- killed while running (no Ray)
+#: a sweep (serial) whose optimisation is killed by SIGKILL right after its first checkpoint
+KILLED_AFTER_FIRST_CHECKPOINT = """
+import os, signal, sys
+import trajopt.optimize_run as run
+real = run.optimize_gait
+def killed(*a, callback, **kw):
+    def cb(entry, partial):
+        callback(entry, partial)
+        os.kill(os.getpid(), signal.SIGKILL)
+    return real(*a, callback=cb, **kw)
+run.optimize_gait = killed
+from trajopt.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_run_killed_while_running_resumes_from_its_checkpoint(tmp_path, monkeypatch):
+    """Issue #40: a sweep run killed (SIGKILL, a power cut) while its status and its checkpoint
+    say "running" continues from that checkpoint when the sweep runs again; it does not start
+    afresh (this test fails if it does)."""
+    text = tiny_block("k{speed:g}", "speed = [3.0]").replace("iterations = 1\n", "iterations = 3\n")
+    spec_path, out = write(tmp_path, text), tmp_path / "out"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    proc = subprocess.run([sys.executable, "-c", KILLED_AFTER_FIRST_CHECKPOINT, "sweep", str(spec_path), "--out",
+                           str(out), "--serial", "--no-plot"], env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    run_dir = out / "k3"
+    assert read_status(run_dir)["status"] == "running"
+    checkpoint = Result.load(run_dir / "k3.partial.npz")
+    assert checkpoint.status == "running" and len(checkpoint.history) == 1
+    import trajopt.optimize_run as optimize_run
+    calls = []
+    real = optimize_run.optimize_gait
+
+    def counted(*a, resume=None, **kw):
+        calls.append(resume)
+        return real(*a, resume=resume, **kw)
+
+    monkeypatch.setattr(optimize_run, "optimize_gait", counted)
+    with pytest.warns(UserWarning, match="no longer runs"):         # the killed run's locks are stale
+        outcome = run_sweep(load_spec(spec_path, out), out, serial=True)
+    assert outcome.statuses["k3"]["status"] == "done"
+    assert len(calls) == 1 and calls[0] is not None and len(calls[0].history) == 1     # resumed, not restarted
+    res = Result.load(run_dir / "k3.npz")
+    assert len(res.history) == 3 and res.history[0] == checkpoint.history[0]
+    assert not (run_dir / "k3.partial.npz").exists()
+
+
 # ----------------------------------------------------------------------------- sweep files (no Ray)
 def test_spec_expands_grids_names_and_arguments(tmp_path):
     spec_path = write(tmp_path, '[sweep]\ndescription = "d"\n' + tiny_block(

@@ -40,12 +40,20 @@ Every simulation step is counted: the optimisations' (``sim_steps`` of
 line-search trials, seed screening) and the evaluations'; the total is in
 ``result.evaluation["search_sim_steps"]`` and the table. :func:`write_search_table` writes the
 table beside the result (``NAME.search.csv`` and ``.md``).
+
+A search is resumable (:class:`SearchCheckpoint`, ``trajopt optimize --speed max --resume``):
+after every optimisation its row and result go to a folder (``NAME.search.partial/``); a search
+interrupted (Ctrl-C, SIGTERM, SIGHUP, a kill) continues after its last finished optimisation,
+the finished ones replayed from their files (the search is deterministic given them, so it ends
+where an uninterrupted search ends).
 """
 from __future__ import annotations
 
 import csv
 import io
+import json
 import math
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -56,6 +64,7 @@ import numpy as np
 
 from soft_envs.envs import SimulationError, as_gradient_env
 
+from .hardware.signals import Terminated
 from .results.files import atomic_write_bytes
 from .optim.gait import GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
@@ -66,9 +75,13 @@ from .results.result import Result
 __all__ = [
     "SEARCH_EVAL_CYCLES",
     "TABLE_COLUMNS",
+    "SearchCheckpoint",
     "SearchSettings",
     "fastest_gait",
     "keyframes_at",
+    "finish_search",
+    "search_checkpoint_dir",
+    "search_identity",
     "search_table_paths",
     "write_search_table",
 ]
@@ -184,10 +197,106 @@ def _progress(total: int, quiet: bool):
     return tqdm(total=total, desc="--speed max", unit="run", leave=True)
 
 
-class _Search:
-    """The state of a search: its rows, runs, step count and the fastest upright speed so far."""
+def search_checkpoint_dir(result_file: str | Path) -> Path:
+    """``NAME.search.partial/`` beside the result ``NAME.npz``: an unfinished search's runs."""
+    p = Path(result_file)
+    return p.with_name(p.name.removesuffix(".npz") + ".search.partial")
 
-    def __init__(self, env, settings: SearchSettings, heading_deg: float, robot_spec: str | None, bar, say):
+
+class SearchCheckpoint:
+    """The finished optimisations of a search in ``folder``: ``state.json`` (what the search
+    is: its settings, pinned cycle, heading, robot and contact law; its rows; ``status``
+    running or interrupted) and ``run_NNN.npz`` (+ ``.json``) per finished optimisation.
+    :meth:`load` reads and checks them (ValueError naming the file and the field);
+    :func:`fastest_gait` replays them and saves each new one."""
+
+    STATE = "state.json"
+
+    def __init__(self, folder: str | Path, identity: dict[str, Any] | None = None):
+        self.folder = Path(folder)
+        self.identity = identity or {}
+
+    @property
+    def state_file(self) -> Path:
+        return self.folder / self.STATE
+
+    def _run_file(self, i: int) -> Path:
+        return self.folder / f"run_{i:03d}.npz"
+
+    def _state(self, rows: list[dict], status: str) -> None:
+        data = {"identity": self.identity, "status": status, "rows": rows}
+        atomic_write_bytes(self.state_file, (json.dumps(data, indent=1, default=float) + "\n").encode())
+
+    def start(self, rows: list[dict]) -> None:
+        """Mark the search running (its ``rows`` replayed so far kept)."""
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self._state(rows, "running")
+
+    def save_run(self, rows: list[dict], res: Result | None) -> None:
+        """After optimisation ``len(rows) - 1``: its result (if any), then the rows."""
+        if res is not None:
+            res.save(self._run_file(len(rows) - 1))
+        self._state(rows, "running")
+
+    def mark(self, rows: list[dict], status: str) -> None:
+        self._state(rows, status)
+
+    def remove(self) -> None:
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+    def load(self) -> tuple[list[tuple[dict, Result | None]], str]:
+        """``(finished runs, status)``: each run's row and result (None: skipped or failed), in
+        the order the search made them. Refuses (ValueError naming the file and the field) a
+        damaged state or one of another search (its settings, robot, contact law)."""
+        path = self.state_file
+        hint = "continue with the same options, or start afresh with --overwrite"
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except UnicodeDecodeError as err:
+            raise ValueError(f"{path}: not UTF-8 ({err.reason} at byte {err.start}); {hint}") from None
+        except json.JSONDecodeError as err:
+            raise ValueError(f"{path}: not JSON ({err.msg}, line {err.lineno}); {hint}") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"{path}: expected a JSON object, got {type(data).__name__}; {hint}")
+        identity, rows, status = data.get("identity"), data.get("rows"), data.get("status")
+        if not isinstance(identity, dict):
+            raise ValueError(f"{path}: field 'identity' is missing or not an object; {hint}")
+        if not isinstance(rows, list) or not all(isinstance(r, dict) and set(TABLE_COLUMNS) <= set(r) for r in rows):
+            raise ValueError(f"{path}: field 'rows' must be a list of search-table rows ({', '.join(TABLE_COLUMNS)}); "
+                             f"{hint}")
+        expected = json.loads(json.dumps(self.identity, default=float))
+        changed = [k for k in sorted(set(expected) | set(identity)) if expected.get(k) != identity.get(k)]
+        if changed:
+            what = []
+            for k in changed:
+                a, b = identity.get(k), expected.get(k)
+                if isinstance(a, dict) and isinstance(b, dict):
+                    what += [f"{k}.{f}: {a.get(f)!r} -> {b.get(f)!r}" for f in sorted(set(a) | set(b))
+                             if a.get(f) != b.get(f)]
+                else:
+                    what.append(f"{k}: {a!r} -> {b!r}")
+            raise ValueError(f"{path}: cannot resume: this search differs from the interrupted one "
+                             f"({'; '.join(what[:4])}); run it with the interrupted search's options, or start afresh "
+                             "with --overwrite")
+        runs: list[tuple[dict, Result | None]] = []
+        for i, row in enumerate(rows):
+            res = None
+            if not str(row.get("status", "")).startswith(("skipped", "failed")):
+                file = self._run_file(i)
+                if not file.is_file():
+                    raise ValueError(f"{file}: missing: the checkpoint's row {i} has no result; {hint}")
+                res = Result.load(file)
+            runs.append((row, res))
+        return runs, str(status)
+
+
+class _Search:
+    """The state of a search: its rows, runs, step count and the fastest upright speed so far;
+    ``replay``: the finished runs of an interrupted search (:class:`SearchCheckpoint`), taken
+    instead of running them again; ``checkpoint``: where each finished run goes."""
+
+    def __init__(self, env, settings: SearchSettings, heading_deg: float, robot_spec: str | None, bar, say,
+                 replay: list[tuple[dict, Result | None]] = (), checkpoint: SearchCheckpoint | None = None):
         self.env, self.settings, self.heading_deg, self.robot_spec = env, settings, heading_deg, robot_spec
         self.bar, self.say = bar, say
         self.t_start = time.perf_counter()
@@ -195,6 +304,30 @@ class _Search:
         self.runs: list[tuple[dict, Result]] = []
         self.total = 0
         self.best = 0.0
+        self.replay, self.checkpoint = list(replay), checkpoint
+
+    def _replayed(self, stage: str, gait: GaitSpec, start: str) -> tuple[bool, Result | None]:
+        """The next run from the interrupted search's, when there is one left."""
+        i = len(self.rows)
+        if i >= len(self.replay):
+            return False, None
+        row, res = self.replay[i]
+        if (row["stage"], int(row["n_cycle"]), int(row["n_keyframes"]), row["start"]) != \
+                (stage, gait.n_cycle, gait.n_keyframes, start):
+            where = self.checkpoint.state_file if self.checkpoint is not None else "the checkpoint"
+            raise ValueError(f"{where}: row {i} is {row['stage']} cycle {row['n_cycle']} keyframes "
+                             f"{row['n_keyframes']}, but the search now runs {stage} cycle {gait.n_cycle} keyframes "
+                             f"{gait.n_keyframes}: not this search's; start afresh with --overwrite")
+        self.rows.append(row)
+        self.total = int(row["total_sim_steps"])
+        if res is not None:
+            self.runs.append((row, res))
+            if row["upright"] and row["speed_bl_per_min"] > self.best:
+                self.best = row["speed_bl_per_min"]
+        self.say(f"{stage} cycle {gait.n_cycle} keyframes {gait.n_keyframes}: {row['speed_bl_per_min']:.2f} BL/min "
+                 f"(from the checkpoint)")
+        self._tick()
+        return True, res
 
     def _cap(self, share: float) -> float:
         budget = self.settings.max_sim_steps
@@ -214,12 +347,17 @@ class _Search:
         start, one iteration and the evaluation do not fit, and stopped after the iteration
         beyond which the next (its line search at most ``max_backtracks + 1`` trials and a
         Jacobian rollout) and the evaluation might not."""
+        replayed, res = self._replayed(stage, gait, start)
+        if replayed:
+            return res
         cap, options = self._cap(share), GaussNewtonOptions(max_iter=iterations)
         horizon, eval_steps = gait.n_steps(), gait.n_prep + self.settings.eval_cycles * gait.n_cycle
         per_iteration = horizon * (options.max_backtracks + 2)
         target = self.settings.target(self.best)
         if self.total + (self._n_starts(gait, warm, z0, n_seeds) + 1) * horizon + per_iteration + eval_steps > cap:
             self.rows.append(_row(stage, None, gait, start, target, 0, 0, self.total, 0.0, "skipped: budget"))
+            if self.checkpoint is not None:
+                self.checkpoint.save_run(self.rows, None)
             self._tick()
             return None
 
@@ -240,6 +378,8 @@ class _Search:
         row = _row(stage, res, gait, start, target, opt_steps, eval_steps, self.total, time.perf_counter() - t0,
                    failure)
         self.rows.append(row)
+        if self.checkpoint is not None:
+            self.checkpoint.save_run(self.rows, res)
         if res is not None:
             self.runs.append((row, res))
             if row["upright"] and row["speed_bl_per_min"] > self.best:
@@ -272,9 +412,20 @@ def _revisit(search: _Search, settings: SearchSettings, candidates: list[tuple[i
                    settings.coarse_share, warm=warm, n_seeds=0)
 
 
+def search_identity(env: Any, settings: SearchSettings, cycle_steps: int | None, heading_deg: float) -> dict:
+    """What a search checkpoint must match to be resumed: the settings, the pinned cycle, the
+    heading, the robot (its fingerprint) and the contact law."""
+    from soft_envs.envs import robot_fingerprint
+    fp = robot_fingerprint(env.robot) or {}
+    return json.loads(json.dumps({"settings": asdict(settings), "cycle_steps": cycle_steps,
+                                  "heading_deg": float(heading_deg), "robot": fp.get("sha256", env.robot.name),
+                                  "contact": env.contact_model}, default=float))
+
+
 def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle_steps: int | None = None,
                  contact: str | None = None, heading_deg: float = 0.0, robot_spec: str | None = None,
-                 quiet: bool = False, log: Callable[[str], Any] | None = None) -> tuple[Result, list[dict]]:
+                 quiet: bool = False, log: Callable[[str], Any] | None = None,
+                 checkpoint: str | Path | None = None, resume: bool = False) -> tuple[Result, list[dict]]:
     """The fastest upright walk within the motors' speed limit (module docstring): ``(result,
     table)``. ``env``: a Gymnasium env offering :class:`~soft_envs.envs.GradientEnv`, or a robot
     / name / robot.toml path (``contact``: its contact law). ``cycle_steps``: pin the cycle
@@ -282,12 +433,24 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     run's :class:`Result` (evaluated over ``settings.eval_cycles`` cycles); its
     ``settings["search"]`` and ``evaluation["search_sim_steps"]`` record the search; the table
     has one row per optimisation (:data:`TABLE_COLUMNS`), the chosen one marked. Raises
-    :class:`~soft_envs.envs.SimulationError` when no candidate stays upright, ValueError when the
-    budget fits none."""
+    :class:`~soft_envs.envs.SimulationError` when no candidate can be simulated or none stays
+    upright, ValueError when the budget fits none. ``checkpoint``: a folder
+    (:func:`search_checkpoint_dir`) that keeps every finished optimisation; ``resume``: continue
+    the search interrupted there (:class:`SearchCheckpoint`; without ``resume`` an old one is
+    discarded). An interrupted search (Ctrl-C, SIGTERM, SIGHUP) marks it ``interrupted``; a
+    finished one removes it."""
     env = as_gradient_env(env, contact=contact)
     candidates = settings.candidates(cycle_steps)
+    store, replay = None, []
+    if checkpoint is not None:
+        store = SearchCheckpoint(checkpoint, search_identity(env, settings, cycle_steps, heading_deg))
+        if resume and store.state_file.is_file():
+            replay, _ = store.load()
+        elif store.folder.exists():
+            store.remove()
+        store.start([row for row, _ in replay])
     search = _Search(env, settings, heading_deg, robot_spec, _progress(len(candidates) + settings.n_fine, quiet),
-                     log or (lambda text: None))
+                     log or (lambda text: None), replay, store)
     try:
         previous: Result | None = None          # the last candidate's result: the next one's warm start
         for n_cycle, n_kf in candidates:
@@ -310,12 +473,20 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
             gait = GaitSpec.from_settings(res.settings)
             search.run("fine", gait, f"coarse cycle {gait.n_cycle}, {gait.n_keyframes} keyframes",
                        settings.fine_iterations, 1.0, z0=res.z)
+    except (KeyboardInterrupt, Terminated):
+        if store is not None:
+            store.mark(search.rows, "interrupted")
+        raise
     finally:
         if search.bar is not None:
             search.bar.close()
     rows, runs, total = search.rows, search.runs, search.total
     upright = [p for p in runs if p[0]["upright"]]
     if not runs:
+        failed = [r["status"] for r in rows if str(r["status"]).startswith("failed")]
+        if failed or settings.max_sim_steps is None:
+            raise SimulationError(f"--speed max: no candidate could be simulated ({len(failed)} of the {len(rows)} "
+                                  f"tried failed{'; the first ' + failed[0] if failed else ''})")
         raise ValueError(f"--speed max: a budget of {settings.max_sim_steps:,} simulation steps fits none of the "
                          f"{len(rows)} candidates (a start, one Gauss-Newton iteration and the evaluation)")
     if not upright:
@@ -328,6 +499,11 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     res.evaluation["search_sim_steps"] = total
     res.evaluation["search_wall_time_s"] = time.perf_counter() - search.t_start
     return res, rows
+
+
+def finish_search(checkpoint: str | Path) -> None:
+    """Remove a finished search's checkpoint folder (after its result and table are written)."""
+    SearchCheckpoint(checkpoint).remove()
 
 
 def search_table_paths(result_file: str | Path) -> tuple[Path, Path]:

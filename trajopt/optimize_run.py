@@ -3,7 +3,7 @@
 What ``trajopt optimize`` does and a sweep's ``optimize`` runs do (:mod:`trajopt.sweep.task`),
 as a library function: :func:`run_optimization` of an :class:`OptimizeRun` (the run's options,
 named as the command's). It writes ``OUT/NAME.npz`` only when the run finishes; until then its
-checkpoints (one per Gauss-Newton iteration, and the last iterate on Ctrl-C) go to
+checkpoints (one per Gauss-Newton iteration, and the last iterate on Ctrl-C, SIGTERM or SIGHUP) go to
 ``OUT/NAME.partial.npz``, which ``resume`` continues and a finished run removes. A finished
 result, or an interrupted run's checkpoint, is never replaced without ``overwrite``, and while a
 run lives its name is reserved (``OUT/NAME.lock``, :mod:`trajopt.results.reservation`): a second run of
@@ -21,11 +21,13 @@ from typing import Any, Callable, Mapping
 from soft_envs.envs import compile_ahead, make_gradient_env
 
 from .fidelity import fidelity_record
+from .hardware.signals import Terminated, signal_label
 from .results.files import RESULTS_DIR
 from .optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
 from .optim.optimize import optimize_gait
 from .results.reservation import lock_path, reserve
+from .results.robot_match import robot_reference
 from .results.result import Result, partial_path, result_path
 from .tasks.registry import get_task
 
@@ -163,11 +165,46 @@ def _check_speed_max(run: OptimizeRun) -> None:
     the options it cannot honour, are refused (ValueError, nothing written)."""
     if run.task != "walk":
         raise ValueError(f"--speed max finds the fastest walk: it needs --task walk, got --task {run.task}")
-    refused = [flag for flag, on in (("--resume", run.resume), ("--no-motor-limit", run.no_motor_limit),
+    refused = [flag for flag, on in (("--no-motor-limit", run.no_motor_limit),
                                      ("--warm-start", run.warm_start is not None)) if on]
     if refused:
-        raise ValueError(f"--speed max cannot be combined with {', '.join(refused)}: the search starts afresh "
-                         "within the motors' speed limit (run it again with --overwrite to replace its result)")
+        raise ValueError(f"--speed max cannot be combined with {', '.join(refused)}: the search starts from its "
+                         "own seeds within the motors' speed limit (run it again with --overwrite to replace its "
+                         "result)")
+
+
+def _plan_search(out: Path, partial: Path, run: OptimizeRun) -> tuple[Path, bool, bool]:
+    """``(checkpoint folder, resume it, nothing to do)`` of a ``--speed max`` run: the search
+    interrupted in ``NAME.search.partial/`` is continued with ``resume`` (refused without it or
+    ``overwrite``), a finished result is never replaced without ``overwrite``."""
+    from .fastest import search_checkpoint_dir
+    folder = search_checkpoint_dir(out)
+    state = folder / "state.json"
+    if out.exists() and not out.is_file():
+        _refuse(out, "exists and is not a file", "choose another --name or --out")
+    if folder.exists() and not folder.is_dir():
+        _refuse(folder, "exists and is not a folder", "remove it, or choose another --name or --out")
+    if partial.is_file() and not run.overwrite:       # a plain run's: the finished search would remove it
+        _refuse(partial, "holds the checkpoint of an interrupted run of this name (not a --speed max search)",
+                "continue it without --speed max and with --resume, or start afresh with --overwrite")
+    if run.resume:
+        if state.is_file():
+            if out.is_file() and not run.overwrite:
+                _refuse(out, "a finished result of this name exists", f"resuming the search in {folder} would "
+                        "replace it when it finishes: add --overwrite, or choose another --name")
+            return folder, True, False
+        if out.is_file():
+            print(f"{out} is finished; nothing to resume. {Result.load(out).summary()}")
+            return folder, False, True
+        print(f"no interrupted search to resume ({state} not found): starting afresh", file=sys.stderr)
+        return folder, False, False
+    if state.is_file() and not run.overwrite:
+        _refuse(folder, "holds the finished optimisations of an interrupted --speed max search of this name",
+                "continue it with --resume, or start afresh with --overwrite")
+    if out.is_file() and not run.overwrite:
+        _refuse(out, f"a result of this name exists ({_status_of(out)})",
+                "pass --overwrite to replace it when the new run finishes, or choose another --name")
+    return folder, False, False
 
 
 def _finish_files(res: Result, out: Path, partial: Path) -> Path:
@@ -186,8 +223,9 @@ def run_optimization(run: OptimizeRun, progress: Callable[[int], Any] | None = N
     its file)``, or None when there is nothing to do (``resume`` of a finished result).
     ``progress(first_iteration)``: makes an object whose ``update(entry)`` sees every
     Gauss-Newton iteration and whose ``close()`` ends it (a progress bar). Bad options, files
-    or robots: ValueError, nothing written. Ctrl-C: the last iterate is saved as an
-    "interrupted" checkpoint (continue with ``resume``) and KeyboardInterrupt raised again."""
+    or robots: ValueError, nothing written. Ctrl-C, or SIGTERM / SIGHUP (raised as
+    :class:`~trajopt.hardware.signals.Terminated` by the command line): the last iterate is saved
+    as an "interrupted" checkpoint (continue with ``resume``) and the exception raised again."""
     get_task(run.task)
     out = run.result_file()
     partial = partial_path(out)
@@ -195,19 +233,24 @@ def run_optimization(run: OptimizeRun, progress: Callable[[int], Any] | None = N
         _check_speed_max(run)
         with reserve(lock_path(out), f"result {out.name}"):
             return _fastest_reserved(run, out, partial)
+    if run.max_sim_steps is not None:
+        raise ValueError(f"--max-sim-steps {run.max_sim_steps} is the budget of the --speed max search: without "
+                         "--speed max it would do nothing (add --speed max, or leave it out)")
     gait = _gait(run)
     with reserve(lock_path(out), f"result {out.name}"):   # a second run of this name is refused
         return _optimize_reserved(run, out, partial, gait, progress)
 
 
-def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Result, Path]:
+def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Result, Path] | None:
     """``--speed max`` (:func:`trajopt.fastest.fastest_gait`): the search's default settings
     (``SOFT_ENVS_QUICK=1``: its quick ones), the cycle pinned by ``cycle_steps``, the keyframe
     count by ``keyframes``, the interpolation by ``interpolation`` (default the search's, linear); ``iterations`` and ``seeds`` cap each run's Gauss-Newton iterations
     and random starts, ``cycles`` raises the evaluation's 10 cycles; the result and its table
     (``NAME.search.csv`` / ``.md``) written when it finishes."""
-    from .fastest import SearchSettings, fastest_gait, write_search_table
-    _plan(out, partial, run)
+    from .fastest import SearchSettings, fastest_gait, finish_search, write_search_table
+    folder, resume, done = _plan_search(out, partial, run)
+    if done:
+        return None
     quick = os.environ.get("SOFT_ENVS_QUICK", "") not in ("", "0")
     settings = SearchSettings.quick() if quick else SearchSettings()
     settings = dataclasses.replace(            # the options cap the search's effort
@@ -223,13 +266,32 @@ def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Resul
         env = make_gradient_env(run.robot, heading_deg=run.heading, contact=run.contact, substeps=run.substeps)
     print(f"{env.robot.summary()}; task walk at the highest speed within the motors' limit; {env.contact_model} "
           f"contact law; {_physics(env)}{'; quick search (SOFT_ENVS_QUICK)' if quick else ''}")
-    res, rows = fastest_gait(env, settings=settings, cycle_steps=run.cycle_steps, heading_deg=run.heading,
-                             robot_spec=run.robot, quiet=run.quiet)
+    if resume:
+        print(f"resuming the --speed max search in {folder}")
+    try:
+        res, rows = fastest_gait(env, settings=settings, cycle_steps=run.cycle_steps, heading_deg=run.heading,
+                                 robot_spec=robot_reference(run.robot), quiet=run.quiet, checkpoint=folder, resume=resume)
+    except (KeyboardInterrupt, Terminated) as exc:
+        by = "" if isinstance(exc, KeyboardInterrupt) else f" by {signal_label(exc.signum)}"
+        n = _finished_runs(folder)
+        print(f"\ninterrupted{by}: {n} finished optimisation{'s' * (n != 1)} of the search saved in {folder}"
+              f"{f'; {out} is untouched' if out.is_file() else ''}; continue with the same command and --resume",
+              file=sys.stderr)
+        raise
     path = _finish_files(res, out, partial)
     csv_path, md_path = write_search_table(rows, out)
+    finish_search(folder)
     print(f"search: {len(rows)} optimisations, {res.evaluation['search_sim_steps']:,} simulation steps in total "
           f"(optimisations and evaluations); table {csv_path} and {md_path.name}")
     return res, path
+
+
+def _finished_runs(folder: Path) -> int:
+    import json
+    try:
+        return len(json.loads((folder / "state.json").read_text()).get("rows", []))
+    except (OSError, ValueError, AttributeError):
+        return 0
 
 
 def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpec,
@@ -266,22 +328,27 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
     try:
         res = optimize_gait(env, task.name, gait=gait, speed_bl_per_min=run.speed, heading_deg=run.heading,
                             turn=run.turn, options=options, warm_start=warm, n_seeds=run.seeds,
-                            eval_cycles=run.cycles, robot_spec=run.robot, callback=checkpoint, resume=resume,
+                            eval_cycles=run.cycles, robot_spec=robot_reference(run.robot), callback=checkpoint, resume=resume,
                             motor_limit=not run.no_motor_limit)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Terminated) as exc:     # Ctrl-C, SIGTERM, SIGHUP: the same way out
         if progress is not None:
             progress.close()
             progress = None
+        by = "" if isinstance(exc, KeyboardInterrupt) else f" by {signal_label(exc.signum)}"
         if "result" in latest:
             latest["result"].status = "interrupted"
             latest["result"].save(partial)
-            print(f"\ninterrupted: iteration {len(latest['result'].history)} saved to {partial}"
+            print(f"\ninterrupted{by}: iteration {len(latest['result'].history)} saved to {partial}"
                   f"{f'; {out} is untouched' if out.is_file() else ''}; continue with the same command "
                   "and --resume", file=sys.stderr)
         else:
-            print("\ninterrupted before the first iteration: nothing saved", file=sys.stderr)
+            print(f"\ninterrupted{by} before the first iteration: nothing saved", file=sys.stderr)
         raise
     finally:
         if progress is not None:
             progress.close()
-    return res, _finish_files(res, out, partial)
+    path = _finish_files(res, out, partial)
+    from .fastest import search_table_paths
+    for table in search_table_paths(out):      # an earlier --speed max result's: not this result's search
+        table.unlink(missing_ok=True)
+    return res, path

@@ -19,7 +19,7 @@ from soft_envs.envs import GradientEnv, Trajectory, make_gradient_env
 from .optim.gait import GaitSpec
 from .optim.parameterization import GaitParameterization
 from .results.result import Result
-from .results.robot_match import check_robot, fingerprint_of
+from .results.robot_match import check_robot, fingerprint_of, locate_robot
 
 __all__ = ["env_for_result", "result_substeps", "result_parameterization", "result_controls", "replay",
            "RobotMismatchWarning"]
@@ -37,7 +37,7 @@ def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False, substeps
     is not the one ``res`` was made for raises :class:`~trajopt.results.robot_match.RobotMismatchError`
     (a ValueError), or warns with ``ignore_robot_mismatch``."""
     s = res.settings
-    env = make_gradient_env(res.robot, incline_deg=float(s.get("incline_deg", 0.0)),
+    env = make_gradient_env(locate_robot(res), incline_deg=float(s.get("incline_deg", 0.0)),
                             heading_deg=float(s.get("heading_deg", 0.0)), timestep=res.dt,
                             contact=s.get("contact", "paper"),
                             substeps=result_substeps(res) if substeps is None else substeps)

@@ -23,12 +23,25 @@ from .system import EnergySystem
 __all__ = ["relax", "placement_sensitivity", "RestStates"]
 
 
+def _material(robot) -> str:
+    """The material a failed rest state names, so that a unit mistake shows (E = 5 Pa, a
+    density in g/cm^3): Young's modulus (and the range of the regional moduli), Poisson ratio,
+    density, payload."""
+    E = float(robot.youngs_modulus)
+    scale = np.asarray(getattr(robot, "element_modulus_scale", np.ones(1)), dtype=np.float64)
+    regions = (f" (regions {E * scale.min():g}..{E * scale.max():g} Pa)"
+               if scale.size and (scale.min() != 1.0 or scale.max() != 1.0) else "")
+    return (f"Young's modulus {E:g} Pa{regions}, Poisson ratio {float(robot.poisson_ratio):g}, density "
+            f"{float(robot.density):g} kg/m^3, payload {float(getattr(robot, 'payload_mass', 0.0)):g} kg")
+
+
 def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
     """The rest state of simulator ``sim`` under controls ``u`` (module docstring): its
     :class:`~.state.State`, and with ``params`` ``(state, dx/dtheta, dhistory/dtheta)``. Every
     relaxation step starts at rest at the last one's positions, with its anchors
     (:func:`~.state.advance` with a solver of ``dt = 1`` s). SimulationError, naming the robot,
-    the controls and gravity, when a step fails or the body does not settle in ``max_iter``."""
+    the controls, gravity and the material (so that a unit mistake shows), when a step fails or
+    the body does not settle in ``max_iter``."""
     g = sim.gravity
     anchored = sim.system.has_history
     relax_g = g if (anchored or sim.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])
@@ -54,7 +67,7 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
                           new.x, start.x, u, start.history, x_prev2=start.x)
         except SimulationError as err:
             raise SimulationError(f"rest_state of robot {sim.robot.name!r} failed (u = {u.tolist()}, "
-                                  f"gravity = {relax_g.tolist()}): {err.reason}") from err
+                                  f"gravity = {relax_g.tolist()}; {_material(sim.robot)}): {err.reason}") from err
         moved = np.abs(new.x - start.x).max()
         x, history = new.x, new.history
         if moved <= tol:
@@ -63,7 +76,7 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
         hint = "; friction may not hold it on this slope (it slides)" if anchored and relax_g[[0, 2]].any() else ""
         raise SimulationError(f"rest_state of robot {sim.robot.name!r} did not settle in {max_iter} "
                               f"relaxation steps (last motion {moved:.2e} m; u = {u.tolist()}, "
-                              f"gravity = {relax_g.tolist()}, tol = {tol}){hint}")
+                              f"gravity = {relax_g.tolist()}, tol = {tol}; {_material(sim.robot)}){hint}")
     rest = State.at_rest(x, history, u=u)
     if sens is None:
         return rest

@@ -12,8 +12,10 @@ Before the fit, on the data (:func:`check_tracks`):
 - ``plausible-tracks``: marker positions spread over more than :data:`MAX_SPREAD_BODY_LENGTHS`
   body lengths (the mesh's largest extent), markers in the robot's frame that stay that far from
   their rest points, or markers moving faster than :data:`MAX_SPEED_BODY_LENGTHS_PER_S` (measured
-  over :data:`SPEED_WINDOW_S`, so that the tracker's noise does not count). Hint: millimetres
-  when dividing by 1000 makes the spread plausible, else the frame or the time unit.
+  over :data:`SPEED_WINDOW_S`, so that the tracker's noise does not count). Hint: the unit
+  (:func:`unit_hint`: the distances between the tracked markers against those between their
+  rest points, about 1000x for millimetres, 100x for centimetres, 39x for inches), else the
+  frame or the time unit.
 
 After the fit (:func:`check_fit`):
 
@@ -23,7 +25,13 @@ After the fit (:func:`check_fit`):
 - ``evaluation-limit``: the last stage stopped at its ``--max-evaluations`` before converging;
 - ``standard-errors``: a standard error at least as large as its value;
 - ``at-bounds``: a parameter within :data:`BOUND_TOLERANCE` of its range at a bound
-  (:data:`trajopt.calibration.calibrate.PARAMETER_BOUNDS`).
+  (:data:`trajopt.calibration.calibrate.PARAMETER_BOUNDS`);
+- ``model-misfit`` (:func:`check_model_misfit`): what is left after the fit is mostly a constant
+  offset of each marker (its mean residual larger than the residual's scatter about it, and
+  above :data:`MISFIT_FLOOR_M`): no physical parameter moves a marker by a constant, so the
+  fitted values were bent to absorb something the model cannot explain (tracks with another
+  origin, wrong marker points). It does not rely on ``--noise``: a noise stated too large hides
+  such an offset from ``rms-vs-noise``, not from this check.
 """
 from __future__ import annotations
 
@@ -33,8 +41,9 @@ from soft_envs.envs import PHYSICAL_PARAMETERS
 
 from .calibrate import PARAMETER_BOUNDS, CalibrationFit, MarkerData
 
-__all__ = ["check_tracks", "check_fit", "body_length", "DEFAULT_NOISE_M", "RMS_NOISE_FACTOR", "MIN_USED_FRACTION",
-           "MAX_SPREAD_BODY_LENGTHS", "MAX_SPEED_BODY_LENGTHS_PER_S", "SPEED_WINDOW_S", "BOUND_TOLERANCE"]
+__all__ = ["check_tracks", "check_fit", "check_model_misfit", "unit_hint", "body_length", "DEFAULT_NOISE_M",
+           "RMS_NOISE_FACTOR", "MIN_USED_FRACTION", "MAX_SPREAD_BODY_LENGTHS", "MAX_SPEED_BODY_LENGTHS_PER_S",
+           "SPEED_WINDOW_S", "BOUND_TOLERANCE", "MISFIT_FLOOR_M"]
 
 #: tracker noise assumed without ``--noise`` [m, standard deviation per coordinate]
 DEFAULT_NOISE_M = 1e-3
@@ -50,6 +59,12 @@ MAX_SPEED_BODY_LENGTHS_PER_S = 5.0
 SPEED_WINDOW_S = 0.25
 #: a parameter this close to a bound (fraction of its range) is at the bound
 BOUND_TOLERANCE = 1e-4
+#: a constant offset of the markers below this [m, RMS] is no misfit (what trackers resolve)
+MISFIT_FLOOR_M = 1e-4
+#: tracks this many times the robot's size are in that unit: (low, high, unit, what to do)
+_UNITS = ((500.0, 2000.0, "millimetres", "divide x, y, z by 1000"),
+          (50.0, 200.0, "centimetres", "divide x, y, z by 100"),
+          (25.0, 50.0, "inches", "multiply x, y, z by 0.0254"))
 
 
 def body_length(robot) -> float:
@@ -74,6 +89,31 @@ def _speed(samples: dict) -> float:
         if i.size:
             speeds.append(np.linalg.norm(p[j[i]] - p[i], axis=1) / (t[j[i]] - t[i]))
     return float(np.percentile(np.concatenate(speeds), 95.0)) if speeds else float("nan")
+
+
+def _scale(tracks, data: MarkerData) -> float:
+    """How many times the distances between the tracked markers (their median positions) are
+    those between their rest points (nan with fewer than two markers): about 1 for tracks in
+    metres, whatever their frame."""
+    names = [n for n in data.markers.names if n in tracks.samples]
+    if len(names) < 2:
+        return float("nan")
+    tracked = np.array([np.median(tracks.samples[n][1], axis=0) for n in names])
+    rest = np.array([data.markers.points[data.markers.names.index(n)] for n in names])
+    i, j = np.triu_indices(len(names), 1)
+    d_rest = np.linalg.norm(rest[i] - rest[j], axis=1)
+    keep = d_rest > 1e-9
+    if not keep.any():
+        return float("nan")
+    return float(np.median(np.linalg.norm(tracked[i] - tracked[j], axis=1)[keep] / d_rest[keep]))
+
+
+def unit_hint(scale: float) -> str | None:
+    """The unit that tracks ``scale`` times too large are in, and what to do (None: no unit)."""
+    for lo, hi, unit, what in _UNITS:
+        if lo <= scale <= hi:
+            return f"tracks look like {unit}: {what} (the tracks are in metres)"
+    return None
 
 
 def check_tracks(tracks, data: MarkerData) -> list[str]:
@@ -111,8 +151,10 @@ def check_tracks(tracks, data: MarkerData) -> list[str]:
     if speed > MAX_SPEED_BODY_LENGTHS_PER_S * L:
         problems.append(f"markers move at {speed:.3g} m/s ({speed / L:.3g} body lengths/s, 95th percentile)")
     if problems:
-        if MAX_SPREAD_BODY_LENGTHS * L < spread <= 1000.0 * MAX_SPREAD_BODY_LENGTHS * L:
-            hint = "tracks look like millimetres: divide x, y, z by 1000 (the tracks are in metres)"
+        scale = _scale(tracks, data)
+        hint = unit_hint(scale)
+        if hint is not None:
+            hint += f"; the markers lie {scale:.0f}x as far apart as their rest points"
         elif far > MAX_SPREAD_BODY_LENGTHS * L:
             hint = "tracks in a camera's coordinates need --frame camera (a rigid transform is fitted too)"
         else:
@@ -149,3 +191,29 @@ def check_fit(fit: CalibrationFit, noise_m: float = DEFAULT_NOISE_M) -> list[str
                                 "fit lies outside what the model allows; try: check the tracks' units and frame and "
                                 "the controls, or fit fewer parameters")
     return failures
+
+
+def check_model_misfit(fit: CalibrationFit, data: MarkerData, noise_m: float = DEFAULT_NOISE_M) -> list[str]:
+    """``model-misfit`` (module docstring): the residual after the fit split per marker into its
+    mean (a constant offset, which no physical parameter produces) and its scatter about it;
+    failed when the offset is the larger part and above :data:`MISFIT_FLOOR_M`. Named in its
+    own function so that other misfit checks (a parameter the model lacks) sit beside it."""
+    if fit.predicted_after is None or not len(data.times):
+        return []
+    res = data.values - data.at_samples(fit.predicted_after)             # (N, 3), the measurements' frame
+    means = np.zeros_like(res)
+    for i in np.unique(data.marker_index):
+        sel = data.marker_index == i
+        means[sel] = res[sel].mean(axis=0)
+    offset = float(np.sqrt(np.mean(np.sum(means ** 2, axis=1))))
+    scatter = float(np.sqrt(np.mean(np.sum((res - means) ** 2, axis=1))))
+    if not (offset > scatter and offset > MISFIT_FLOOR_M):
+        return []
+    stated = np.sqrt(3.0) * noise_m
+    noise = (f"; --noise {noise_m:g} m states {1e3 * stated:.3g} mm of tracker noise, {stated / scatter:.0f}x the "
+             "residual's scatter, so rms-vs-noise cannot see it" if stated > RMS_NOISE_FACTOR * scatter else "")
+    return [f"model-misfit: {1e3 * offset:.3g} mm of the {fit.rms_after_mm:.3g} mm RMS marker error after the fit is a "
+            f"constant offset of each marker (its scatter about that offset: {1e3 * scatter:.3g} mm), which no "
+            f"physical parameter can produce: the fitted values absorb a misfit of the model{noise}; try: check the "
+            "tracks' origin and frame (--frame camera fits a rigid transform), the marker points (--marker-points) "
+            "and the units"]

@@ -25,6 +25,8 @@ is never replaced without --overwrite; a result is only used with the robot it w
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 import warnings
 from pathlib import Path
@@ -210,6 +212,8 @@ def _add_identification_commands(sub) -> None:
                         "above 3x what it explains is refused (docs/calibration.md)")
     p.add_argument("--force", action="store_true",
                    help="write the robot even when a check of the tracks or the fit fails (printed as warnings)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a calibration in --out (robot.toml, calibration.json, tracks.png)")
     p.add_argument("--contact", type=contact_law, default=None, metavar="LAW",
                    help="ground contact law of the fit: coulomb or paper (default: the robot file's; the "
                         "shipped examples/data tracks were made under the paper's law); written to the new robot.toml")
@@ -260,14 +264,35 @@ def _is_simulation_error(exc: BaseException) -> bool:
     return isinstance(exc, SimulationError)
 
 
+def _stdout_gone() -> int:
+    """The reader of stdout went away (``trajopt evaluate R | head -1``): end quietly, as a
+    command-line tool ended by SIGPIPE does (exit 141), and keep Python's exit-time flush of
+    stdout from complaining."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):
+        pass
+    return 128 + int(getattr(signal, "SIGPIPE", 13))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run a command; exit codes: 0 done, 1 a fault (a failed simulation, an I/O error, a gait
-    that fell), 2 a bad input (one line naming the argument, file or field), 130 Ctrl-C."""
+    that fell), 2 a bad input (one line naming the argument, file or field), 130 Ctrl-C,
+    143 SIGTERM and 129 SIGHUP (ended as Ctrl-C ends them: checkpoints saved, workers and locks
+    released), 141 stdout closed by its reader (quietly)."""
+    from ..hardware.signals import COMMAND_SIGNALS, StopSignals, Terminated
     args = build_parser().parse_args(argv)       # bad arguments: usage + one line, exit 2
     with warnings.catch_warnings():
         warnings.showwarning = _show_warning     # warnings as one plain line each
         try:
-            return int(args.func(args) or 0)
+            with StopSignals(signals=COMMAND_SIGNALS):   # SIGTERM, SIGHUP: raised as Terminated
+                code = int(args.func(args) or 0)
+                sys.stdout.flush()               # a closed pipe shows here, not at exit
+            return code
+        except BrokenPipeError:
+            return _stdout_gone()
         except ValueError as exc:                # bad input: files, fields, values
             print(f"trajopt: error: {exc}", file=sys.stderr)
             return 2
@@ -277,6 +302,9 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt:
             print("trajopt: interrupted (no output file is left half-written)", file=sys.stderr)
             return 130
+        except Terminated as exc:
+            print(f"trajopt: {exc} (no output file is left half-written)", file=sys.stderr)
+            return 128 + exc.signum
         except RuntimeError as exc:
             if not _is_simulation_error(exc):
                 raise

@@ -2,7 +2,8 @@
 a new robot.toml with the fitted values, the before/after plot of the tracks). The fit itself is
 :func:`trajopt.calibration.calibrate.fit_parameters`, the files :mod:`trajopt.calibration.files`; the checks of
 the data and of the fit (:mod:`trajopt.calibration.checks`) refuse to write anything when one
-fails, unless ``--force``."""
+fails, unless ``--force``. A calibration in ``--out`` is never replaced without ``--overwrite``,
+and the folder is reserved while a calibration runs (``OUT/calibrate.lock``)."""
 from __future__ import annotations
 
 import json
@@ -13,8 +14,9 @@ from typing import Any
 from soft_envs.envs import PHYSICAL_PARAMETERS, MarkerSet, check_parameters, load_robot, with_contact_law
 
 from ..calibration.calibrate import MarkerData, fit_parameters
-from ..calibration.checks import check_fit, check_tracks
+from ..calibration.checks import check_fit, check_model_misfit, check_tracks
 from ..calibration.files import HEADER, plot_tracks, read_marker_points, write_calibrated_robot
+from ..results.reservation import reserve
 from ..results.result import Result, atomic_write_bytes
 from ..calibration.tracks import read_tracks
 
@@ -31,13 +33,30 @@ def _parameter_names(text: str, robot) -> tuple[str, ...]:
         raise ValueError(f"--fit: {exc}") from None
 
 
+#: what a calibration writes into --out
+OUTPUTS = ("robot.toml", "calibration.json", "tracks.png")
+#: the lock reserving --out while a calibration runs (trajopt.results.reservation)
+LOCK = "calibrate.lock"
+
+
 def _output_toml(out: Path, source: Path) -> Path:
     target = out / "robot.toml"
     if target.resolve() == source.resolve():
         raise ValueError(f"{target} is the input robot file: calibrate never overwrites it; use another --out")
-    if target.exists() and not target.read_text().startswith(HEADER):
+    if target.exists() and not (target.is_file() and target.read_text(errors="replace").startswith(HEADER)):
         raise ValueError(f"{target} exists and was not written by trajopt calibrate: use another --out")
     return target
+
+
+def _check_outputs(out: Path, overwrite: bool) -> None:
+    """A calibration in ``out`` is never replaced without ``--overwrite`` (refused before the fit)."""
+    there = [name for name in OUTPUTS if (out / name).exists()]
+    for name in there:
+        if not (out / name).is_file():
+            raise ValueError(f"{out / name}: exists and is not a file; use another --out")
+    if there and not overwrite:
+        raise ValueError(f"{out} holds a calibration ({', '.join(there)}): it is never replaced without "
+                         "--overwrite (or choose another --out)")
 
 
 def _inputs(args) -> tuple[Any, MarkerSet, MarkerData, tuple[str, ...], Any]:
@@ -71,6 +90,12 @@ def run_calibrate(args) -> int:
         raise ValueError("calibrate needs a robot from a robot.toml (a shipped name or a path)")
     out = Path(args.out)
     target = _output_toml(out, Path(robot.source))
+    with reserve(out / LOCK, f"calibration folder {out}"):     # a second calibration into it is refused
+        _check_outputs(out, getattr(args, "overwrite", False))
+        return _calibrate_reserved(args, robot, markers, data, names, tracks, out, target)
+
+
+def _calibrate_reserved(args, robot, markers, data, names, tracks, out: Path, target: Path) -> int:
     dropped = tracks.n_samples - len(data.times)
     print(f"{robot.summary()}\n{len(data.times)} samples of {len(markers)} markers over {len(data.u) * data.dt:.2f} s "
           f"(about {1.0 / tracks.median_interval():.3g} Hz per marker; "
@@ -79,7 +104,7 @@ def run_calibrate(args) -> int:
     _refuse_unless_forced(failures, target, args.force)       # before the fit: no time spent on nonsense
     t0 = time.perf_counter()
     fit = fit_parameters(data, names, max_evaluations=args.max_evaluations)
-    failures += check_fit(fit, args.noise)
+    failures += check_fit(fit, args.noise) + check_model_misfit(fit, data, args.noise)
     _refuse_unless_forced(failures, target, args.force)
     out.mkdir(parents=True, exist_ok=True)
     write_calibrated_robot(Path(robot.source), target, robot, names, fit.values)

@@ -2,6 +2,7 @@
 co-design (issue #29); what it does is :func:`trajopt.codesign.run.run_codesign`."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..argtypes import contact_law, integer, output_dir
@@ -73,8 +74,23 @@ def _cmd_codesign(args) -> int:
     screen = {k: v for k, v in (("score", args.screen), ("rounds", args.rounds)) if v is not None}
     if screen:
         run.screen = dataclasses.replace(run.screen, **screen)
-    outcome = run_codesign(run)
+    from ..codesign.run import PARTIAL
+    from ..codesign.screen import WorkerDied
+    from ..hardware.signals import Terminated
+    try:
+        outcome = run_codesign(run)
+    except WorkerDied as err:              # one line, the advice of the command line (no script here)
+        print(f"trajopt: error: {err.command_line_text()}", file=sys.stderr)
+        return 1
+    except (KeyboardInterrupt, Terminated):   # Ctrl-C, SIGTERM, SIGHUP: the workers are ended; the way on
+        partial = Path(args.out) / PARTIAL
+        if partial.is_file():
+            print(f"trajopt codesign: the run is checkpointed in {partial}: the same command with --resume "
+                  "continues it", file=sys.stderr)
+        raise
     s = outcome.summary
+    if outcome.finished:
+        print(f"{args.out} holds a finished co-design (--vary {','.join(args.vary)}); nothing to resume")
     print(f"{outcome.robot_file}: {s['before_bl_per_min']:.2f} -> {s['after_bl_per_min']:.2f} BL/min "
           f"({s['ratio']:.2f}x the shipped design's fastest gait); gait {outcome.result_file}; "
           f"report {outcome.report_file}")

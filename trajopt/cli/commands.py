@@ -12,13 +12,14 @@ from pathlib import Path
 import numpy as np
 
 from ..evaluation import evaluate_result
+from ..hardware.signals import Terminated
 from ..results.files import RESULTS_DIR
 from ..optimize_run import OptimizeRun, run_optimization
 from ..progress import IterationProgress
 from ..results.result import Result
 from ..tasks.registry import speed_along_path
 
-__all__ = ["run_optimize", "run_evaluate", "STATUS_MEANING", "evaluation_rows"]
+__all__ = ["run_optimize", "run_evaluate", "STATUS_MEANING", "evaluation_rows", "motor_limit_row"]
 
 
 #: What the ``status`` of a result means (Gauss-Newton's stopping criteria, and checkpoints).
@@ -78,6 +79,8 @@ def run_optimize(args) -> int:
                                 (lambda first: IterationProgress(run.iterations, first=first)))
     except KeyboardInterrupt:              # the checkpoint is saved and the way on printed
         return 130
+    except Terminated as exc:              # SIGTERM, SIGHUP: as Ctrl-C
+        return 128 + exc.signum
     if done is not None:
         _report(*done, time.perf_counter() - t0)
     return 0
@@ -103,19 +106,32 @@ def _report(res: Result, path: Path, seconds: float) -> None:
           f"  trajopt evaluate {path} --cycles 10")
 
 
+def motor_limit_row(res: Result) -> tuple[str, str] | None:
+    """The row saying that a gait was optimised without the motors' speed limit
+    (``--no-motor-limit``, or made before the limit existed), with its largest steps against
+    it; None for a gait made within the limit (or not by the optimiser)."""
+    if res.task == "rl" or res.settings.get("motor_limit"):
+        return None
+    from ..optim.motor_limit import playback_note
+    note = playback_note(res)
+    return ("motor limit", "made without it (--no-motor-limit): the motors may not follow this gait"
+            + (f"; {note.removeprefix('warning: ')}" if note else ""))
+
+
 def run_evaluate(args) -> int:
     res = Result.load(args.result)
     ev = evaluate_result(res, args.cycles, ignore_robot_mismatch=args.ignore_robot_mismatch)
+    limit = motor_limit_row(res)
     fid = None
     if getattr(args, "fidelity", False):
         from ..fidelity import fidelity
         fid = fidelity(res, n_cycles=args.cycles, reference=ev, ignore_robot_mismatch=args.ignore_robot_mismatch)
     if getattr(args, "json", False):
-        print(json.dumps({k: v for k, v in ev.items() if k != "com"} | ({"fidelity": fid} if fid else {}),
-                         allow_nan=True))
+        print(json.dumps({**{k: v for k, v in ev.items() if k != "com"}, "within_motor_limit": limit is None}
+                         | ({"fidelity": fid} if fid else {}), allow_nan=True))
     else:
         print(res.summary())
-        _print_table(evaluation_rows(ev, res.task))
+        _print_table(evaluation_rows(ev, res.task) + ([limit] if limit else []))
         if fid is not None:
             print(fidelity_text(fid))
     return 0 if ev["upright"] else 1

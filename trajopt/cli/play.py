@@ -16,8 +16,9 @@ Exit codes of :func:`run_play`:
 * 2 -- invalid input (result file, hardware TOML, trajectory limits): nothing was sent;
 * 3 -- some motor was NOT confirmed stopped (whatever else happened): the message names it;
 * 128 + the signal's number -- interrupted, every motor confirmed stopped: 130 Ctrl-C (SIGINT),
-  143 SIGTERM, 129 SIGHUP (also when the signal came during the stop sequence, which it
-  never cuts short).
+  143 SIGTERM, 129 SIGHUP, 131 Ctrl-\\ (SIGQUIT), 138 SIGUSR1 ... (every catchable signal whose
+  default action ends the process; also when the signal came during the stop sequence, which
+  it never cuts short).
 
 Every way out -- the last step, an error, any exception, a signal, the port vanishing -- runs
 the same stop sequence and prints the same report (``motors confirmed stopped: ...``).
@@ -60,13 +61,16 @@ def add_play_parser(subparsers: Any) -> argparse.ArgumentParser:
                     "zeroed before playing.",
         epilog="exit codes: 0 played, every motor confirmed stopped; 1 error, every motor confirmed stopped; "
                "2 bad input, nothing sent; 3 some motor NOT confirmed stopped (cut its power); "
-               "128+N ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), every motor confirmed stopped")
+               "128+N ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT ...), every motor "
+               "confirmed stopped")
     parser.add_argument("result", metavar="RESULT", help="trajectory-optimisation result (trajopt.results.Result)")
     parser.add_argument("--hardware", required=True, metavar="HW.toml", help="hardware description (TOML)")
     parser.add_argument("--dry-run", action="store_true", help="check and describe the plan, open no port")
     parser.add_argument("--verbose", action="store_true",
                         help="dry run: list every packet (hex); playback: a progress line per step")
-    parser.add_argument("--loops", type=_positive_int, default=1, metavar="N", help="play N times (default 1)")
+    parser.add_argument("--loops", type=_positive_int, default=1, metavar="N",
+                        help="play N times (default 1); an optimised gait plays its prep phase once and its "
+                             "cycles N times")
     parser.add_argument("--log", metavar="CSV", default=None,
                         help="CSV log of commanded vs measured counts (default: play_<RESULT>_<time>.csv)")
     parser.add_argument("--port-override", metavar="PORT", default=None,
@@ -96,6 +100,30 @@ def _report_stop(exc: BaseException, code: int) -> int:
     return code
 
 
+def _loop_start(res: Any) -> int:
+    """Where ``--loops`` starts repeating: an optimised gait's cycles, after its prep phase
+    (``settings["n_prep"]``, when the rest of ``u_post`` is whole cycles of ``n_cycle``); 0
+    (the whole trajectory) for anything else."""
+    s = getattr(res, "settings", None) or {}
+    try:
+        n_prep, n_cycle, k = int(s["n_prep"]), int(s["n_cycle"]), len(res.u_post)
+    except (KeyError, TypeError, ValueError):
+        return 0
+    return n_prep if 0 < n_prep < k and n_cycle > 0 and (k - n_prep) % n_cycle == 0 else 0
+
+
+def _as_streamed(res: Any, loops: int, loop_start: int) -> Any:
+    """``res`` with ``u_post`` as streamed as far as every step shows (the loop's wrap-around
+    from the last sample back to ``loop_start`` included), for the motor-limit note."""
+    import types
+
+    import numpy as np
+    u = np.asarray(res.u_post)
+    looped = np.vstack([u, u[loop_start:]]) if loops > 1 else u
+    return types.SimpleNamespace(u_post=looped, dt=res.dt, motor_names=res.motor_names,
+                                 robot_fingerprint=getattr(res, "robot_fingerprint", None))
+
+
 def run_play(args: argparse.Namespace) -> int:
     """Handler of ``trajopt play``; returns the process exit code (messages go to stderr)."""
     from ..hardware.config import load_hardware_config
@@ -120,7 +148,8 @@ def run_play(args: argparse.Namespace) -> int:
         print(f"trajopt play: refused: {exc}", file=sys.stderr)
         return EXIT_INPUT
     from trajopt.optim.motor_limit import playback_note
-    note = playback_note(res, args.loops)      # the robot's motor limit (robot.toml max_speed_rpm)
+    loop_start = _loop_start(res)
+    note = playback_note(_as_streamed(res, args.loops, loop_start))    # the motor limit (robot.toml max_speed_rpm)
     if note:
         print(f"trajopt play: {note}", file=sys.stderr)
     log_path = args.log
@@ -129,7 +158,7 @@ def run_play(args: argparse.Namespace) -> int:
     kept = f"log kept at {log_path}"
     try:
         summary = play_trajectory(res.u_post, float(res.dt), list(res.motor_names), config, loops=args.loops,
-                                  log_path=log_path, dry_run=args.dry_run, port_override=args.port_override,
+                                  loop_start=loop_start, log_path=log_path, dry_run=args.dry_run, port_override=args.port_override,
                                   verbose=getattr(args, "verbose", False), progress=sys.stderr)
     except (KeyboardInterrupt, Terminated) as exc:
         _say("interrupted" if isinstance(exc, KeyboardInterrupt) else f"{exc}")

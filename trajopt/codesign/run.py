@@ -1,6 +1,7 @@
 """``trajopt codesign ROBOT --vary routing,stiffness,legs --out DIR``: one co-design run into files.
 
-The steps (each file written atomically; ``DIR`` is created):
+The steps (each file written atomically; ``DIR`` is created only once every input has been
+checked, and reserved while the run lives: ``DIR/codesign.lock``, :mod:`trajopt.results.reservation`):
 
 1. **baseline**: the shipped design's fastest gait within the motors' limit, as ``trajopt
    optimize ROBOT --speed max`` finds it (:func:`trajopt.fastest.fastest_gait`), or a given one
@@ -37,19 +38,21 @@ import numpy as np
 from soft_envs.envs import make_gradient_env, robot_fingerprint
 from soft_envs.envs.design import KINDS, load_design, write_designed_robot
 
-from ..fastest import SearchSettings, fastest_gait, write_search_table
+from ..fastest import SearchSettings, fastest_gait, search_table_paths, write_search_table
 from ..results.files import atomic_write_bytes
+from ..results.reservation import reserve
 from ..optim.gait import GaitSpec
 from ..optim.gauss_newton import GaussNewtonOptions
 from ..optim.motor_limit import max_step_of_env
 from ..optim.optimize import optimize_gait
 from ..results.result import Result
-from ..results.robot_match import describe_difference
+from ..results.robot_match import describe_difference, robot_reference
 from .joint import JointSettings, JointState, optimise_jointly, replay_path
+from .partial import check_partial_sizes, read_partial
 from .problem import CodesignProblem, CodesignWeights
 from .screen import ScreenProgress, ScreenSettings, screen_designs
 
-__all__ = ["CodesignRun", "CodesignOutcome", "run_codesign", "design_changes"]
+__all__ = ["CodesignRun", "CodesignOutcome", "run_codesign", "design_changes", "check_baseline"]
 
 PARTIAL = "codesign.partial.json"
 
@@ -92,10 +95,14 @@ class CodesignRun:
 
 @dataclass
 class CodesignOutcome:
+    """Where a co-design's files are and its figures; ``finished``: it was finished before
+    (``resume`` had nothing to do)."""
+
     robot_file: Path
     result_file: Path
     report_file: Path
     summary: dict[str, Any] = field(default_factory=dict)
+    finished: bool = False
 
 
 def design_changes(design, before: np.ndarray, after: np.ndarray) -> list[dict]:
@@ -114,39 +121,107 @@ def _say(run: CodesignRun):
     return (lambda text: None) if run.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
 
 
-def _check_out(run: CodesignRun) -> None:
+#: the lock reserving a co-design's folder while a run lives (:mod:`trajopt.results.reservation`)
+LOCK = "codesign.lock"
+#: the summary of a finished co-design
+SUMMARY = "codesign.json"
+
+
+def _read_summary(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        raise ValueError(f"{path}: not a readable co-design summary ({err}); start afresh with --overwrite, or "
+                         "choose another --out") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: not a co-design summary (a {type(data).__name__}); start afresh with "
+                         "--overwrite, or choose another --out")
+    return data
+
+
+def _check_out(run: CodesignRun, name: str) -> CodesignOutcome | None:
+    """What ``--out`` holds decides (inside the folder's reservation): an interrupted run is
+    continued only with ``resume`` (or replaced with ``overwrite``), a finished one is replaced
+    only with ``overwrite``; ``resume`` of a finished one has nothing to do (its outcome is
+    returned), and one made with another ``--vary`` is refused."""
     out = run.out
-    if (out / PARTIAL).is_file() and not (run.resume or run.overwrite):
-        raise ValueError(f"{out / PARTIAL} holds an interrupted co-design run: continue it with --resume, "
-                         "or start afresh with --overwrite")
-    if (out / "robot.toml").is_file() and not (run.overwrite or run.resume):
-        raise ValueError(f"{out / 'robot.toml'} exists: a finished co-design is never replaced without "
+    partial, robot_file, summary = out / PARTIAL, out / "robot.toml", out / SUMMARY
+    for p in (partial, robot_file, summary):
+        if p.exists() and not p.is_file():
+            raise ValueError(f"{p}: exists and is not a file; choose another --out")
+    if partial.is_file():
+        if not (run.resume or run.overwrite):
+            raise ValueError(f"{partial} holds an interrupted co-design run: continue it with --resume, "
+                             "or start afresh with --overwrite")
+        return None
+    if not robot_file.is_file():
+        return None
+    if run.resume:
+        if not summary.is_file():
+            raise ValueError(f"{out}: holds a robot.toml but no {SUMMARY}: not a co-design to resume; choose "
+                             "another --out, or replace it with --overwrite (without --resume)")
+        done = _read_summary(summary)
+        vary = done.get("vary")
+        if isinstance(vary, list) and list(vary) != list(run.vary):
+            raise ValueError(f"{summary}: the finished co-design in {out} varied {','.join(map(str, vary))}, not "
+                             f"--vary {','.join(run.vary)}: nothing of it can be resumed; replace it with "
+                             "--overwrite (without --resume), or choose another --out")
+        return CodesignOutcome(robot_file, out / f"{name}.npz", out / "codesign.md", done, finished=True)
+    if not run.overwrite:
+        raise ValueError(f"{robot_file} exists: a finished co-design is never replaced without "
                          "--overwrite (or choose another --out)")
+    return None
 
 
-def _baseline(run: CodesignRun, env, say) -> Result:
-    """The shipped design's fastest gait: the given one (checked) or a ``--speed max`` search."""
+def check_baseline(path: Path, env, robot: str) -> Result:
+    """The given baseline (``--baseline``), checked: a ``--speed max`` result (the shipped
+    design's fastest gait within the motors' limit) of the same robot and contact law."""
+    res = Result.load(path)
+    changed = describe_difference(res.robot_fingerprint, robot_fingerprint(env.robot)) \
+        if res.robot_fingerprint else "it records no robot"
+    if changed:
+        raise ValueError(f"{path}: the baseline was not made on {robot} ({changed})")
+    if res.settings.get("contact") != env.contact_model:
+        raise ValueError(f"{path}: the baseline was made under the {res.settings.get('contact')!r} contact law, "
+                         f"the co-design runs under {env.contact_model!r} (--contact)")
+    if not res.settings.get("motor_limit"):
+        raise ValueError(f"{path}: the baseline was made without the motors' speed limit")
+    if res.task != "walk" or "search" not in res.settings:
+        raise ValueError(f"{path}: not a --speed max result (a {res.task} of {res.settings.get('n_cycle')} steps a "
+                         f"cycle at a target of {res.settings.get('speed_bl_per_min')} BL/min): the co-design's ratio "
+                         "is against the shipped design's fastest gait within the motors' limit; make it with "
+                         f"trajopt optimize {robot} --speed max{' --contact ' + env.contact_model if env.contact_model else ''}"
+                         ", or leave --baseline out (the co-design then runs that search first)")
+    return res
+
+
+def _baseline(run: CodesignRun, env, given: Result | None, say) -> Result:
+    """The shipped design's fastest gait: the given one (checked before), the resumed run's,
+    or a ``--speed max`` search."""
     path = run.out / "baseline_walk.npz"
-    if run.baseline is not None or (run.resume and path.is_file()):
-        res = Result.load(run.baseline if run.baseline is not None else path)
-        src = str(run.baseline or path)
-        changed = describe_difference(res.robot_fingerprint, robot_fingerprint(env.robot)) \
-            if res.robot_fingerprint else "it records no robot"
-        if changed:
-            raise ValueError(f"{src}: the baseline was not made on {run.robot} ({changed})")
-        if res.settings.get("contact") != env.contact_model:
-            raise ValueError(f"{src}: the baseline was made under the {res.settings.get('contact')!r} contact law, "
-                             f"the co-design runs under {env.contact_model!r} (--contact)")
-        if not res.settings.get("motor_limit"):
-            raise ValueError(f"{src}: the baseline was made without the motors' speed limit")
-        if run.baseline is not None:
-            res.save(path)
-        return res
+    if given is not None:
+        given.save(path)
+        for table in search_table_paths(path):         # an earlier search's table is not this baseline's
+            table.unlink(missing_ok=True)
+        return given
+    if run.resume and path.is_file():
+        return check_baseline(path, env, run.robot)
     say(f"baseline: the shipped {env.robot.name}'s fastest gait within the motors' limit (--speed max)")
-    res, rows = fastest_gait(env, settings=run.search, robot_spec=run.robot, quiet=run.quiet, log=say)
+    res, rows = fastest_gait(env, settings=run.search, robot_spec=robot_reference(run.robot), quiet=run.quiet,
+                             log=say)
     res.save(path)
     write_search_table(rows, path)
     return res
+
+
+def _check_design(design, vary, source: str) -> None:
+    """Refuse a design with nothing to vary (every parameter's bounds equal)."""
+    if not len(design):
+        raise ValueError(f"{source}: [design] declares no parameter of the kinds {', '.join(vary)}")
+    bounds = np.asarray(design.bounds, dtype=np.float64)
+    if not (bounds[:, 1] > bounds[:, 0]).any():
+        raise ValueError(f"{source}: [design] leaves nothing to vary: every parameter of {', '.join(vary)} has "
+                         "equal bounds")
 
 
 def _write_json(path: Path, data: dict) -> None:
@@ -154,30 +229,58 @@ def _write_json(path: Path, data: dict) -> None:
 
 
 def run_codesign(run: CodesignRun) -> CodesignOutcome:
-    """Run the steps of the module docstring; returns where the files are and the figures."""
-    say = _say(run)
+    """Run the steps of the module docstring; returns where the files are and the figures.
+    Every input (the robot and its [design] table, a given baseline) is checked before anything
+    is created; the folder is reserved for the run's length (``DIR/codesign.lock``: a second
+    co-design into it is refused); ``resume`` of a finished co-design does nothing (the outcome
+    says ``finished``)."""
     t_start = time.perf_counter()
-    run.out.mkdir(parents=True, exist_ok=True)
-    _check_out(run)
     env = make_gradient_env(run.robot, contact=run.contact)
     shipped = env.robot
     design = load_design(shipped, run.vary)
-    if not len(design):
-        raise ValueError(f"{shipped.source}: [design] declares no parameter of the kinds {', '.join(run.vary)}")
-    baseline = _baseline(run, env, say)
+    _check_design(design, run.vary, shipped.source)
+    given = check_baseline(Path(run.baseline), env, run.robot) if run.baseline is not None else None
+    with reserve(run.out / LOCK, f"co-design folder {run.out}"):
+        done = _check_out(run, run.name or f"{shipped.name}_walk")
+        if done is not None:
+            return done
+        return _run_reserved(run, env, design, given, t_start)
+
+
+def _settings_difference(saved: Any, settings: dict) -> str:
+    if not isinstance(saved, dict):
+        return "its settings are not an object"
+    diff = [f"{k}: {_short(saved.get(k))} -> {_short(settings.get(k))}" for k in sorted(set(saved) | set(settings))
+            if saved.get(k) != settings.get(k)]
+    return "; ".join(diff[:3]) + (f" and {len(diff) - 3} more" if len(diff) > 3 else "")
+
+
+def _short(v: Any) -> str:
+    text = ",".join(map(str, v)) if isinstance(v, list) and all(isinstance(x, str) for x in v) else repr(v)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _run_reserved(run: CodesignRun, env, design, given: Result | None, t_start: float) -> CodesignOutcome:
+    say = _say(run)
+    shipped = env.robot
+    partial = run.out / PARTIAL
+    saved = read_partial(partial) if run.resume and partial.is_file() else None   # before any work
+    baseline = _baseline(run, env, given, say)
     gait = GaitSpec.from_settings(baseline.settings)
     base_speed = float(baseline.evaluation["speed_bl_per_min"])
     settings = {"robot": run.robot, "vary": list(run.vary), "contact": env.contact_model, "gait": gait.to_settings(),
                 "joint": asdict(run.joint), "screen": asdict(run.screen), "weights": run.weights.to_dict(), "parameters": list(design.names),
                 "baseline_speed_bl_per_min": base_speed}
     problem = CodesignProblem(env, design, gait, run.joint.target(base_speed), run.weights, max_step_of_env(env))
-    partial = run.out / PARTIAL
     state = None
-    if run.resume and partial.is_file():
-        saved = json.loads(partial.read_text())
-        if saved.get("settings") != json.loads(json.dumps(settings, default=float)):
-            raise ValueError(f"{partial}: cannot resume: the settings differ from the interrupted run's")
-        state = JointState.from_dict(saved["state"])
+    if saved is not None:
+        expected = json.loads(json.dumps(settings, default=float))
+        if saved[0] != expected:
+            raise ValueError(f"{partial}: cannot resume: the settings differ from the interrupted run's "
+                             f"({_settings_difference(saved[0], expected)}); resume with its options, or start "
+                             "afresh with --overwrite")
+        state = saved[1]
+        check_partial_sizes(partial, state, problem.nz, len(design))
         say(f"resuming {partial}: stage {state.stage + 1}, iteration {state.iteration}")
     if state is None:
         state = JointState(w=problem.start(baseline.z).tolist(), best_speed=base_speed)
@@ -213,16 +316,20 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     result_file = run.out / f"{name}.npz"
     result.save(result_file)
     reopt = None
+    reopt_file = run.out / f"{name}_reoptimised.npz"
     if run.reoptimise:
         say(f"re-optimising the gait of {robot_file} from scratch (--speed max)")
-        reopt, rows = fastest_gait(new_env, settings=run.search, robot_spec=str(robot_file), quiet=run.quiet, log=say)
-        reopt_file = run.out / f"{name}_reoptimised.npz"
+        reopt, rows = fastest_gait(new_env, settings=run.search, robot_spec=robot_reference(robot_file),
+                                   quiet=run.quiet, log=say)
         reopt.save(reopt_file)
         write_search_table(rows, reopt_file)
+    else:                                    # a replaced co-design's: not this design's gait
+        for stale in (reopt_file, reopt_file.with_suffix(".json"), *search_table_paths(reopt_file)):
+            stale.unlink(missing_ok=True)
     changes = design_changes(design, design.values, block.values)
     summary = _summary(run, env, baseline, result, reopt, state, changes, checks, time.perf_counter() - t_start)
     report_file = _report(run, shipped, new_env.robot, summary, changes, checks, settings)
-    _write_json(run.out / "codesign.json", summary)
+    _write_json(run.out / SUMMARY, summary)
     partial.unlink(missing_ok=True)
     again = "" if reopt is None else (f"; re-optimised from scratch {summary['reoptimised_bl_per_min']:.2f} "
                                       f"({summary['reoptimised_ratio']:.2f}x)")
@@ -276,7 +383,7 @@ def _gait_on_written_robot(run: CodesignRun, env, gait: GaitSpec, z: np.ndarray,
     iterations of the walk there (the motors' limit on), kept when faster than none."""
     target = run.joint.target(state.best_speed)
     kw = dict(gait=gait, speed_bl_per_min=target, z0=z, n_seeds=0, eval_cycles=run.joint.eval_cycles,
-              robot_spec=str(robot_file))
+              robot_spec=robot_reference(robot_file))
     plain = optimize_gait(env, "walk", options=GaussNewtonOptions(max_iter=0), **kw)
     if run.polish_iterations <= 0:
         return plain

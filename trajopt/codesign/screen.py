@@ -41,10 +41,19 @@ thread each), and the rows, the winner and every figure are the same as one afte
 this process (``tests/test_codesign_screen.py``). After each round ``round_done`` receives where
 the screening stands (:class:`ScreenProgress`); a run interrupted between rounds continues from
 it (``resume``).
+
+The workers end with the screening however it ends: on an exception, Ctrl-C, SIGTERM or SIGHUP
+(raised as exceptions by the command line) they are terminated; a worker whose parent is gone
+(killed by SIGKILL) ends itself (:mod:`trajopt.workers`: ``PR_SET_PDEATHSIG`` on Linux, and a
+thread that watches its parent everywhere, started before the worker imports the work), so that
+no worker outlives the run and holds its stdout. A worker that dies
+(the out-of-memory killer, ``kill -9``) ends the screening with :class:`WorkerDied`.
 """
 from __future__ import annotations
 
 import multiprocessing
+import os
+import signal
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
@@ -59,9 +68,10 @@ from ..fastest import SearchSettings, fastest_gait
 from ..optim.gauss_newton import GaussNewtonOptions
 from ..optim.optimize import optimize_gait
 from ..optim.qp import QPError, nearest_feasible
+from ..workers import start_worker
 from .problem import CodesignProblem, design_env
 
-__all__ = ["ScreenSettings", "ScreenProgress", "candidates", "screen_designs", "SCORES"]
+__all__ = ["ScreenSettings", "ScreenProgress", "candidates", "screen_designs", "SCORES", "WorkerDied"]
 
 #: how a candidate design is scored (module docstring)
 SCORES = ("warm", "scratch")
@@ -177,11 +187,30 @@ def _score(job: _ScoreJob):
         return str(err)
 
 
-def _start_worker() -> None:
-    """A scoring process: one compute thread, and Ctrl-C is the main process's to handle (it
-    terminates the workers)."""
-    import signal
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+class WorkerDied(RuntimeError):
+    """A process scoring the screening's candidates died (``how``: e.g. "killed by SIGKILL", as
+    the out-of-memory killer ends one), after ``rounds_done`` finished rounds of ``rounds``."""
+
+    def __init__(self, how: str, rounds_done: int, rounds: int):
+        self.how, self.rounds_done, self.rounds = how, int(rounds_done), int(rounds)
+        super().__init__(
+            f"a worker process scoring the screening's candidates died ({how}; the out-of-memory killer ends one "
+            f"so when memory runs out) after {rounds_done} of {rounds} screening rounds. Fewer workers use less "
+            "memory (workers=1 scores in this process; the result is the same); the run's checkpoint continues "
+            "after the last finished round. From a script, processes are started by multiprocessing's spawn "
+            "method, which imports the script again: a script that co-designs with workers > 1 must run its work "
+            "under `if __name__ == \"__main__\":`")
+
+    def command_line_text(self) -> str:
+        """The advice for ``trajopt codesign`` (no script is involved there)."""
+        return (f"a worker process scoring the screening's candidates died ({self.how}; the out-of-memory killer "
+                f"ends one so when memory runs out) after {self.rounds_done} of {self.rounds} screening rounds: "
+                "the same command with --resume continues from the last finished round; --workers 1 uses less "
+                "memory (the result is the same)")
+
+
+def _one_thread() -> None:
+    """A scoring process computes on one thread (the workers share the cores)."""
     limit_threads(1)
 
 
@@ -194,14 +223,32 @@ class _Scorer:
             raise ValueError(f"workers must be >= 1, got {workers}")
         self.workers = int(workers)
         self.pool: ProcessPoolExecutor | None = None
+        self._seen = set()                  # the worker processes (their exit codes, once dead)
 
     def map(self, jobs: list[_ScoreJob]) -> Iterator:
         if self.workers == 1 or len(jobs) <= 1:
             return map(_score, jobs)
         if self.pool is None:
             self.pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                            initializer=_start_worker)
-        return self.pool.map(_score, jobs)
+                                            initializer=start_worker,
+                                            initargs=(os.getpid(), f"{__name__}:_one_thread"))
+        results = self.pool.map(_score, jobs)
+        self._seen.update((getattr(self.pool, "_processes", None) or {}).values())
+        return results
+
+    def how_they_died(self) -> str:
+        """How the first worker that died unasked ended ("killed by SIGKILL", "exit code 1")."""
+        for proc in self._seen:
+            code = proc.exitcode
+            if code is None or code == 0 or code == -signal.SIGTERM:      # alive, or terminated by the pool
+                continue
+            if code < 0:
+                try:
+                    return f"killed by {signal.Signals(-code).name}"
+                except ValueError:
+                    return f"killed by signal {-code}"
+            return f"exit code {code}"
+        return "ended abruptly"
 
     def close(self, terminate: bool = False) -> None:
         pool, self.pool = self.pool, None
@@ -261,13 +308,10 @@ def screen_designs(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, s
             _screen_round(problem, state, target, settings, search, scorer, log, done)
             if round_done is not None:
                 round_done(state)
-    except BrokenProcessPool as err:
+    except BrokenProcessPool:
+        how = scorer.how_they_died()
         scorer.close(terminate=True)
-        raise RuntimeError(
-            f"a process scoring the screening's candidates died ({err}). Processes are started by "
-            "multiprocessing's spawn method, which imports the calling script again: a script that co-designs "
-            "with workers > 1 must run its work under `if __name__ == \"__main__\":`; or pass workers=1 (the "
-            "result is the same)") from err
+        raise WorkerDied(how, state.rounds_done, settings.rounds) from None
     except BaseException:
         scorer.close(terminate=True)
         raise

@@ -72,8 +72,7 @@ class TrackingMonitor:
 
     def target(self, step: int) -> np.ndarray:
         """Encoder targets of ``step`` (before step 0: the first sample, reached by the pre-roll)."""
-        counts = self.plan.counts
-        return counts[max(step, 0) % counts.shape[0]]
+        return self.plan.sample(max(step, 0))
 
     def expected_lag(self, step: int) -> np.ndarray:
         """``lag_k`` of the module docstring, per motor [counts]."""

@@ -11,10 +11,13 @@ open the ports; pre-flight (firmware of every controller, battery voltage,
 duty 0 and encoder reset); optional pre-roll to the first sample; stream one
 "move now" command (65/66, buffer flag 1, speed / accel from the config) per
 motor per step on the grid ``start + k * dt`` (absolute deadlines, so sleep
-errors never accumulate), read every encoder back, append commanded vs
+errors never accumulate; after a stall of the process, e.g. Ctrl-Z, the grid is
+re-timed from the late step instead of catching up in a burst, with a warning),
+read every encoder back, append commanded vs
 measured counts to a CSV flushed after each row and abort when a motor stays
 off its target (:class:`~.monitor.TrackingMonitor`); finally -- also on any
-exception, Ctrl-C (SIGINT), SIGTERM or SIGHUP (:class:`~.signals.StopSignals`
+exception, Ctrl-C (SIGINT), SIGTERM, SIGHUP, Ctrl-\\ (SIGQUIT) or any other catchable signal that
+would end the process (:class:`~.signals.StopSignals`
 raises them as KeyboardInterrupt / :class:`~.signals.Terminated` until the stop
 begins, then holds them) -- stop both channels of every reachable controller
 and confirm each stop by reading it back (:func:`~.stop.stop_motors`).  The
@@ -50,6 +53,10 @@ from .stop import StopReport, stop_motors
 from .trajectory import TrajectoryPlan, describe_plan, iter_command_stream, plan_trajectory
 
 log = logging.getLogger("trajopt.hardware")
+
+#: a step this many steps late means the playback stalled (suspended, a frozen host): it is held
+#: and re-timed from there instead of sending the missed steps at once
+STALL_STEPS = 3.0
 
 OpenPort = Callable[[str, HardwareConfig], Any]
 
@@ -186,14 +193,27 @@ class _Run:
             self.sleep(min(plan.dt, 0.05))
 
     def stream(self) -> None:
-        """One move per motor per step on the grid t0 + k dt, encoders read back, log, tracking check."""
+        """One move per motor per step on the grid t0 + k dt, encoders read back, log, tracking check.
+
+        A step more than :data:`STALL_STEPS` late (the process was suspended: Ctrl-Z then ``fg``,
+        a host that froze) is not followed by the missed steps in a burst: the trajectory is held
+        where it stopped (the motors hold their last target meanwhile) and re-timed from the late
+        step on, with a warning (also in the summary)."""
         plan = self.plan
         motor_drivers = [self.drivers[(m.port, m.address)] for m in plan.motors]
-        t0 = self.clock()
+        t0 = start = self.clock()           # t0: the grid's origin (moved by a stall); start: the real one
+        stalls: list[tuple[int, float]] = []
         for step in range(plan.n_steps):
             now = _wait_until(t0 + step * plan.dt, self.clock, self.sleep)
             self.late = (now - t0) / plan.dt - step
             self.max_late = max(self.max_late, self.late)
+            if self.late > STALL_STEPS:                  # held: the grid moves on from here
+                stalls.append((step, self.late * plan.dt))
+                self.progress.say(f"warning: playback stalled {self.late * plan.dt:.2f} s before step {step} "
+                                  "(suspended, or the host froze): the trajectory is held there and re-timed, "
+                                  "not caught up in a burst")
+                t0 = now - step * plan.dt
+                self.late = 0.0
             targets = self.monitor.target(step)
             for motor, drv, pos in zip(plan.motors, motor_drivers, targets):
                 accel = int(motor.max_accel)
@@ -202,11 +222,17 @@ class _Run:
             measured = [drv.read_encoder(m.channel).count for m, drv in zip(plan.motors, motor_drivers)]
             self.steps_sent += 1
             if self.csv is not None:
-                self.csv.row(now - t0, step, targets, measured)
-            self.monitor.check(now - t0, step, measured)
-            self.progress.step(step, now - t0, self.monitor.max_error, self.late)
+                self.csv.row(now - start, step, targets, measured)
+            self.monitor.check(now - start, step, measured)
+            self.progress.step(step, now - start, self.monitor.max_error, self.late)
         _wait_until(t0 + plan.n_steps * plan.dt, self.clock, self.sleep)  # let the last step run its interval
-        self.duration = self.clock() - t0
+        self.duration = self.clock() - start
+        if stalls:
+            held = sum(s for _, s in stalls)
+            self.warnings.append(
+                f"playback stalled {len(stalls)} time{'s' * (len(stalls) > 1)} ({held:.2f} s in all, first before "
+                f"step {stalls[0][0]}): the trajectory was held there and re-timed (the motors held their last "
+                "target), so it took that much longer than planned")
 
     def stop(self) -> StopReport:
         """Stop and confirm every reachable channel (never raises)."""
@@ -263,7 +289,8 @@ def _dry_run(plan: TrajectoryPlan, zero_encoders: bool, stream: TextIO, verbose:
 
 
 def play_trajectory(u_post: Any, dt: float, motor_names: Sequence[str], config: HardwareConfig, *,
-                    loops: int = 1, log_path: str | os.PathLike[str] | None = None, dry_run: bool = False,
+                    loops: int = 1, loop_start: int = 0, log_path: str | os.PathLike[str] | None = None,
+                    dry_run: bool = False,
                     clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep,
                     port_override: str | None = None, open_port: OpenPort | None = None,
                     out: TextIO | None = None, zero_encoders: bool = True, preroll_tolerance: int = 5,
@@ -272,6 +299,8 @@ def play_trajectory(u_post: Any, dt: float, motor_names: Sequence[str], config: 
 
     Args:
         loops: play the trajectory this many times back to back (wrap-around is limit-checked).
+        loop_start: with ``loops > 1``, the samples before it are played once and only the rest
+            is repeated (an optimised gait: its prep phase once, its cycles ``loops`` times).
         log_path: CSV log written incrementally (kept on errors once a step was logged; an existing
             file is refused, ValueError); ``None`` = no log.
         dry_run: describe the plan on ``out`` (default stdout) instead of opening any port.
@@ -289,13 +318,13 @@ def play_trajectory(u_post: Any, dt: float, motor_names: Sequence[str], config: 
         PlaybackError: pre-flight failure (e.g. low battery, unsupported firmware);
             :class:`TrackingError` when a motor stays off its target.
         RoboClawError: communication failure.
-        KeyboardInterrupt / :class:`~.signals.Terminated`: SIGINT / SIGTERM, SIGHUP received
+        KeyboardInterrupt / :class:`~.signals.Terminated`: SIGINT / SIGTERM, SIGHUP, SIGQUIT ... received
             (during the playback or its stop).
         Any of these only after the stop sequence ran: its :class:`StopReport` is
         ``exc.stop_report`` (and a note on the exception).
     """
     config = config.with_port_override(port_override)
-    plan = plan_trajectory(u_post, dt, motor_names, config, loops)
+    plan = plan_trajectory(u_post, dt, motor_names, config, loops, loop_start)
     if dry_run:
         return _dry_run(plan, zero_encoders, out if out is not None else sys.stdout, verbose)
     run = _Run(plan, config, clock, sleep, Progress(progress, plan.n_steps, every=1 if verbose else None))
@@ -307,7 +336,7 @@ def play_trajectory(u_post: Any, dt: float, motor_names: Sequence[str], config: 
         except OSError as exc:
             raise ValueError(f"cannot write the playback log {os.fspath(log_path)}: {exc}") from exc
     guard = StopSignals(notify=run.progress.say)
-    with guard:  # SIGINT / SIGTERM / SIGHUP: raised (into the stop below) until the stop begins, then held
+    with guard:  # SIGINT, SIGTERM, SIGHUP, SIGQUIT ...: raised (into the stop below) until the stop begins, then held
         try:
             run.open(open_port or _default_open)
             run.preflight(zero_encoders)

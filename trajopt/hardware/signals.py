@@ -1,8 +1,12 @@
-"""The signals that end a playback (SIGINT, SIGTERM, SIGHUP): raised as exceptions, or held during the stop.
+"""The signals that end a playback (SIGINT, SIGTERM, SIGHUP, SIGQUIT, ...): raised as exceptions, or held during the stop.
 
 A playback must end with its stop sequence however it is asked to end: Ctrl-C
 (SIGINT), a service manager stopping it (SIGTERM), a closed terminal or SSH
-session (SIGHUP).  :class:`StopSignals` installs a handler for each of them
+session (SIGHUP), Ctrl-\\ (SIGQUIT), ``kill -USR1``: every catchable signal whose
+default action ends the process (:data:`STOP_SIGNALS`; not the faults SIGSEGV,
+SIGBUS, SIGFPE, SIGILL and SIGABRT, after which no code can be trusted to run, nor
+the signals whose default stops, continues or ignores the process).
+:class:`StopSignals` installs a handler for each of them
 (main thread only; a signal whose handler is ``SIG_IGN``, e.g. SIGHUP under
 ``nohup``, stays ignored) and restores the previous handlers on exit:
 
@@ -23,13 +27,29 @@ import threading
 from types import TracebackType
 from typing import Any, Callable
 
-#: Signals a playback turns into its stop sequence (those this platform has).
-STOP_SIGNALS: tuple[int, ...] = tuple(int(getattr(signal, name)) for name in ("SIGINT", "SIGTERM", "SIGHUP")
-                                      if hasattr(signal, name))
+#: The catchable signals whose default action ends the process (those this platform has).
+ENDING_SIGNAL_NAMES = ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT", "SIGUSR1", "SIGUSR2", "SIGALRM", "SIGVTALRM",
+                       "SIGPROF", "SIGXCPU", "SIGXFSZ", "SIGIO", "SIGPWR", "SIGSTKFLT", "SIGPIPE", "SIGBREAK")
+
+
+def _ending_signals() -> tuple[int, ...]:
+    found = [int(getattr(signal, name)) for name in ENDING_SIGNAL_NAMES if hasattr(signal, name)]
+    if hasattr(signal, "SIGRTMIN") and hasattr(signal, "SIGRTMAX"):       # real-time signals end it too
+        found += range(int(signal.SIGRTMIN), int(signal.SIGRTMAX) + 1)
+    return tuple(dict.fromkeys(found))
+
+
+#: Signals a playback turns into its stop sequence: every catchable signal whose default action
+#: ends the process (SIGPIPE and SIGXFSZ are ignored by Python from the start, and stay so).
+STOP_SIGNALS: tuple[int, ...] = _ending_signals()
+#: The signals every other command turns into an orderly end (a checkpoint, workers ended):
+#: SIGINT (KeyboardInterrupt, Python's own), SIGTERM and SIGHUP.
+COMMAND_SIGNALS: tuple[int, ...] = tuple(int(getattr(signal, name)) for name in ("SIGTERM", "SIGHUP")
+                                         if hasattr(signal, name))
 
 
 class Terminated(BaseException):
-    """SIGTERM / SIGHUP received: like KeyboardInterrupt, not caught by ``except Exception``."""
+    """SIGTERM, SIGHUP, SIGQUIT ... received: like KeyboardInterrupt, not caught by ``except Exception``."""
 
     def __init__(self, signum: int) -> None:
         self.signum = int(signum)
@@ -43,6 +63,8 @@ def signal_label(signum: int) -> str:
     try:
         return signal.Signals(signum).name
     except ValueError:
+        if hasattr(signal, "SIGRTMIN") and signal.SIGRTMIN <= signum <= signal.SIGRTMAX:
+            return f"SIGRTMIN+{signum - signal.SIGRTMIN}"
         return f"signal {signum}"
 
 
@@ -61,19 +83,21 @@ def signal_of(exc: BaseException) -> int | None:
 
 
 class StopSignals:
-    """Context manager: SIGINT / SIGTERM / SIGHUP raised as exceptions until ``holding``, then recorded.
+    """Context manager: the :data:`STOP_SIGNALS` raised as exceptions until ``holding``, then recorded.
 
     Args:
         holding: record from the start (the stop sequence itself).
         notify: called with a line when a signal is held (its exceptions are swallowed).
         labels: a list that also gets the label of each held signal (in order with other entries).
+        signals: the signals handled (default :data:`STOP_SIGNALS`).
     """
 
     def __init__(self, holding: bool = False, notify: Callable[[str], None] | None = None,
-                 labels: list[str] | None = None) -> None:
+                 labels: list[str] | None = None, signals: tuple[int, ...] | None = None) -> None:
         self.holding = holding  # an attribute, set in one bytecode: no signal can slip in between
         self.held: list[int] = []
         self._notify, self._labels = notify, labels
+        self._signals = STOP_SIGNALS if signals is None else tuple(signals)
         self._previous: dict[int, Any] = {}
 
     def _handle(self, signum: int, frame: object) -> None:
@@ -92,7 +116,7 @@ class StopSignals:
     def __enter__(self) -> StopSignals:
         if threading.current_thread() is not threading.main_thread():
             return self
-        for signum in STOP_SIGNALS:
+        for signum in self._signals:
             try:
                 previous = signal.getsignal(signum)
                 if previous == signal.SIG_IGN:

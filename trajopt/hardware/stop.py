@@ -11,7 +11,7 @@ gets its duty 0 once more.
 Nothing ends the sequence part-way: every step catches everything (timeouts,
 port errors, a KeyboardInterrupt raised by a hook, any other exception),
 records it and retries an interrupted step; in the main thread Ctrl-C (SIGINT),
-SIGTERM and SIGHUP are recorded instead of raised until the sequence ends
+SIGTERM, SIGHUP, SIGQUIT and every other signal that would end the process are recorded instead of raised until the sequence ends
 (:class:`~.signals.StopSignals`).  Its duration is bounded
 by the drivers' timeouts and retries (a controller that does not answer at all
 costs about ``2 * (max(retries, 2) + 1) * 2 * timeout`` s: two channels, each
@@ -67,8 +67,8 @@ class StopReport:
 
     channels: tuple[ChannelStop, ...] = ()
     unreached: tuple[str, ...] = ()  # motors on ports that never opened: nothing was sent to them
-    interruptions: tuple[str, ...] = ()  # Ctrl-C, SIGTERM, SIGHUP and exceptions that arrived during the stop
-    signals: tuple[int, ...] = ()  # the signals among them (SIGINT, SIGTERM, SIGHUP), in order
+    interruptions: tuple[str, ...] = ()  # signals (Ctrl-C, SIGTERM ...) and exceptions that arrived during the stop
+    signals: tuple[int, ...] = ()  # the signals among them, in order
 
     @property
     def all_confirmed(self) -> bool:

@@ -22,17 +22,30 @@ class TrajectoryLimitError(ValueError):
 
 @dataclass(frozen=True)
 class TrajectoryPlan:
-    """A validated trajectory: integer encoder targets per step and motor."""
+    """A validated trajectory: integer encoder targets per step and motor. Streamed: the samples
+    before ``loop_start`` once (an optimised gait's prep phase, from rest), then the samples from
+    ``loop_start`` on (its cycles) ``loops`` times."""
 
     motors: tuple[MotorConfig, ...]
     counts: np.ndarray  # (K, n_motors) int64 encoder targets (device frame, direction applied)
     dt: float
     loops: int
+    loop_start: int = 0
 
     @property
     def n_steps(self) -> int:
-        """Total number of streamed steps (``K * loops``)."""
-        return int(self.counts.shape[0]) * self.loops
+        """Total number of streamed steps (``loop_start + loops * (K - loop_start)``)."""
+        k = int(self.counts.shape[0])
+        return self.loop_start + (k - self.loop_start) * self.loops
+
+    def index(self, step: int) -> int:
+        """The sample streamed at ``step``."""
+        k = int(self.counts.shape[0])
+        return step if step < k else self.loop_start + (step - self.loop_start) % (k - self.loop_start)
+
+    def sample(self, step: int) -> np.ndarray:
+        """The encoder targets streamed at ``step``."""
+        return self.counts[self.index(step)]
 
     @property
     def needs_preroll(self) -> bool:
@@ -40,18 +53,25 @@ class TrajectoryPlan:
         return bool(np.any(self.counts[0] != 0))
 
 
-def _step_label(i: int, k: int) -> str:
-    """Label of the transition between sample ``i`` and ``i + 1`` of the looped sequence."""
-    a, b = i % k, (i + 1) % k
-    return f"steps {a} -> {b}" + (" (loop wrap-around)" if b == 0 else "")
+def _order(k: int, loops: int, loop_start: int) -> np.ndarray:
+    """The samples streamed, as far as every transition shows: once, then (looped) the loop
+    again from ``loop_start``."""
+    first = np.arange(k)
+    return np.concatenate([first, np.arange(loop_start, k)]) if loops > 1 else first
 
 
-def check_limits(motor: MotorConfig, u: np.ndarray, dt: float, loops: int) -> None:
+def _step_label(order: np.ndarray, i: int, k: int) -> str:
+    """Label of the transition between the ``i``-th and ``i + 1``-th streamed samples."""
+    a, b = int(order[i]), int(order[i + 1])
+    return f"steps {a} -> {b}" + (" (loop wrap-around)" if i + 1 >= k else "")
+
+
+def check_limits(motor: MotorConfig, u: np.ndarray, dt: float, loops: int, loop_start: int = 0) -> None:
     """Raise :class:`TrajectoryLimitError` if ``u`` (one motor's column) breaks a limit of ``motor``.
 
     Speeds are first differences and accelerations second differences of the
     (unrounded) encoder targets on the time grid; with ``loops > 1`` the
-    wrap-around from the last to the first sample is checked too.  The move
+    wrap-around from the last sample back to sample ``loop_start`` is checked too.  The move
     from the assembly pose to the first sample is done separately (pre-roll)
     at the configured limits and is not checked here.
     """
@@ -64,26 +84,30 @@ def check_limits(motor: MotorConfig, u: np.ndarray, dt: float, loops: int) -> No
     c = motor.to_counts_float(u)
     if np.any(np.abs(c) > P.INT32_MAX):
         raise TrajectoryLimitError(f"motor {motor.name!r}: encoder target beyond int32 range")
-    seq = np.concatenate([c, c]) if loops > 1 else c
+    order = _order(k, loops, loop_start)
+    seq = c[order]
     vel = np.diff(seq) / dt
     if vel.size:
         i = int(np.argmax(np.abs(vel)))
         if abs(vel[i]) > motor.max_speed:
             raise TrajectoryLimitError(
-                f"motor {motor.name!r}: speed {abs(vel[i]):.0f} counts/s between {_step_label(i, k)} "
+                f"motor {motor.name!r}: speed {abs(vel[i]):.0f} counts/s between {_step_label(order, i, k)} "
                 f"exceeds max_speed {motor.max_speed:.0f} counts/s")
     acc = np.diff(seq, 2) / dt**2
     if acc.size:
         i = int(np.argmax(np.abs(acc)))
         if abs(acc[i]) > motor.max_accel:
             raise TrajectoryLimitError(
-                f"motor {motor.name!r}: acceleration {abs(acc[i]):.0f} counts/s^2 at step {(i + 1) % k} "
+                f"motor {motor.name!r}: acceleration {abs(acc[i]):.0f} counts/s^2 at step {int(order[i + 1])}"
+                f"{' (loop wrap-around)' if i + 1 >= k - 1 and loops > 1 else ''} "
                 f"exceeds max_accel {motor.max_accel:.0f} counts/s^2")
 
 
 def plan_trajectory(u_post: np.ndarray, dt: float, motor_names: Sequence[str], config: HardwareConfig,
-                    loops: int = 1) -> TrajectoryPlan:
-    """Validate ``u_post`` (K, n_motors) [m] on a grid of step ``dt`` [s] and convert it to encoder targets."""
+                    loops: int = 1, loop_start: int = 0) -> TrajectoryPlan:
+    """Validate ``u_post`` (K, n_motors) [m] on a grid of step ``dt`` [s] and convert it to encoder
+    targets; with ``loops > 1`` the samples from ``loop_start`` on are repeated (an optimised
+    gait's cycles after its prep phase: ``loop_start = n_prep``)."""
     u = np.asarray(u_post, dtype=float)
     names = list(motor_names)
     if u.ndim != 2 or u.shape[0] < 1:
@@ -101,11 +125,12 @@ def plan_trajectory(u_post: np.ndarray, dt: float, motor_names: Sequence[str], c
     if not (isinstance(dt, (int, float)) and np.isfinite(dt) and dt > 0):
         raise ValueError(f"dt = {dt!r} must be a positive number of seconds")
     loops = P.check_int("loops", loops, 1, 1_000_000)
+    loop_start = P.check_int("loop_start", loop_start, 0, u.shape[0] - 1)
     motors = tuple(config.motors[n] for n in names)
     for j, motor in enumerate(motors):
-        check_limits(motor, u[:, j], float(dt), loops)
+        check_limits(motor, u[:, j], float(dt), loops, loop_start)
     counts = np.stack([m.to_counts(u[:, j]) for j, m in enumerate(motors)], axis=1).astype(np.int64)
-    return TrajectoryPlan(motors, counts, float(dt), loops)
+    return TrajectoryPlan(motors, counts, float(dt), loops, loop_start)
 
 
 # ----------------------------------------------------------------------------- dry run
@@ -113,10 +138,13 @@ def describe_plan(plan: TrajectoryPlan) -> list[str]:
     """Readable summary of a plan: duration, controllers, and per motor its range and peak speed/accel."""
     k = plan.counts.shape[0]
     controllers = sorted({(m.port, m.address) for m in plan.motors})
-    lines = [f"{plan.n_steps} steps ({k} samples x {plan.loops} loop{'s' if plan.loops > 1 else ''}) of "
+    shape = (f"{k} samples x {plan.loops} loop{'s' if plan.loops > 1 else ''}" if not plan.loop_start else
+             f"{plan.loop_start} prep samples once, then {k - plan.loop_start} samples of cycles x {plan.loops} "
+             f"loop{'s' if plan.loops > 1 else ''}")
+    lines = [f"{plan.n_steps} steps ({shape}) of "
              f"{plan.dt:g} s = {plan.n_steps * plan.dt:.2f} s on "
              + ", ".join(f"{port} {address:#04x}" for port, address in controllers)]
-    seq = np.concatenate([plan.counts, plan.counts]) if plan.loops > 1 else plan.counts
+    seq = plan.counts[_order(k, plan.loops, plan.loop_start)]
     for j, m in enumerate(plan.motors):
         counts = plan.counts[:, j]
         u = m.to_length(counts)
@@ -177,11 +205,10 @@ def iter_command_stream(plan: TrajectoryPlan, zero_encoders: bool = True) -> Ite
     if plan.needs_preroll:
         for j, motor in enumerate(plan.motors):
             yield _move(motor, int(plan.counts[0, j]), None, None)
-    k = plan.counts.shape[0]
     for step in range(plan.n_steps):
         t = step * plan.dt
         for j, motor in enumerate(plan.motors):
-            yield _move(motor, int(plan.counts[step % k, j]), t, step)
+            yield _move(motor, int(plan.sample(step)[j]), t, step)
         for motor in plan.motors:
             cmd = P.channel_command(P.Cmd.READ_ENCODER_M1, motor.channel)
             yield PlannedCommand(t, step, motor.port, motor.address, f"{motor.name} M{motor.channel} read encoder",

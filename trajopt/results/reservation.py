@@ -6,7 +6,9 @@ command, token}``, and removes it when the block ends in any way (return, except
 A second writer of the same name is refused at once (:class:`ReservationRefused`, a
 ``ValueError``: the command line exits 2 with one line naming the lock file and its owner).
 A reservation left by a process that no longer runs (same host, dead pid: ``kill -9``, a
-power loss) is taken over with a :class:`StaleReservationWarning`. On another host, or on
+power loss) is taken over with a :class:`StaleReservationWarning`, and so is one whose pid
+now belongs to a process that started after the lock was written (the pid was reused; the
+start time is read from /proc on Linux). On another host, or on
 Windows, whether the owner lives cannot be asked: the lock is refused and the message says
 to remove it by hand once no run uses it.
 
@@ -33,7 +35,7 @@ from typing import Any, Iterator
 
 from .files import _process_alive
 
-__all__ = ["reserve", "lock_path", "read_owner", "ReservationRefused", "StaleReservationWarning"]
+__all__ = ["reserve", "lock_path", "read_owner", "process_start_time", "ReservationRefused", "StaleReservationWarning"]
 
 #: the locks this process holds (a lock naming our own pid that is not here is stale: pid reuse)
 _HELD: set[str] = set()
@@ -66,13 +68,36 @@ def read_owner(lock_file: str | os.PathLike) -> dict[str, Any] | None:
     return owner if isinstance(owner, dict) else {}
 
 
+#: a process cannot have written a lock before it started; this much slack [s] covers the
+#: coarse clocks the start time is read from (the boot time has whole seconds)
+START_TIME_SLACK_S = 2.0
+
+
+def process_start_time(pid: int) -> float | None:
+    """When process ``pid`` started [s since the epoch], from /proc (Linux); None where that
+    cannot be read (another system, the process gone)."""
+    try:
+        stat = Path(f"/proc/{int(pid)}/stat").read_text()
+        ticks = int(stat[stat.rindex(")") + 2:].split()[19])         # field 22: starttime
+        boot = next(float(line.split()[1]) for line in Path("/proc/stat").read_text().splitlines()
+                    if line.startswith("btime "))
+        return boot + ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, StopIteration):
+        return None
+
+
 def _is_stale(owner: dict[str, Any], key: str) -> bool:
     pid, host = owner.get("pid"), owner.get("host")
     if not isinstance(pid, int) or isinstance(pid, bool) or host != platform.node():
         return False
     if pid == os.getpid():
         return key not in _HELD                   # our pid, not our lock: an older process's
-    return not _process_alive(pid)
+    if not _process_alive(pid):
+        return True
+    started, began = owner.get("started"), process_start_time(pid)
+    if isinstance(started, (int, float)) and not isinstance(started, bool) and began is not None:
+        return began > float(started) + START_TIME_SLACK_S      # the pid was reused by a later process
+    return False
 
 
 def _describe(owner: dict[str, Any]) -> str:
@@ -131,6 +156,9 @@ def reserve(lock_file: str | os.PathLike, what: str = "this output",
         if _create(lock_file, record):
             break
         owner = read_owner(lock_file)
+        if owner is None and lock_file.is_symlink() and not lock_file.exists():
+            raise ReservationRefused(f"{lock_file}: is a symbolic link to {os.readlink(lock_file)}, which does not "
+                                     "exist: not a lock a run wrote; remove it if no run uses this output")
         if owner is None:                     # released meanwhile
             continue
         if not _is_stale(owner, key):

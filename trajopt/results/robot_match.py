@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["RobotMismatchError", "IGNORE_FLAG", "fingerprint_of", "describe_difference", "check_robot",
-           "check_hardware_robot", "check_for_play"]
+           "check_hardware_robot", "check_for_play", "robot_reference", "locate_robot"]
 
 IGNORE_FLAG = "--ignore-robot-mismatch"
 #: robot.toml fields a result records itself and replays with, whatever the file says now: the
@@ -31,6 +31,36 @@ RESULT_OWNED_FIELDS = frozenset({"[contact].model"})
 
 class RobotMismatchError(ValueError):
     """A result used with a robot other than the one it was made for."""
+
+
+def _is_path(robot: str) -> bool:
+    """A robot given as a ``robot.toml`` path, not a shipped name (as ``load_robot`` tells them apart)."""
+    p = Path(robot)
+    return p.suffix == ".toml" or p.is_file()
+
+
+def robot_reference(robot: Any) -> str:
+    """How a result records its robot: a shipped name as given, a ``robot.toml`` path made
+    absolute (a relative one would only be found from the folder the result was made in)."""
+    text = str(robot)
+    return str(Path(text).resolve()) if _is_path(text) else text
+
+
+def locate_robot(res: Any) -> str:
+    """The robot a result names, as it can be found now: its ``robot`` (a shipped name, or a
+    robot.toml path: absolute since issue #40, relative to where it was made before), else, when
+    that path is not found, the file of that name beside the result, or the path taken relative
+    to the result's folder (a result folder copied or moved with its robot, e.g. a co-design's).
+    Whether the robot found is the one the result was made for is :func:`check_robot`'s to say."""
+    robot = str(res.robot)
+    p = Path(robot)
+    if not _is_path(robot) or p.is_file() or not getattr(res, "path", None):
+        return robot
+    folder = Path(res.path).parent
+    for candidate in (folder / p.name, *(() if p.is_absolute() else (folder / p,))):
+        if candidate.is_file():
+            return str(candidate)
+    return robot
 
 
 def fingerprint_of(robot: Any) -> dict[str, Any]:
@@ -115,8 +145,10 @@ def check_hardware_robot(hw_robot: str, hw_path: str, res: Any, *, src: str, ign
                          fingerprint: Any = fingerprint_of) -> str | None:
     """Check the hardware file's ``robot`` (a robot name, or a ``robot.toml`` path relative to
     the hardware file) against the robot ``res`` was made for, as :func:`check_robot` does
-    (raise, or return a warning with ``ignore``). An empty ``robot`` is not checked; a path is
-    compared by fingerprint when ``soft_envs`` is importable, by file otherwise."""
+    (raise, or return a warning with ``ignore``). An empty ``robot`` is not checked. A path, and
+    a shipped robot's name, are compared by fingerprint when ``soft_envs`` is importable (a
+    co-designed or edited robot keeps its name, and is another robot); by file, or by name,
+    otherwise."""
     if not hw_robot or getattr(res, "robot", None) is None:       # nothing to compare
         return None
     saved = getattr(res, "robot_fingerprint", None) or {}
@@ -133,6 +165,14 @@ def check_hardware_robot(hw_robot: str, hw_path: str, res: Any, *, src: str, ign
     else:
         same = hw_robot in (res.robot, saved.get("name"))
         label = f"robot {hw_robot!r}"
+        if same and saved:                 # the name is not enough: the shipped robot of that name
+            try:
+                theirs = fingerprint(hw_robot)
+            except (ImportError, ValueError):     # no simulator here, or no shipped robot of that name
+                theirs = None
+            if theirs:
+                what = describe_difference(saved, theirs)
+                same, label = what is None, f"{_label(theirs)}, the shipped robot of that name"
     if same:
         return None
     made_for = _label(saved) if saved else f"robot {res.robot!r}"
@@ -154,7 +194,7 @@ def check_for_play(res: Any, hw_robot: str, hw_path: str, *, src: str, ignore: b
         notes.append(note)
     if getattr(res, "robot_fingerprint", None):
         try:
-            current = fingerprint_of(res.robot)
+            current = fingerprint_of(locate_robot(res))
         except ImportError:
             notes.append(f"the robot files of {src} were not checked (soft_envs is not installed)")
         except ValueError as exc:

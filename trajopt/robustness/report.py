@@ -24,6 +24,7 @@ import numpy as np
 
 from ..results.files import atomic_write_png, decode_utf8
 from ..replay import env_for_result, result_controls
+from ..results.robot_match import locate_robot
 from ..results.result import Result, atomic_write_bytes
 from .study import (DERIVED_NAMES, PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample,
                          summarize)
@@ -38,7 +39,7 @@ def robustness_jobs(res: Result, cycles: int, samples: int, seed: int) -> tuple[
     env = env_for_result(res)
     u, n_prep, n_cycle = result_controls(res, env.robot, cycles)
     s = res.settings
-    common = dict(robot=res.robot, u=u, dt=float(res.dt), n_prep=n_prep, n_cycle=n_cycle,
+    common = dict(robot=locate_robot(res), u=u, dt=float(res.dt), n_prep=n_prep, n_cycle=n_cycle,
                   heading_deg=float(s.get("heading_deg", 0.0)), incline_deg=float(s.get("incline_deg", 0.0)),
                   seed=int(seed), contact=env.contact_model, substeps=int(env.substeps))
     return (SampleJob(index=-1, **common),

@@ -149,8 +149,13 @@ def _derived_robot(run: Run, run_dir: Path) -> Path:
 
 def resumes(run: Run, run_dir: Path) -> bool:
     """Whether ``run`` continues from a checkpoint in ``run_dir`` (an interrupted or killed
-    optimisation left its ``NAME.partial.npz``)."""
-    return run.kind == "optimize" and _resumable(partial_path(result_path(run, run_dir)))
+    optimisation left its ``NAME.partial.npz``, a ``--speed max`` search its
+    ``NAME.search.partial/``)."""
+    if run.kind != "optimize":
+        return False
+    from ..fastest import search_checkpoint_dir
+    out = result_path(run, run_dir)
+    return _resumable(partial_path(out)) or (search_checkpoint_dir(out) / "state.json").is_file()
 
 
 def _resumable(path: Path) -> bool:

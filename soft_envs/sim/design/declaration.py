@@ -67,8 +67,25 @@ def load_design(robot, vary: Sequence[str] = KINDS) -> DesignParameters:
         hip = _number(table["hip_height"], "[design].hip_height", src)
         scale = float(np.linalg.norm(to_sim(np.array([1.0, 0.0, 0.0]))))
         hip_sim = float((robot.mesh.points @ robot.up_axis).min()) + scale * hip
+        _check_hip_height(robot, hip, hip_sim, scale, src)
         kinds.append(LegMorph(robot, legs_below(robot, hip_sim), hip_sim))
     return DesignParameters(robot, kinds)
+
+
+def _check_hip_height(robot, hip: float, hip_sim: float, scale: float, src: str) -> None:
+    """The legs are the parts below the hip and the body the rest: a hip height with no tet
+    below it, or none above it (the whole robot would be one leg), is refused naming the field."""
+    mesh = robot.mesh
+    up = int(np.argmax(np.abs(robot.up_axis)))
+    centroids = mesh.points[mesh.tets].mean(axis=1)[:, up]
+    height = float(np.ptp(mesh.points @ robot.up_axis)) / scale
+    if not hip > 0.0 or not (centroids < hip_sim).any():
+        raise ValueError(f"{src}: [design].hip_height = {hip!r} leaves no tet below it: the legs are the parts "
+                         f"below the hip, measured from the lowest rest node (the robot is {height:.4g} high, file "
+                         "units)")
+    if not (centroids >= hip_sim).any():
+        raise ValueError(f"{src}: [design].hip_height = {hip!r} lies above the whole robot ({height:.4g} high, file "
+                         "units, from its lowest rest node): every tet would be a leg; give the height of the hips")
 
 
 def _number(v, where: str, src: str) -> float:
@@ -85,6 +102,9 @@ def _moduli(robot, table: dict, doc: dict, to_sim, src: str) -> RegionalModuli:
     if not (isinstance(bounds, list) and len(bounds) == 2):
         raise ValueError(f"{src}: [design].modulus_bounds must be [low, high], got {bounds!r}")
     bounds = tuple(_number(b, "[design].modulus_bounds", src) for b in bounds)
+    if bounds[0] == bounds[1]:
+        raise ValueError(f"{src}: [design].modulus_bounds = {list(bounds)} leaves the moduli nothing to vary "
+                         "(low = high); give a range around 1, e.g. [0.3, 3.0], or leave stiffness out of --vary")
     regions = []
     for i, r in enumerate(raw):
         where = f"[[design.regions]][{i}]"
@@ -130,7 +150,17 @@ def _routing(robot, table: dict, src: str) -> TendonRouting:
         names = robot.tendon_names
     if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
         raise ValueError(f"{src}: [design].routing must be a list of tendon names or \"all\", got {names!r}")
+    if not names:
+        raise ValueError(f"{src}: [design].routing = [] names no tendon: name the tendons whose via points may "
+                         f"move (known: {', '.join(robot.tendon_names)}), or \"all\"; or leave routing out of --vary")
     fixed = table.get("fixed_points", [-1])
     if not (isinstance(fixed, list) and all(isinstance(i, int) and not isinstance(i, bool) for i in fixed)):
         raise ValueError(f"{src}: [design].fixed_points must be a list of point indices, got {fixed!r}")
+    for n in names:
+        if n in robot.tendon_names:
+            P = len(robot.tendons[robot.tendon_names.index(n)].points)
+            bad = [i for i in fixed if not -P <= i < P]
+            if bad:
+                raise ValueError(f"{src}: [design].fixed_points: point {bad[0]} does not exist on tendon {n!r}, "
+                                 f"which has {P} points (indices 0..{P - 1}, or -{P}..-1 from the end)")
     return TendonRouting(robot, names, fixed)

@@ -8,7 +8,8 @@ units:
 * moduli: ``[[material.regions]]`` tables (``name``, ``youngs_modulus``, ``tets``), read back by
   :func:`~soft_envs.sim.robot_file.load_robot` into ``Robot.modulus_scale``;
 * leg lengths: a new mesh file ``mesh.vtu`` (``[robot].mesh`` points at it) and the markers'
-  points; otherwise ``[robot].mesh`` points at the source's mesh file. The ``[design]`` table
+  points; otherwise the source's mesh is copied in as ``mesh.vtu`` (the folder is self-contained:
+  a copy of it, anywhere, is the same robot). The ``[design]`` table
   is kept (the written robot can be co-designed again) with, when the mesh moved, its
   ``hip_height`` measured from the new lowest node at the absolute hip height the source's
   declares, and its ``[[design.regions]]`` as cell tags of the mesh (cell data
@@ -22,6 +23,7 @@ robot refuse the other.
 from __future__ import annotations
 
 import os
+import shutil
 import time
 from pathlib import Path
 
@@ -77,20 +79,37 @@ def write_designed_robot(design: DesignParameters, theta, out_dir: str | Path) -
 
     mesh = (source.parent / str(doc["robot"]["mesh"])).resolve()
     shipped = load_robot(source)
-    if np.array_equal(robot.mesh.points, shipped.mesh.points):
-        near = os.path.commonpath([mesh, out.resolve()]) != os.path.sep
-        doc["robot"]["mesh"] = os.path.relpath(mesh, out.resolve()) if near else str(mesh)
+    if np.array_equal(robot.mesh.points, shipped.mesh.points):       # the source's mesh, copied in
+        _replace(out / MESH, lambda tmp: shutil.copyfile(mesh, tmp) if mesh.suffix == ".vtu"
+                 else meshio.write(tmp, meshio.read(mesh), file_format="vtu"))
     else:
         tags = _design_regions_as_tags(design.robot.mesh.n_tets, doc, source)
-        meshio.write(out / "mesh.vtu", _moved_mesh(mesh, robot.mesh, to_file(robot.mesh.points), tags))
-        doc["robot"]["mesh"] = "mesh.vtu"
+        moved = _moved_mesh(mesh, robot.mesh, to_file(robot.mesh.points), tags)
+        _replace(out / MESH, lambda tmp: meshio.write(tmp, moved, file_format="vtu"))
         _move_hip_height(doc, shipped, robot, float(np.linalg.norm(M[0])))
+    doc["robot"]["mesh"] = MESH
 
     changed = ", ".join(f"{n} = {float(v):.6g}" for n, v, v0 in zip(design.names, theta, design.values) if v != v0)
     text = f"{HEADER} from {source} on {time.strftime('%Y-%m-%d %H:%M')}: {changed or 'no change'}\n"
-    target.write_text(text + tomlkit.dumps(doc), encoding="utf-8")
+    _replace(target, lambda tmp: Path(tmp).write_text(text + tomlkit.dumps(doc), encoding="utf-8"))
     _check_written(target, robot)
     return target
+
+
+#: the mesh file of a written robot folder
+MESH = "mesh.vtu"
+
+
+def _replace(path: Path, write) -> None:
+    """``write(temporary)`` beside ``path``, then renamed over it (atomic: a reader sees the old
+    file or the new one, never half of one)."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
 
 
 #: the written mesh's cell-data array of the ``[[design.regions]]`` (when the mesh moved)
