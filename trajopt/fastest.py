@@ -414,12 +414,12 @@ def _revisit(search: _Search, settings: SearchSettings, candidates: list[tuple[i
 
 def search_identity(env: Any, settings: SearchSettings, cycle_steps: int | None, heading_deg: float) -> dict:
     """What a search checkpoint must match to be resumed: the settings, the pinned cycle, the
-    heading, the robot (its fingerprint) and the contact law."""
+    heading, the robot (its fingerprint), the contact law and the physics steps per control step."""
     from soft_envs.envs import robot_fingerprint
     fp = robot_fingerprint(env.robot) or {}
     return json.loads(json.dumps({"settings": asdict(settings), "cycle_steps": cycle_steps,
                                   "heading_deg": float(heading_deg), "robot": fp.get("sha256", env.robot.name),
-                                  "contact": env.contact_model}, default=float))
+                                  "contact": env.contact_model, "substeps": int(env.substeps)}, default=float))
 
 
 def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle_steps: int | None = None,
