@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from soft_envs.sim import NewtonOptions, Simulator, load_robot
-from soft_envs.sim.substeps import (check_substeps, control_step_gradient, substep_controls, substep_jacobian,
-                                    substep_weights)
+from soft_envs.sim.substeps import (SUBSTEP_TOLERANCE, check_substeps, control_step_gradient, substep_controls,
+                                    substep_jacobian, substep_weights)
 
 from .gradcheck import relative_error, rollout_jacobian_errors
 
@@ -49,6 +49,8 @@ def test_the_maps_are_each_others_transpose():
     g = rng.normal(size=(K * n, M))
     assert np.allclose(control_step_gradient(g, n).ravel(), A.T @ g.ravel())
     dudz = rng.normal(size=(K, M, 2))
+    assert substep_jacobian(dudz[:, :, :0], n).shape == (K * n, M, 0)          # no parameters: empty
+    assert substep_controls(np.zeros((0, M)), np.zeros(M), n).shape == (0, M)   # no steps
     fine = substep_jacobian(dudz, n)
     for j in range(2):
         assert np.allclose(fine[:, :, j].ravel(), A @ dudz[:, :, j].ravel())
@@ -56,11 +58,13 @@ def test_the_maps_are_each_others_transpose():
 
 def test_a_substepped_rollout_is_the_fine_simulator_on_interpolated_controls():
     """Simulator(dt, substeps=n) = Simulator(dt / n) on the straight-line controls, read at the
-    ends of the control steps: bit for bit (the same steps in the same order)."""
+    ends of the control steps: bit for bit (the same steps in the same order, at the same Newton
+    tolerance: a sub-stepped simulator's default is 1e-7 m, SUBSTEP_TOLERANCE)."""
     robot = load_robot("tripod")
     n, K = 4, 12
     coarse = Simulator(robot, substeps=n)
-    fine = Simulator(robot, dt=0.033 / n)
+    assert coarse.newton.options.tol == SUBSTEP_TOLERANCE and Simulator(robot).newton.options.tol == 1e-8
+    fine = Simulator(robot, dt=0.033 / n, newton=NewtonOptions(tol=SUBSTEP_TOLERANCE))
     u = _gait(robot, K)
     start = coarse.rest_state(robot.u_rest)
     t = coarse.rollout(u, x0=start)
