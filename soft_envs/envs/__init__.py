@@ -11,7 +11,7 @@ calibration, compiling the kernels ahead of a first run).
 It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`; never
 ``trajopt``.
 """
-from ..sim import Robot, SimulationError, Trajectory, load_robot
+from ..sim import RolloutStopped, Robot, SimulationError, Trajectory, load_robot
 from ..sim.contact import CONTACT_LAWS
 from ..sim.fingerprint import robot_fingerprint
 from ..sim.warmup import compile_ahead
@@ -27,7 +27,8 @@ from .puppy import SoftPuppyEnv
 from .tripod import SoftTripodEnv
 
 __all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv", "make_gradient_env",
-           "as_gradient_env", "Robot", "Trajectory", "SimulationError", "load_robot", "robot_fingerprint",
+           "as_gradient_env", "Robot", "Trajectory", "SimulationError", "RolloutStopped", "load_robot",
+           "robot_fingerprint",
            "BodyFrame", "yaw_of",
            "tilt_deg_of", "wrap_angle", "heading_vector", "cable_points", "strain_energy_density",
            "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION",

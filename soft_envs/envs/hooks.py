@@ -30,11 +30,12 @@ class GradientHooksMixin:
         return self._reset_state.x.copy(), self._reset_state.x_prev.copy()
 
     def rollout(self, u: np.ndarray, dudz: np.ndarray | None = None, *,
-                store_dxdz: bool = False) -> Trajectory:
+                store_dxdz: bool = False, stop=None) -> Trajectory:
         """Simulate contractions ``u`` (K, M) [m] from the reset state, with sensitivities when
-        ``dudz`` (K, M, nz) is given (see :meth:`Simulator.rollout`). ``u`` is applied as given:
-        no action clipping and no motor speed limit. The environment's state is not touched."""
-        return self._sim.rollout(u, x0=self._reset_state, dudz=dudz, store_dxdz=store_dxdz)
+        ``dudz`` (K, M, nz) is given (see :meth:`Simulator.rollout`; ``stop`` too). ``u`` is
+        applied as given: no action clipping and no motor limits. The environment's state is not
+        touched."""
+        return self._sim.rollout(u, x0=self._reset_state, dudz=dudz, store_dxdz=store_dxdz, stop=stop)
 
     def rollout_parameters(self, u: np.ndarray, parameters) -> Trajectory:
         """:meth:`rollout` from the rest state with sensitivities to physical ``parameters``

@@ -28,7 +28,10 @@ class GradientEnv(Protocol):
     control step of ``timestep`` seconds per row (``substeps`` physics steps each, the controls
     joined by straight lines), and returns a
     :class:`~soft_envs.sim.Trajectory`, with exact sensitivities when ``dudz`` (K, n_motors, nz)
-    is given. It does not change the environment's own state.
+    is given. It does not change the environment's own state. ``stop(k, com, gamma)``, when
+    given, sees each state's centre of mass and cable deformations as they are reached and may end
+    the rollout (:class:`~soft_envs.sim.RolloutStopped`; an objective that already knows a trial
+    is rejected).
     ``u`` is applied as given (the environments' action clipping and motor speed limit are not
     applied; keep ``u`` within ``robot.u_bounds`` yourself). A failed step raises
     :class:`~soft_envs.sim.SimulationError` (re-exported by :mod:`soft_envs.envs`).
@@ -65,7 +68,7 @@ class GradientEnv(Protocol):
     def gravity(self) -> np.ndarray: ...    # (3,) [m/s^2]
 
     def rollout(self, u: np.ndarray, dudz: np.ndarray | None = None, *,
-                store_dxdz: bool = False) -> Trajectory: ...
+                store_dxdz: bool = False, stop=None) -> Trajectory: ...
 
     def reset_state(self) -> tuple[np.ndarray, np.ndarray]: ...   # (x_0, x_{-1}) of rollouts
 

@@ -56,11 +56,13 @@ from .linsolve import FactorCache
 from .mesh import TetMesh, load_mesh
 from .markers import Marker, MarkerSet
 from .robot import ContactParams, Motor, Robot, Tendon
+from .rollout import RolloutStopped
 from .simulator import Simulator, Trajectory
 from .state import State
 from .timing import DEFAULT_DT, GAIT_CYCLE_STEPS
 
 __all__ = ["Robot", "Tendon", "Motor", "ContactParams", "Marker", "MarkerSet", "Simulator", "Trajectory", "State",
+           "RolloutStopped",
            "SimulationError", "NewtonOptions", "FactorCache", "TetMesh", "load_mesh", "incline_gravity", "load_robot",
            "DEFAULT_DT", "GAIT_CYCLE_STEPS"]
 

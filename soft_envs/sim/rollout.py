@@ -17,7 +17,17 @@ from .state import State, advance
 from .substeps import substep_controls, substep_jacobian
 from .trajectory import Trajectory
 
-__all__ = ["control_step", "run_rollout", "forward_sensitivities", "start_controls"]
+__all__ = ["control_step", "run_rollout", "forward_sensitivities", "start_controls", "RolloutStopped"]
+
+
+class RolloutStopped(Exception):
+    """A rollout's ``stop`` callback asked it to end after control step ``k`` (what an objective
+    does when a lower bound of its value already exceeds what it could accept: the rest of the
+    rollout cannot change the decision). Not a failure: nothing is wrong with the physics."""
+
+    def __init__(self, k: int):
+        super().__init__(f"the rollout was stopped after control step {k}")
+        self.k = k
 
 
 def start_controls(state: State, u_rest: np.ndarray) -> np.ndarray:
@@ -60,12 +70,15 @@ def forward_sensitivities(newton, masses, dudz, K: int, n_motors: int, substeps:
 
 
 def run_rollout(newton, robot, start: State, u: np.ndarray, substeps: int, sens: ForwardSensitivities | None = None,
-                *, want_z: bool = False, keep_substeps: bool = False) -> Trajectory:
+                *, want_z: bool = False, keep_substeps: bool = False, stop=None) -> Trajectory:
     """K control steps of controls ``u`` (K, n_motors) from ``start`` (inputs checked by the
     caller), with ``sens`` stepped alongside (``want_z``: its control Jacobians go into the
     trajectory; its parameter block's always do). The :class:`Trajectory` holds the ends of
     the control steps; ``keep_substeps`` also keeps every sub-step's positions and controls in
-    ``info["substep_x"]`` (K n + 1, n, 3) and ``info["substep_u"]`` (the adjoint needs them)."""
+    ``info["substep_x"]`` (K n + 1, n, 3) and ``info["substep_u"]`` (the adjoint needs them).
+    ``stop(k, com, gamma)``, if given, sees the centre of mass (3,) and the cable deformations
+    (T,) of every state k = 1..K as it is reached; when it returns True the rollout ends there
+    with :class:`RolloutStopped`."""
     system = newton.system
     cables = system.cables
     K = len(u)
@@ -95,6 +108,8 @@ def run_rollout(newton, robot, start: State, u: np.ndarray, substeps: int, sens:
                 state = state.replace(k=start.k + k + 1)
             xs[k + 1] = state.x
             gam[k + 1] = cables.deformation(state.x, u[k])
+            if stop is not None and stop(k + 1, robot.com(state.x), gam[k + 1]):
+                raise RolloutStopped(k + 1)
     masses = robot.node_masses
     com = np.einsum("kni,n->ki", xs, masses) / masses.sum()
     traj = Trajectory(x=xs, com=com, cable_deformation=gam, u=u, newton_iterations=iters,

@@ -247,11 +247,14 @@ class Simulator:
     def rollout(self, u, x0=None, dudz=None, *, x_prev0=None, store_dxdz: bool = False,
                 check_bounds: bool = True, history0: tuple | None = None, params=None,
                 dx0dtheta: np.ndarray | None = None, dhistory0dtheta: tuple | None = None,
-                keep_substeps: bool = False) -> Trajectory:
+                keep_substeps: bool = False, stop=None) -> Trajectory:
         """Simulate controls ``u`` (K, n_motors) from the state ``x0``: K chained
         :meth:`step`\\ s sharing one factorisation cache (:func:`~.rollout.run_rollout`). The
         trajectory holds the ends of the control steps; ``keep_substeps`` also keeps the
         sub-steps' positions and controls in ``traj.info["substep_x"]``, ``["substep_u"]``.
+        ``stop(k, com, gamma)`` (optional) sees every state's centre of mass and cable
+        deformations as it is reached and may end the rollout there
+        (:class:`~.rollout.RolloutStopped`: an objective that already knows its answer).
 
         ``x0`` is one of
 
@@ -294,7 +297,7 @@ class Simulator:
                                      store_dxdz=store_dxdz, params=params, dx0dtheta=dx0dtheta,
                                      dhistory0dtheta=dhistory0dtheta, x0=start.x)
         traj = run_rollout(self.newton, self.robot, start, u, self.substeps, sens, want_z=dudz is not None,
-                           keep_substeps=keep_substeps)
+                           keep_substeps=keep_substeps, stop=stop)
         if params:
             traj.info["parameters"] = params.names if isinstance(params, ParameterBlock) else params
         return traj

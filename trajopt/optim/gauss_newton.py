@@ -48,7 +48,7 @@ from typing import Callable
 
 import numpy as np
 
-from soft_envs.envs import SimulationError
+from soft_envs.envs import RolloutStopped, SimulationError
 
 from .qp import LinearConstraints, feasible_fraction, solve_qp
 
@@ -79,11 +79,19 @@ class GaussNewtonResult:
     info: dict = field(default_factory=dict)
 
 
-def _evaluate(fun, z, need_jac):
+def _evaluate(fun, z, need_jac, bound: float | None = None):
+    """``(O, r, J, info)`` at ``z``; O = inf for a failed simulation and, when ``fun`` takes a
+    ``bound`` (its attribute ``stops_above``), for a trial it stopped because its objective was
+    already above ``bound`` (:class:`~soft_envs.envs.RolloutStopped`): a rejected trial either way."""
     try:
-        r, J, info = fun(z, need_jac)
+        if bound is not None and getattr(fun, "stops_above", False):
+            r, J, info = fun(z, need_jac, bound=bound)
+        else:
+            r, J, info = fun(z, need_jac)
     except SimulationError as err:
         return np.inf, None, None, {"sim_failure": str(err)}
+    except RolloutStopped as stopped:
+        return np.inf, None, None, {"stopped_at_step": stopped.k}
     if not np.isfinite(r).all():
         return np.inf, None, None, {"sim_failure": "non-finite residual"}
     return 0.5 * float(r @ r), r, J, info
@@ -128,13 +136,16 @@ def _constrained_direction(J: np.ndarray, g: np.ndarray, z: np.ndarray, lam: flo
 def _line_search(fun: Callable, z: np.ndarray, dz: np.ndarray, g: np.ndarray, f: float, lower: np.ndarray,
                  upper: np.ndarray, opt: GaussNewtonOptions) -> tuple[bool, float, np.ndarray, int, dict]:
     """Step 4: ``(accepted, alpha, z_try, trials, info)``: backtrack along the clipped step
-    until the Armijo condition holds (one rollout without sensitivities per trial)."""
+    until the Armijo condition holds (one rollout without sensitivities per trial; a problem that
+    can stop a rollout once its objective is above the condition's bound does, which decides
+    nothing differently)."""
     alpha, trials, info = 1.0, 0, {}
     for _ in range(opt.max_backtracks + 1):
         trials += 1
         z_try = np.clip(z + alpha * dz, lower, upper)
-        f_try, _, _, info = _evaluate(fun, z_try, False)
-        if f_try <= f + opt.armijo * min(float(g @ (z_try - z)), 0.0):   # slope of the clipped step
+        bound = f + opt.armijo * min(float(g @ (z_try - z)), 0.0)       # slope of the clipped step
+        f_try, _, _, info = _evaluate(fun, z_try, False, bound)
+        if f_try <= bound:
             return True, alpha, z_try, trials, info
         alpha *= 0.5
     return False, alpha, z_try, trials, info

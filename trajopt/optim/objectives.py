@@ -30,7 +30,8 @@ import numpy as np
 from .heading import HeadingMeasure
 from ..tasks.registry import TASKS, TURN_HEADING_WEIGHT
 
-__all__ = ["ObjectiveWeights", "HeadingTarget", "gait_residuals", "slack_eating_residual", "TURN_HEADING_WEIGHT"]
+__all__ = ["ObjectiveWeights", "HeadingTarget", "gait_residuals", "slack_eating_residual", "objective_stop",
+           "TURN_HEADING_WEIGHT"]
 
 
 @dataclass(frozen=True)
@@ -119,3 +120,33 @@ def gait_residuals(traj, target: np.ndarray, z: np.ndarray, param, body_length: 
     J_mag = np.diag(s_mag / rng_z)
     J_sm = s_sm * Dz
     return r, np.vstack([J_com, J_hd, J_sl, J_mag, J_sm]), terms
+
+
+def objective_stop(bound: float, target: np.ndarray, z: np.ndarray, param, body_length: float,
+                   weights: ObjectiveWeights, n_steps: int, n_tendons: int):
+    """A rollout's ``stop(k, com, gamma)`` (:meth:`soft_envs.envs.GradientEnv.rollout`) that ends
+    it once the objective of :func:`gait_residuals` must exceed ``bound``: the keyframe terms
+    (magnitude, smoothness) plus the COM and slack residuals of the states reached so far are a
+    lower bound of ``O = 0.5 |r|^2`` (every term is a sum of squares; the heading term, left out,
+    only adds), so a rollout stopped there has ``O > bound`` whatever follows. The sums are the
+    same residuals as :func:`gait_residuals` (K = ``n_steps`` states, T = ``n_tendons``), and the
+    bound is met with a relative margin of 1e-9 against the summation order."""
+    lo, hi = param.bounds()
+    nz = len(z)
+    rng_z = hi - lo
+    r_mag = np.sqrt(weights.magnitude / nz) * (z - lo) / rng_z if nz else np.zeros(0)
+    Kf = param.n_keyframes
+    D = (np.roll(np.eye(Kf), 1, axis=1) - np.eye(Kf))
+    r_sm = (np.sqrt(weights.smoothness / nz) * (np.kron(np.eye(nz // Kf), D) / rng_z[None, :]) @ z) if nz else np.zeros(0)
+    s_com = np.sqrt(weights.com / n_steps) / body_length
+    s_sl = np.sqrt(weights.slack / max(n_steps * n_tendons, 1)) / float(np.mean(hi - lo))
+    limit = bound + 1e-9 * abs(bound)
+    total = [0.5 * float(r_mag @ r_mag + r_sm @ r_sm)]
+
+    def stop(k: int, com: np.ndarray, gamma: np.ndarray) -> bool:
+        d = s_com * (com[[0, 2]] - target[k])
+        sl = s_sl * np.maximum(weights.slack_eps - gamma, 0.0)
+        total[0] += 0.5 * float(d @ d + sl @ sl)
+        return total[0] > limit
+
+    return stop
