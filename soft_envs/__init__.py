@@ -35,9 +35,13 @@ ENV_IDS_BY_ROBOT = {
 _ENTRY_POINTS = {"tripod": "soft_envs.envs.tripod:SoftTripodEnv", "puppy": "soft_envs.envs.puppy:SoftPuppyEnv"}
 #: Each id's entry point.
 ENV_IDS = {env_id: _ENTRY_POINTS[robot] for robot, ids in ENV_IDS_BY_ROBOT.items() for env_id in ids.values()}
-#: Keyword arguments each id passes to its environment: its contact law, explicitly (a keyword
-#: given to ``gymnasium.make`` replaces it: ``contact="paper"`` on ``-v1``).
-ENV_KWARGS = {env_id: {"contact": law} for ids in ENV_IDS_BY_ROBOT.values() for law, env_id in ids.items()}
+#: Keyword arguments each id passes to its environment: its contact law and its motors' law,
+#: explicitly (a keyword given to ``gymnasium.make`` replaces it: ``contact="paper"`` on ``-v1``).
+#: ``-v0`` and ``-v1`` keep the motors of their making, the speed limit alone
+#: (``motor_model="speed"``; the environment class's default is ``"torque-speed"``, the motors'
+#: torque-speed line: :mod:`soft_envs.sim.motors`).
+ENV_KWARGS = {env_id: {"contact": law, "motor_model": "speed"}
+              for ids in ENV_IDS_BY_ROBOT.values() for law, env_id in ids.items()}
 #: The latest id of each shipped robot (``-v1``): the one the project makes (RL baseline,
 #: examples); the paper's law is its ``contact="paper"``, never ``-v0`` unless Table I is asked for.
 LATEST_ENV_IDS = {robot: ids["coulomb"] for robot, ids in ENV_IDS_BY_ROBOT.items()}

@@ -202,8 +202,11 @@ def test_env_ids_have_one_home():
     assert ROBOT_IDS == {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
     assert COULOMB_IDS == {"tripod": "SoftTripod-v1", "puppy": "SoftPuppy-v1"}
     assert set(soft_envs.ENV_IDS) == {*ROBOT_IDS.values(), *COULOMB_IDS.values()}
-    assert soft_envs.ENV_KWARGS == {"SoftTripod-v0": {"contact": "paper"}, "SoftPuppy-v0": {"contact": "paper"},
-                                    "SoftTripod-v1": {"contact": "coulomb"}, "SoftPuppy-v1": {"contact": "coulomb"}}
+    speed = {"motor_model": "speed"}          # -v0 and -v1 keep the motors of their making (issue #38)
+    assert soft_envs.ENV_KWARGS == {"SoftTripod-v0": {"contact": "paper", **speed},
+                                    "SoftPuppy-v0": {"contact": "paper", **speed},
+                                    "SoftTripod-v1": {"contact": "coulomb", **speed},
+                                    "SoftPuppy-v1": {"contact": "coulomb", **speed}}
     assert soft_envs.LATEST_ENV_IDS == COULOMB_IDS
     # the RL baseline makes the latest id under either law (never -v0, "out of date")
     assert env_id("puppy") == "SoftPuppy-v1" and env_id("SoftPuppy-v0") == "SoftPuppy-v1"
