@@ -1,7 +1,8 @@
-"""The fastest walk within the motors' speed limit: ``trajopt optimize ROBOT --speed max`` (issue #28 item 3).
+"""The fastest walk within the motors' limits: ``trajopt optimize ROBOT --speed max`` (issue #28 item 3).
 
-The paper fixes the cycle (72 steps, 2.4 s) by hand; the fastest gait under the motors' speed
-limit (:mod:`trajopt.optim.motor_limit`) needs a shorter one. :func:`fastest_gait` searches the
+The paper fixes the cycle (72 steps, 2.4 s) by hand; the fastest gait under the motors' limits
+(the torque-speed line, :mod:`trajopt.optim.motor_torque`, by default; the speed limit alone,
+:mod:`trajopt.optim.motor_limit`, with ``motor_model="speed"``) needs a shorter one. :func:`fastest_gait` searches the
 cycle length and the keyframe count discretely, with several starts, coarse to fine:
 
 1. **coarse**: every candidate ``(n_cycle, n_keyframes)`` of :class:`SearchSettings`
@@ -59,6 +60,7 @@ from soft_envs.envs import SimulationError, as_gradient_env
 from .results.files import atomic_write_bytes
 from .optim.gait import GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
+from .optim.motor_limit import IDEAL, choose_motor_model
 from .optim.optimize import optimize_gait
 from .optim.parameterization import GaitParameterization
 from .results.result import Result
@@ -187,8 +189,10 @@ def _progress(total: int, quiet: bool):
 class _Search:
     """The state of a search: its rows, runs, step count and the fastest upright speed so far."""
 
-    def __init__(self, env, settings: SearchSettings, heading_deg: float, robot_spec: str | None, bar, say):
+    def __init__(self, env, settings: SearchSettings, heading_deg: float, robot_spec: str | None, bar, say,
+                 motor_model: str):
         self.env, self.settings, self.heading_deg, self.robot_spec = env, settings, heading_deg, robot_spec
+        self.motor_model = motor_model
         self.bar, self.say = bar, say
         self.t_start = time.perf_counter()
         self.rows: list[dict] = []
@@ -232,7 +236,7 @@ class _Search:
             res = optimize_gait(self.env, "walk", gait=gait, speed_bl_per_min=target, heading_deg=self.heading_deg,
                                 options=options, warm_start=warm, z0=z0, n_seeds=n_seeds,
                                 eval_cycles=self.settings.eval_cycles, robot_spec=self.robot_spec,
-                                callback=within_budget, motor_limit=True)
+                                callback=within_budget, motor_model=self.motor_model)
             opt_steps, eval_steps = int(res.evaluation["optimization_sim_steps"]), _evaluation_steps(res)
         except SimulationError as err:       # a start that cannot be simulated: the candidate fails
             failure, opt_steps, eval_steps = f"failed: {err}", 0, 0
@@ -274,20 +278,26 @@ def _revisit(search: _Search, settings: SearchSettings, candidates: list[tuple[i
 
 def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle_steps: int | None = None,
                  contact: str | None = None, heading_deg: float = 0.0, robot_spec: str | None = None,
-                 quiet: bool = False, log: Callable[[str], Any] | None = None) -> tuple[Result, list[dict]]:
-    """The fastest upright walk within the motors' speed limit (module docstring): ``(result,
+                 quiet: bool = False, log: Callable[[str], Any] | None = None,
+                 motor_model: str | None = None) -> tuple[Result, list[dict]]:
+    """The fastest upright walk within the motors' limits (module docstring): ``(result,
     table)``. ``env``: a Gymnasium env offering :class:`~soft_envs.envs.GradientEnv`, or a robot
     / name / robot.toml path (``contact``: its contact law). ``cycle_steps``: pin the cycle
-    (search keyframes and starts only). ``quiet``: no progress bar. The result is the chosen
+    (search keyframes and starts only). ``quiet``: no progress bar. ``motor_model``: the motors'
+    law every candidate obeys (``"torque-speed"`` or ``"speed"``, :func:`trajopt.optimize_gait`;
+    None: the environment's; ``"ideal"`` is refused: without a limit there is no fastest gait). The result is the chosen
     run's :class:`Result` (evaluated over ``settings.eval_cycles`` cycles); its
     ``settings["search"]`` and ``evaluation["search_sim_steps"]`` record the search; the table
     has one row per optimisation (:data:`TABLE_COLUMNS`), the chosen one marked. Raises
     :class:`~soft_envs.envs.SimulationError` when no candidate stays upright, ValueError when the
     budget fits none."""
     env = as_gradient_env(env, contact=contact)
+    model = choose_motor_model(env, motor_model)
+    if model == IDEAL:
+        raise ValueError("--speed max needs the motors' limits: motor_model 'ideal' has none")
     candidates = settings.candidates(cycle_steps)
     search = _Search(env, settings, heading_deg, robot_spec, _progress(len(candidates) + settings.n_fine, quiet),
-                     log or (lambda text: None))
+                     log or (lambda text: None), model)
     try:
         previous: Result | None = None          # the last candidate's result: the next one's warm start
         for n_cycle, n_kf in candidates:

@@ -23,6 +23,7 @@ from soft_envs.envs import compile_ahead, make_gradient_env
 from .results.files import RESULTS_DIR
 from .optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
+from .optim.motor_limit import IDEAL, MOTOR_MODELS, TORQUE_SPEED
 from .optim.optimize import optimize_gait
 from .results.reservation import lock_path, reserve
 from .results.result import Result, partial_path, result_path
@@ -40,8 +41,9 @@ class OptimizeRun:
     [BL/min] (None: the robot's default; ``"max"``: the fastest walk within the motors' limit,
     :mod:`trajopt.fastest`, with its search table beside the result), heading [deg], turn side, slope ``angle`` [deg] (a task
     on a slope), contact law (None: the task's, else the robot file's), symmetry (None: the
-    task's), warm start result, whether to optimise without the motors' speed limit
-    (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes and their ``interpolation`` (None: the task's; :data:`trajopt.optim.gait.INTERPOLATIONS`), cycle
+    task's), warm start result, the motors' law the controls obey (``motor_model``:
+    ``"torque-speed"``, ``"speed"`` or ``"ideal"``, :mod:`soft_envs.sim.motors`; ``no_motor_limit``
+    is ``"ideal"``, kept for scripts of before the model), Gauss-Newton iterations, keyframes and their ``interpolation`` (None: the task's; :data:`trajopt.optim.gait.INTERPOLATIONS`), cycle
     steps (None: the paper's 72; with ``speed="max"``: searched) and prep steps, random seeds, evaluation cycles,
     the ``speed="max"`` search's budget of simulation steps (``max_sim_steps``, None: none), output folder and
     result name (None:
@@ -57,6 +59,7 @@ class OptimizeRun:
     symmetry: bool | None = None
     warm_start: Path | None = None
     no_motor_limit: bool = False
+    motor_model: str = TORQUE_SPEED
     iterations: int = 10
     keyframes: int | None = None
     interpolation: str | None = None
@@ -76,6 +79,15 @@ class OptimizeRun:
         """The run of ``options`` (a command's parsed arguments, a sweep run's parameters);
         keys that are no option are ignored."""
         return cls(**{k: v for k, v in options.items() if k in OPTIMIZE_OPTIONS})
+
+    def model(self) -> str:
+        """The motor model the run obeys (``no_motor_limit``: ``"ideal"``); ValueError for an
+        unknown name or both options contradicting each other."""
+        if self.motor_model not in MOTOR_MODELS:
+            raise ValueError(f"--motor-model must be one of {', '.join(MOTOR_MODELS)}, got {self.motor_model!r}")
+        if self.no_motor_limit and self.motor_model not in (TORQUE_SPEED, IDEAL):
+            raise ValueError(f"--no-motor-limit (no limit) contradicts --motor-model {self.motor_model}")
+        return IDEAL if self.no_motor_limit else self.motor_model
 
     def result_file(self) -> Path:
         """``OUT/NAME.npz`` (NAME default ``ROBOT_TASK``; a dot in NAME is kept)."""
@@ -154,10 +166,11 @@ def _check_speed_max(run: OptimizeRun) -> None:
     if run.task != "walk":
         raise ValueError(f"--speed max finds the fastest walk: it needs --task walk, got --task {run.task}")
     refused = [flag for flag, on in (("--resume", run.resume), ("--no-motor-limit", run.no_motor_limit),
+                                     ("--motor-model ideal", run.motor_model == IDEAL),
                                      ("--warm-start", run.warm_start is not None)) if on]
     if refused:
         raise ValueError(f"--speed max cannot be combined with {', '.join(refused)}: the search starts afresh "
-                         "within the motors' speed limit (run it again with --overwrite to replace its result)")
+                         "within the motors' limits (run it again with --overwrite to replace its result)")
 
 
 def _finish_files(res: Result, out: Path, partial: Path) -> Path:
@@ -176,6 +189,7 @@ def run_optimization(run: OptimizeRun, progress: Callable[[int], Any] | None = N
     or robots: ValueError, nothing written. Ctrl-C: the last iterate is saved as an
     "interrupted" checkpoint (continue with ``resume``) and KeyboardInterrupt raised again."""
     get_task(run.task)
+    run.model()                    # an unknown or contradicting motor model: refused before anything is written
     out = run.result_file()
     partial = partial_path(out)
     if run.speed == "max":
@@ -208,10 +222,11 @@ def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Resul
         max_sim_steps=run.max_sim_steps)
     with compile_ahead(run.robot):
         env = make_gradient_env(run.robot, heading_deg=run.heading, contact=run.contact)
-    print(f"{env.robot.summary()}; task walk at the highest speed within the motors' limit; {env.contact_model} "
+    print(f"{env.robot.summary()}; task walk at the highest speed within the motors' limits ({run.model()} "
+          f"model); {env.contact_model} "
           f"contact law{'; quick search (SOFT_ENVS_QUICK)' if quick else ''}")
     res, rows = fastest_gait(env, settings=settings, cycle_steps=run.cycle_steps, heading_deg=run.heading,
-                             robot_spec=run.robot, quiet=run.quiet)
+                             robot_spec=run.robot, quiet=run.quiet, motor_model=run.model())
     path = _finish_files(res, out, partial)
     csv_path, md_path = write_search_table(rows, out)
     print(f"search: {len(rows)} optimisations, {res.evaluation['search_sim_steps']:,} simulation steps in total "
@@ -253,7 +268,7 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
         res = optimize_gait(env, task.name, gait=gait, speed_bl_per_min=run.speed, heading_deg=run.heading,
                             turn=run.turn, options=options, warm_start=warm, n_seeds=run.seeds,
                             eval_cycles=run.cycles, robot_spec=run.robot, callback=checkpoint, resume=resume,
-                            motor_limit=not run.no_motor_limit)
+                            motor_model=run.model())
     except KeyboardInterrupt:
         if progress is not None:
             progress.close()
