@@ -41,7 +41,7 @@ from ..fastest import SearchSettings, fastest_gait, write_search_table
 from ..results.files import atomic_write_bytes
 from ..optim.gait import GaitSpec
 from ..optim.gauss_newton import GaussNewtonOptions
-from ..optim.motor_limit import max_step_of_env
+from ..optim.motor_limit import SPEED, TORQUE_SPEED, max_step_of_env, motor_model_of
 from ..optim.optimize import optimize_gait
 from ..results.result import Result
 from ..results.robot_match import describe_difference
@@ -75,10 +75,14 @@ class CodesignRun:
     name: str | None = None
     workers: int | None = 1             # processes scoring the screening's candidates (None: one per core;
                                         # > 1 from a script: run it under `if __name__ == "__main__":`)
+    motor_model: str = "torque-speed"   # the motors' law every gait obeys ("torque-speed" or "speed")
 
     def __post_init__(self):
         if self.workers is not None and int(self.workers) < 1:
             raise ValueError(f"workers must be >= 1, got {self.workers}")
+        if self.motor_model not in (TORQUE_SPEED, SPEED):
+            raise ValueError(f"motor_model must be {TORQUE_SPEED!r} or {SPEED!r} (co-design needs the motors' "
+                             f"limits), got {self.motor_model!r}")
 
     def n_workers(self) -> int:
         return int(self.workers) if self.workers is not None else max(1, os.cpu_count() or 1)
@@ -139,6 +143,9 @@ def _baseline(run: CodesignRun, env, say) -> Result:
                              f"the co-design runs under {env.contact_model!r} (--contact)")
         if not res.settings.get("motor_limit"):
             raise ValueError(f"{src}: the baseline was made without the motors' speed limit")
+        if motor_model_of(res.settings) != run.motor_model:
+            raise ValueError(f"{src}: the baseline was made under the {motor_model_of(res.settings)!r} motor model, "
+                             f"the co-design runs under {run.motor_model!r} (--motor-model)")
         if run.baseline is not None:
             res.save(path)
         return res
@@ -159,7 +166,7 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     t_start = time.perf_counter()
     run.out.mkdir(parents=True, exist_ok=True)
     _check_out(run)
-    env = make_gradient_env(run.robot, contact=run.contact)
+    env = make_gradient_env(run.robot, contact=run.contact, motor_model=run.motor_model)
     shipped = env.robot
     design = load_design(shipped, run.vary)
     if not len(design):
@@ -168,9 +175,11 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     gait = GaitSpec.from_settings(baseline.settings)
     base_speed = float(baseline.evaluation["speed_bl_per_min"])
     settings = {"robot": run.robot, "vary": list(run.vary), "contact": env.contact_model, "gait": gait.to_settings(),
+                "motor_model": run.motor_model,
                 "joint": asdict(run.joint), "screen": asdict(run.screen), "weights": run.weights.to_dict(), "parameters": list(design.names),
                 "baseline_speed_bl_per_min": base_speed}
-    problem = CodesignProblem(env, design, gait, run.joint.target(base_speed), run.weights, max_step_of_env(env))
+    problem = CodesignProblem(env, design, gait, run.joint.target(base_speed), run.weights, max_step_of_env(env),
+                              motor_model=run.motor_model)
     partial = run.out / PARTIAL
     state = None
     if run.resume and partial.is_file():
@@ -207,7 +216,7 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     say(f"wrote the designed robot {robot_file}")
     from .checks import check_designed_robot, format_checks
     checks = check_designed_robot(shipped.source, robot_file)
-    new_env = make_gradient_env(str(robot_file), contact=env.contact_model)
+    new_env = make_gradient_env(str(robot_file), contact=env.contact_model, motor_model=run.motor_model)
     name = run.name or f"{shipped.name}_walk"
     result = _gait_on_written_robot(run, new_env, gait, z_best, state, robot_file)
     result_file = run.out / f"{name}.npz"
