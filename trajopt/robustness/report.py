@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..results.files import atomic_write_png, decode_utf8
+from ..optim.motor_limit import motor_model_of
 from ..replay import env_for_result, result_controls
 from ..results.result import Result, atomic_write_bytes
 from .study import (DERIVED_NAMES, PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample,
@@ -40,7 +41,7 @@ def robustness_jobs(res: Result, cycles: int, samples: int, seed: int) -> tuple[
     s = res.settings
     common = dict(robot=res.robot, u=u, dt=float(res.dt), n_prep=n_prep, n_cycle=n_cycle,
                   heading_deg=float(s.get("heading_deg", 0.0)), incline_deg=float(s.get("incline_deg", 0.0)),
-                  seed=int(seed), contact=env.contact_model)
+                  seed=int(seed), contact=env.contact_model, motor_model=motor_model_of(s))
     return (SampleJob(index=-1, **common),
             [SampleJob(index=i, perturbation=draw_perturbation(seed, i), **common) for i in range(samples)])
 
