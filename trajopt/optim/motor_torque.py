@@ -155,8 +155,9 @@ class MotorLine:
 def project_into_line(z: np.ndarray, line: MotorLine, rollout: Callable[[np.ndarray, bool], Any],
                       base: LinearConstraints, rest: np.ndarray, max_rounds: int = 8
                       ) -> tuple[np.ndarray, dict[str, Any] | None]:
-    """``(z, report)``: ``z`` when its rollout obeys the line (report None), else keyframes that
-    do: the nearest to the current ones in the keyframes' metric within ``base`` (the speed limit
+    """``(z, report)``: ``z`` when its rollout obeys the line within :data:`LINE_TOLERANCE` (as an
+    accepted iterate does: a result made under the line starts where it ended; report None),
+    else keyframes that obey it: the nearest to the current ones in the keyframes' metric within ``base`` (the speed limit
     and the bounds) and the line linearised at them (tightened by :data:`PROJECTION_MARGIN`),
     taken again at the new keyframes until their rollout obeys the line. When that fails within
     ``max_rounds`` rounds (or the linearisation has no feasible point), the keyframes are drawn
@@ -167,7 +168,7 @@ def project_into_line(z: np.ndarray, line: MotorLine, rollout: Callable[[np.ndar
     z = z_start = np.asarray(z, dtype=np.float64)
     traj = rollout(z, True)
     first = line.worst(z, traj.cable_deformation)
-    if first.excess <= 0.0:
+    if first.excess <= LINE_TOLERANCE:
         return z, None
     lo, hi = line.param.bounds()
     scale = np.where(hi > lo, hi - lo, 1.0)
