@@ -9,7 +9,10 @@ Prints, per robot and contact law:
     (and against none), measured in one run: from the same start (the torque-speed run's, inside
     both), one iteration (its Jacobian rollout, the constraints and the QP step, the line search,
     the next Jacobian rollout) under each model, alternately, ``--repeat`` times; the ratio of
-    the medians (target <= 1.2x);
+    the medians (target <= 1.2x). The line search may take another number of trials under each
+    model, so the parts the constraints change are also timed alone at that start (the Jacobian
+    rollout, the line's rows, the QP step under each model's rows): their ratio is the cost of
+    an iteration at equal trials;
 (b) the shipped walk as ``trajopt optimize ROBOT --task walk`` makes it (the paper's 72-step
     gait, 4 keyframes, 10 Gauss-Newton iterations, 8 seeds, 6 evaluation cycles) under the
     torque-speed model and under the speed-limit model: the speeds, each motor's peak torque;
@@ -67,6 +70,33 @@ def iteration_cost(robot: str, contact: str, repeat: int) -> dict[str, float]:
     return {m: statistics.median(t) for m, t in times.items()}
 
 
+def constraint_overhead(robot: str, contact: str, repeat: int) -> dict[str, float]:
+    """(a'): the parts of an iteration the constraints change, timed alone at one start: the
+    Jacobian rollout, the line's rows from it, and the QP step under each model's constraints.
+    ``ratio``: (rollout + rows + QP with the line) / (rollout + QP with the speed limit), the cost
+    of an iteration with the same number of line-search trials."""
+    from trajopt.optim.gauss_newton import _constrained_direction
+    line_problem, speed_problem = _problem(robot, contact, "torque-speed"), _problem(robot, contact, "speed")
+    z = choose_start(line_problem, n_seeds=8).z
+    lo, hi = line_problem.param.bounds()
+    t = {"rollout": [], "rows": [], "qp_line": [], "qp_speed": []}
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        r, J, _ = line_problem(z, True)
+        t["rollout"].append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        rows = line_problem.linearised_constraints(z)
+        t["rows"].append(time.perf_counter() - t0)
+        for key, cons in (("qp_line", rows), ("qp_speed", speed_problem.speed_limit)):
+            t0 = time.perf_counter()
+            _constrained_direction(J, J.T @ r, z, 1e-4, lo, hi, cons)
+            t[key].append(time.perf_counter() - t0)
+    med = {k: statistics.median(v) for k, v in t.items()}
+    med["ratio"] = (med["rollout"] + med["rows"] + med["qp_line"]) / (med["rollout"] + med["qp_speed"])
+    med["line_rows"] = float(len(rows.h))
+    return med
+
+
 def fine_replay(res, robot: str, contact: str) -> tuple[float, float, float]:
     """(c): ``(worst line excess, peak torque / max_torque - 1, horizon-only worst excess)`` of
     ``res`` replayed at ``FINE`` physics steps per control step."""
@@ -91,8 +121,14 @@ def fine_replay(res, robot: str, contact: str) -> tuple[float, float, float]:
 
 def run(robot: str, contact: str, repeat: int) -> dict:
     cost = iteration_cost(robot, contact, repeat)
-    out = {"robot": robot, "contact": contact, "iteration_s": cost,
-           "ratio_vs_speed": cost["torque-speed"] / cost["speed"], "ratio_vs_ideal": cost["torque-speed"] / cost["ideal"]}
+    parts = constraint_overhead(robot, contact, repeat)
+    print(f"  {robot}, {contact}: Jacobian rollout {parts['rollout']:.2f} s, the line's {parts['line_rows']:.0f} rows "
+          f"{1e3 * parts['rows']:.0f} ms, QP step {1e3 * parts['qp_line']:.0f} ms with them / "
+          f"{1e3 * parts['qp_speed']:.0f} ms with the speed limit's: {parts['ratio']:.2f}x per iteration at equal "
+          f"line-search trials", flush=True)
+    out = {"robot": robot, "contact": contact, "iteration_s": cost, "parts": parts,
+           "ratio_vs_speed": cost["torque-speed"] / cost["speed"],
+           "ratio_vs_ideal": cost["torque-speed"] / cost["ideal"]}
     for model in ("torque-speed", "speed"):
         t0 = time.perf_counter()                # trajopt optimize ROBOT --task walk [--contact paper]
         res = optimize_gait(make_gradient_env(robot, contact=contact), "walk", options=GaussNewtonOptions(max_iter=10),
@@ -103,14 +139,17 @@ def run(robot: str, contact: str, repeat: int) -> dict:
                       "peak_torque_nm": max(ev["motor_load"]["peak_torque_nm"]),
                       "worst_line_excess": max(ev["motor_load"]["worst_line_excess"]),
                       "fine_worst_excess": worst, "fine_horizon_excess": horizon, "fine_torque_excess": torque,
-                      "wall_s": time.perf_counter() - t0, "status": res.status}
+                      "wall_s": time.perf_counter() - t0, "status": res.status,
+                      "refused_trials": ev["motor_load"].get("refused_trials", 0),
+                      "trials": sum(h.get("trials", 0) for h in res.history)}
     return out
 
 
 def _row(r: dict) -> str:
     ts, sp = r["torque-speed"], r["speed"]
-    return (f"| {r['robot']} | {r['contact']} | {r['iteration_s']['torque-speed']:.2f} / {r['iteration_s']['speed']:.2f}"
-            f" / {r['iteration_s']['ideal']:.2f} s | **{r['ratio_vs_speed']:.2f}x** ({r['ratio_vs_ideal']:.2f}x) | "
+    it = r["iteration_s"]
+    return (f"| {r['robot']} | {r['contact']} | {it['torque-speed']:.2f} / {it['speed']:.2f} / {it['ideal']:.2f} s | "
+            f"**{r['ratio_vs_speed']:.2f}x** ({r['ratio_vs_ideal']:.2f}x); {r['parts']['ratio']:.2f}x at equal trials | "
             f"{ts['speed_bl_per_min']:.2f} | {sp['speed_bl_per_min']:.2f} | {ts['peak_torque_nm']:.3f} / "
             f"{sp['peak_torque_nm']:.3f} | {ts['fine_worst_excess']:+.3f} ({ts['fine_horizon_excess']:+.3f}) | "
             f"{sp['fine_worst_excess']:+.3f} | {ts['fine_torque_excess']:+.3f} |")
@@ -136,7 +175,8 @@ def main() -> None:
             print(_row(r), flush=True)
             print(f"  wall: torque-speed {r['torque-speed']['wall_s']:.0f} s, speed {r['speed']['wall_s']:.0f} s; "
                   f"status {r['torque-speed']['status']} / {r['speed']['status']}; upright "
-                  f"{r['torque-speed']['upright']} / {r['speed']['upright']}", flush=True)
+                  f"{r['torque-speed']['upright']} / {r['speed']['upright']}; line-search trials refused by the line: "
+                  f"{r['torque-speed']['refused_trials']} of {r['torque-speed']['trials']}", flush=True)
             if args.out is not None:
                 path = args.out / "motor_model.md"
                 args.out.mkdir(parents=True, exist_ok=True)

@@ -101,7 +101,8 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
             healthy_height_fraction=healthy_height_fraction)
         check_env_arguments(frame_skip=frame_skip, timestep=timestep, gait_period=gait_period,
                             reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
-                            motor_model=motor_model, incline_deg=incline_deg, observe_nodes=observe_nodes, render_mode=render_mode,
+                            motor_model=motor_model, incline_deg=incline_deg, observe_nodes=observe_nodes,
+                            render_mode=render_mode,
                             width=width, height=height, camera_config=camera_config)
         if not isinstance(robot, (str, os.PathLike, Robot)):
             raise ValueError(f"robot must be a shipped name, a robot.toml path or a Robot, got {type(robot).__name__}")

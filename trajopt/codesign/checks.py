@@ -6,8 +6,8 @@ in the written files. Check this independently of the optimiser").
 quantity here:
 
 * **same motors**: the ``[[motors]]`` tables equal the source's (name, tendons, mirror, u_min,
-  u_max, spool_radius, max_speed_rpm, stall_torque, max_torque; a missing key as its default) and the ``[[tendons]]`` keep
-  their names, stiffness and number of points;
+  u_max, spool_radius, max_speed_rpm, stall_torque, max_torque; a missing key as its default) and
+  the ``[[tendons]]`` keep their names, stiffness and number of points;
 * **total mass**: tet volumes of the mesh file times ``[material].density`` (file units times
   ``[robot].scale`` cubed: SI, as :mod:`soft_envs.sim.robot_file` scales lengths) plus
   ``[payload].mass``, at least ``mass_floor`` times the source's;

@@ -85,6 +85,7 @@ class GaitProblem:
         self.u_offset = param.offset()
         self.sim_steps = 0
         self.rollouts = 0
+        self.refused_trials = 0           # line-search trials refused for breaking the motors' line
         self.last_traj = None
 
     def controls(self, z: np.ndarray) -> np.ndarray:
@@ -110,6 +111,7 @@ class GaitProblem:
         if check and not need_jac and self.line is not None:
             worst = self.line.worst(z, traj.cable_deformation)
             if worst.excess > LINE_TOLERANCE:
+                self.refused_trials += 1
                 raise SimulationError(f"trial refused: {worst.describe(self.env.robot.motor_names)}")
         r, J, terms = gait_residuals(traj, self.target, z, self.param, self.env.robot.body_length,
                                      self.weights, need_jac, self.heading)
@@ -210,6 +212,8 @@ def finish(recorder: Recorder, gn: GaussNewtonResult, eval_cycles: int, heading_
     result.evaluation["objective"] = gn.objective
     line = problem.line if problem.line is not None else MotorLine(problem.param, problem.law, env.timestep)
     result.evaluation["motor_load"] = motor_load_entry(line, z, traj.cable_deformation)
+    if problem.line is not None:
+        result.evaluation["motor_load"]["refused_trials"] = problem.refused_trials
     return result
 
 
