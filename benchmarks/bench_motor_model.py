@@ -22,7 +22,12 @@ Prints, per robot and contact law:
     every fine winding step (tau of the state before and after it), which must be <= 0.02 for
     the torque-speed gait, and the peak torque against ``max_torque``.
 
-Writes ``OUT/motor_model.md`` (a row per robot and law appended) when ``--out`` is given.
+With ``--fastest BUDGET``, also (d): ``--speed max`` (:func:`trajopt.fastest.fastest_gait`, its
+default search within BUDGET simulation steps, as the README's RL comparison) under each
+model, and the 8x finer replay of both gaits.
+
+Writes ``OUT/motor_model.md`` (a row per robot and law appended) and the gaits
+(``OUT/ROBOT_LAW_MODEL.npz``) when ``--out`` is given.
 """
 from __future__ import annotations
 
@@ -119,7 +124,27 @@ def fine_replay(res, robot: str, contact: str) -> tuple[float, float, float]:
     return (float(excess.max()), float((tau / law.max_torque).max() - 1), float(excess[:horizon].max()))
 
 
-def run(robot: str, contact: str, repeat: int) -> dict:
+def fastest(robot: str, contact: str, budget: int, out: Path | None) -> str:
+    """(d): ``--speed max`` within ``budget`` steps under each model, and the fine replay."""
+    from dataclasses import replace
+
+    from trajopt.fastest import SearchSettings, fastest_gait
+    parts = []
+    for model in ("torque-speed", "speed"):
+        t0 = time.perf_counter()
+        res, _ = fastest_gait(make_gradient_env(robot, contact=contact), robot_spec=robot, quiet=True,
+                              settings=replace(SearchSettings(), max_sim_steps=budget), motor_model=model)
+        worst, torque, _ = fine_replay(res, robot, contact)
+        if out is not None:
+            res.save(out / f"{robot}_{contact}_max_{model}.npz")
+        parts.append(f"{model}: {res.evaluation['speed_bl_per_min']:.2f} BL/min ({res.settings['n_cycle']}-step cycle, "
+                     f"{res.settings['n_keyframes']} keyframes), peak torque "
+                     f"{max(res.evaluation['motor_load']['peak_torque_nm']):.3f} N m, worst line excess at 8x "
+                     f"{worst:+.4f}, {time.perf_counter() - t0:.0f} s")
+    return f"  (d) {robot}, {contact}, --speed max within {budget:,} steps: " + "; ".join(parts)
+
+
+def run(robot: str, contact: str, repeat: int, out_dir: Path | None = None) -> dict:
     cost = iteration_cost(robot, contact, repeat)
     parts = constraint_overhead(robot, contact, repeat)
     print(f"  {robot}, {contact}: Jacobian rollout {parts['rollout']:.2f} s, the line's {parts['line_rows']:.0f} rows "
@@ -135,6 +160,9 @@ def run(robot: str, contact: str, repeat: int) -> dict:
                             n_seeds=8, robot_spec=robot, motor_model=model)
         ev = res.evaluation
         worst, torque, horizon = fine_replay(res, robot, contact)
+        if out_dir is not None:
+            out_dir.mkdir(parents=True, exist_ok=True)
+            res.save(out_dir / f"{robot}_{contact}_{model}.npz")
         out[model] = {"speed_bl_per_min": ev["speed_bl_per_min"], "upright": ev["upright"],
                       "peak_torque_nm": max(ev["motor_load"]["peak_torque_nm"]),
                       "worst_line_excess": max(ev["motor_load"]["worst_line_excess"]),
@@ -151,8 +179,8 @@ def _row(r: dict) -> str:
     return (f"| {r['robot']} | {r['contact']} | {it['torque-speed']:.2f} / {it['speed']:.2f} / {it['ideal']:.2f} s | "
             f"**{r['ratio_vs_speed']:.2f}x** ({r['ratio_vs_ideal']:.2f}x); {r['parts']['ratio']:.2f}x at equal trials | "
             f"{ts['speed_bl_per_min']:.2f} | {sp['speed_bl_per_min']:.2f} | {ts['peak_torque_nm']:.3f} / "
-            f"{sp['peak_torque_nm']:.3f} | {ts['fine_worst_excess']:+.3f} ({ts['fine_horizon_excess']:+.3f}) | "
-            f"{sp['fine_worst_excess']:+.3f} | {ts['fine_torque_excess']:+.3f} |")
+            f"{sp['peak_torque_nm']:.3f} | {ts['fine_worst_excess']:+.4f} ({ts['fine_horizon_excess']:+.4f}) | "
+            f"{sp['fine_worst_excess']:+.4f} | {ts['fine_torque_excess']:+.3f} |")
 
 
 HEADER = ("| robot | law | (a) one GN iteration: torque-speed / speed / ideal | (a) ratio vs speed (vs none) | "
@@ -167,11 +195,19 @@ def main() -> None:
     ap.add_argument("--contact", nargs="+", default=["coulomb", "paper"])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--fastest", type=int, default=None, metavar="BUDGET",
+                    help="also --speed max within BUDGET simulation steps under each model (d)")
+    ap.add_argument("--only-fastest", action="store_true", help="(d) alone")
     args = ap.parse_args()
+    if args.only_fastest:
+        for robot in args.robots:
+            for contact in args.contact:
+                print(fastest(robot, contact, args.fastest or 30_720, args.out), flush=True)
+        return
     print(HEADER)
     for robot in args.robots:
         for contact in args.contact:
-            r = run(robot, contact, args.repeat)
+            r = run(robot, contact, args.repeat, args.out)
             print(_row(r), flush=True)
             print(f"  wall: torque-speed {r['torque-speed']['wall_s']:.0f} s, speed {r['speed']['wall_s']:.0f} s; "
                   f"status {r['torque-speed']['status']} / {r['speed']['status']}; upright "
@@ -182,6 +218,8 @@ def main() -> None:
                 args.out.mkdir(parents=True, exist_ok=True)
                 text = path.read_text() if path.is_file() else HEADER + "\n"
                 atomic_write_bytes(path, (text + _row(r) + "\n").encode())
+            if args.fastest:
+                print(fastest(robot, contact, args.fastest, args.out), flush=True)
 
 
 if __name__ == "__main__":

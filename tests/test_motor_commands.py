@@ -102,3 +102,15 @@ def test_play_accepts_a_gait_made_under_the_line(made, tmp_path, capsys):
     assert main(["play", str(path), "--hardware", str(EXAMPLE_TRIPOD), "--dry-run"]) == 0
     err = capsys.readouterr().err
     assert "predicted load of each motor" in err and "refused" not in err and "beyond the torque-speed line" not in err
+
+
+def test_a_result_beyond_the_line_it_records_is_refused(made, tmp_path):
+    """A result's checks (on every load and save) hold ``u`` to the line it was made under, with
+    the load torques it records: torques tripled put its steps beyond the line."""
+    res = made["torque-speed"]
+    res.save(tmp_path / "fine")
+    edited = Result(**{**res.__dict__, "evaluation": {**res.evaluation, "motor_load": {
+        **res.evaluation["motor_load"], "torque_nm": (3 * np.array(res.evaluation["motor_load"]["torque_nm"])).tolist()}}})
+    with pytest.raises(ValueError, match=r"field 'u' breaks the motors' torque-speed line it was made under by "
+                                         r"\d+\.\d\d % \(motor '(front|back)', step \d+; tolerance 1 %"):
+        edited.save(tmp_path / "edited")
