@@ -20,7 +20,8 @@ Prints, per robot and contact law:
     straight lines in time, ``make_gradient_env(robot, timestep=0.033 / 8, contact=...)`` from
     rest, prep + 6 cycles): the worst normalised line excess ``v / v0 + tau / stall - 1`` over
     every fine winding step (tau of the state before and after it), which must be <= 0.02 for
-    the torque-speed gait, and the peak torque against ``max_torque``.
+    the torque-speed gait, and the peak torque against ``max_torque``. (Once the environments'
+    physics sub-steps land, this replay is the environment's ``substeps=8``.)
 
 With ``--fastest BUDGET``, also (d): ``--speed max`` (:func:`trajopt.fastest.fastest_gait`, its
 default search within BUDGET simulation steps, as the README's RL comparison) under each

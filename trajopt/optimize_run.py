@@ -104,6 +104,11 @@ def _refuse(path: Path, what: str, advice: str) -> None:
     raise ValueError(f"{path}: {what}; {advice}")
 
 
+#: how the run's header names each motor model
+_MOTOR_WORDS = {TORQUE_SPEED: "the torque-speed line and the gearbox limit", "speed": "the speed limit alone",
+                IDEAL: "no limit"}
+
+
 def _plan(out: Path, partial: Path, run: OptimizeRun) -> tuple[Result | None, bool]:
     """``(resume, done)``: the interrupted run to continue (or None), and whether there is
     nothing to do (``--resume`` of a finished result). Refuses (ValueError, nothing written) to
@@ -251,7 +256,8 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
           + (f" (the {task.name}'s default; --contact paper for the paper's)" if contact and not run.contact
              else " (the robot file's; --contact paper for the paper's)"
              if not run.contact and env.contact_model != "paper" else "")
-          + (f", slope {incline:g} deg" if incline else ""))
+          + (f", slope {incline:g} deg" if incline else "")
+          + f"; motors: {_MOTOR_WORDS[run.model()]} (--motor-model {run.model()})")
     print(f"writes {out} (+ .json) when it finishes; checkpoints in {partial} until then")
     done_before = len(resume.history) if resume else 0
     progress = None if make_progress is None else make_progress(done_before + 1)
