@@ -3,7 +3,9 @@
     python benchmarks/bench_fastest_gait.py tripod --contact coulomb        # one robot, one law
     python benchmarks/bench_fastest_gait.py tripod puppy --contact coulomb paper --out benchmarks/results/fastest
 
-Runs :func:`trajopt.fastest.fastest_gait` with its default search and the step budget of one
+Runs :func:`trajopt.fastest.fastest_gait` under the motors' speed limit alone (``motor_model="speed"``,
+the law of the RL baseline's environments; ``benchmarks/bench_motor_model.py`` measures it under
+the torque-speed line) with its default search and the step budget of one
 PPO seed of ``benchmarks/results/rl_vs_trajopt_coulomb.md`` (``--budget``: another; 0: none),
 and prints per robot and contact law:
 
@@ -77,7 +79,8 @@ def env_replay(res, contact: str, n_cycles: int) -> float:
 def bench(robot: str, contact: str, budget: int | None, out: Path) -> dict:
     settings = SearchSettings(max_sim_steps=budget)
     t0 = time.perf_counter()
-    res, rows = fastest_gait(robot, contact=contact, settings=settings, quiet=True, log=print)
+    res, rows = fastest_gait(robot, contact=contact, settings=settings, quiet=True, log=print,
+                             motor_model="speed")      # RL's environments (-v0, -v1): the speed limit alone
     wall = time.perf_counter() - t0
     path = res.save(out / f"{robot}_{contact}.npz")
     write_search_table(rows, path)

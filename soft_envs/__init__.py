@@ -26,13 +26,16 @@ __all__ = ["ENV_VERSIONS", "LATEST_VERSION", "ENV_IDS_BY_ROBOT", "ENV_IDS", "ENV
 #: change), each the keywords its ids pass: ``-v0`` the paper's contact law at the paper's
 #: integration, one implicit-Euler step of 0.033 s per control step (Table I); ``-v1`` the
 #: Coulomb law (:mod:`soft_envs.sim.contact.coulomb`: feet that stick) at the same integration
-#: (the default of release 0.1.0); ``-v2``, the latest and the default, every law at its own
-#: converged physics (``substeps=None``: :attr:`soft_envs.sim.contact.ContactLaw.default_substeps`,
-#: 4 physics steps per control step for the Coulomb law, docs/fidelity.md), the Coulomb law by
-#: default (``gym.make("SoftTripod-v2", contact="paper")`` runs the paper's law, at its own 33 ms).
+#: (the default of release 0.1.0); both keep the motors of their making, the speed limit alone
+#: (``motor_model="speed"``). ``-v2``, the latest and the default: every law at its own converged
+#: physics (``substeps=None``: :attr:`soft_envs.sim.contact.ContactLaw.default_substeps`, 4
+#: physics steps per control step for the Coulomb law, docs/fidelity.md) and the motors on their
+#: torque-speed line (the class's ``motor_model="torque-speed"``, :mod:`soft_envs.sim.motors`), the
+#: Coulomb law by default (``gym.make("SoftTripod-v2", contact="paper")`` runs the paper's law, at
+#: its own 33 ms).
 ENV_VERSIONS = {
-    "v0": {"contact": "paper", "substeps": 1},
-    "v1": {"contact": "coulomb", "substeps": 1},
+    "v0": {"contact": "paper", "substeps": 1, "motor_model": "speed"},
+    "v1": {"contact": "coulomb", "substeps": 1, "motor_model": "speed"},
     "v2": {"contact": "coulomb"},
 }
 #: The latest version: the one the project makes (RL baseline, examples, trajopt).

@@ -191,7 +191,9 @@ def skeleton_text(name: str, mesh_file: str, points: np.ndarray, tets: np.ndarra
         '# mirror = "fore_right_front"', "# u_min = 0.0",
         "# u_max = 0.016          # [m] about a third of the tendon length",
         "# spool_radius = 0.005   # [m] u = radius * motor angle",
-        "# max_speed_rpm = 100.0  # [rpm] motor output speed limit (default: Pololu 298:1, no load at 6 V)", "",
+        "# max_speed_rpm = 100.0  # [rpm] no-load output speed (default: Pololu 298:1 HP, 6 V)",
+        "# stall_torque = 0.39    # [N m] torque at which the motor stalls (default: 298:1 HP, 6 V)",
+        "# max_torque = 0.196     # [N m] the gearbox's limit (default: Pololu's 2 kg cm)", "",
     ]
     for m in motors:
         for tname, pts in m["tendons"]:

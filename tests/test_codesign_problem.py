@@ -26,15 +26,22 @@ from trajopt.optim.qp import LinearConstraints
 GAIT = GaitSpec(n_prep=4, n_cycle=8, n_cycles=2, n_keyframes=4, interpolation="linear")
 
 
-@pytest.fixture(scope="module")
-def problem():
+def _problem(motor_model: str) -> CodesignProblem:
     env = make_gradient_env("tripod", contact="coulomb")
     robot = env.robot
     design = DesignParameters(robot, [
         RegionalModuli(robot, [region_from_boxes(robot, "middle_leg", [[0.055, 0.0, 0.0, 0.085, 0.03, 0.04]])]),
         TendonRouting(robot),
         LegMorph(robot, legs_below(robot, 0.03), 0.03)])
-    return CodesignProblem(env, design, GAIT, 20.0, max_step=max_step_of_env(env), newton=NewtonOptions(tol=1e-12))
+    return CodesignProblem(env, design, GAIT, 20.0, max_step=max_step_of_env(env), newton=NewtonOptions(tol=1e-12),
+                           motor_model=motor_model)
+
+
+@pytest.fixture(scope="module")
+def problem():
+    """The motors' speed limit alone: the finite differences below step through gaits beyond the
+    torque-speed line, whose trials the line would refuse (its rows: the test after them)."""
+    return _problem("speed")
 
 
 def _direction(problem, kind: str, rng) -> np.ndarray:
@@ -81,6 +88,34 @@ def test_linearised_constraints_hold_at_the_start_and_refuse_outward_moves(probl
     assert not lin.feasible(w0 + out)
     with pytest.raises(InfeasibleDesign, match="inside the body"):
         problem(w0 + out, False)
+
+
+def test_the_motors_line_constrains_the_keyframes_and_refuses_trials_beyond_it():
+    """Under the torque-speed model the line's rows are among the linearised constraints (on z
+    only: zero design columns) and the start, moved into the line, obeys them; a gait beyond the
+    line is a refused trial (issue #38)."""
+    from trajopt.optim.motor_torque import LINE_TOLERANCE, project_into_line
+    from trajopt.optim.motor_limit import rest_keyframes
+    problem = _problem("torque-speed")
+    assert problem.line is not None and problem.motor_model == "torque-speed"
+    param = problem.param
+    z0 = np.clip(param.initial_z(0.5), *param.bounds())
+    base = gait_constraints(param, problem.max_step)
+    z0, _ = project_start(z0, param, base)
+    assert problem.line.worst(z0, problem.env.rollout(problem.controls(z0)).cable_deformation).excess > LINE_TOLERANCE
+    with pytest.raises(InfeasibleDesign, match="exceeds its torque-speed line"):
+        problem(problem.start(z0), False)
+    z1, report = project_into_line(z0, problem.line, lambda z, s: problem.env.rollout(
+        problem.controls(z), dudz=problem.dudz if s else None), base, rest_keyframes(param))
+    assert report is not None
+    w1 = problem.start(z1)
+    problem(w1, True)
+    lin = problem.linearised_constraints(w1)
+    assert lin.feasible(w1)
+    rows = problem.line.linearised(z1, problem.last_traj.cable_deformation, problem.last_traj.dgammadz)
+    assert lin.G.shape[0] >= len(rows.h) + len(problem.motor_rows.h)
+    line_rows = lin.G[len(problem.motor_rows.h):len(problem.motor_rows.h) + len(rows.h)]
+    assert np.array_equal(line_rows[:, :problem.nz], rows.G) and not line_rows[:, problem.nz:].any()
 
 
 def test_gauss_newton_keeps_constraints_linearised_at_every_iterate():

@@ -57,6 +57,11 @@ EXPECTED = {
                            r"its gait re-optimised from scratch: \d+\.\d+ BL/min",
                            r"constraints checked in the written files: all hold",
                            r"robot results/tripod_codesign_example_quick/robot\.toml"],
+    "motor_line.py": [r"speed +: +[+-]?\d+\.\d+ BL/min as optimised, +[+-]?\d+\.\d+ BL/min played by motors on "
+                      r"their line \(off by \d+\.\d\d %, \d+ motor-steps held back\); peak torque 0\.\d+ N m",
+                      r"torque-speed: +[+-]?\d+\.\d+ BL/min as optimised, .* \(off by 0\.\d\d %, "   # within 1 %
+                      r"\d+ motor-steps held back\); .*worst line excess [+-]0\.\d %",
+                      r"wrote results/motor_line_example_quick\.png"],
     "robot_from_surface.py": [r"meshed quadruped\.obj: \d+ nodes, \d+ tets",
                               r"mass +body \d+\.\d g \+ payload \d+\.\d g on \d+ top nodes",
                               r"picture: results/quadruped_quick/quadruped\.png", r"iteration 1: objective \S+ -> \S+",
@@ -71,6 +76,7 @@ WRITES = {
     "gait_robustness.py": ["results/robustness_example_quick/report.json", "results/robustness_example_quick/samples.csv",
                            "results/robustness_example_quick/robustness.png"],
     "rl_baseline.py": ["results/tripod_ppo_example_quick.npz"],
+    "motor_line.py": ["results/motor_line_example_quick.png"],
     "fastest_gait.py": ["results/tripod_fastest_example_quick.npz", "results/tripod_fastest_example_quick.search.csv",
                         "results/tripod_fastest_example_quick.search.md"],
     "puppy_turn.py": ["results/puppy_turn_example_quick.npz", "results/puppy_turn_example_quick.json"],

@@ -91,10 +91,12 @@ def test_speed_max_writes_the_fastest_upright_gait_of_its_table(speed_max):
     csv_path, md_path = search_table_paths(speed_max)
     assert md_path.is_file()
     rows = list(csv.DictReader(csv_path.open()))
-    upright = [r for r in rows if r["upright"] == "True"]
     chosen = [r for r in rows if r["chosen"] == "True"]
     assert len(rows) >= 2 and len(chosen) == 1
     best = chosen[0]
+    assert best["motor_model"] == res.settings["motor_model"] == "torque-speed" and best["stage"] == "fine"
+    upright = [r for r in rows if r["upright"] == "True" and r["motor_model"] == best["motor_model"]]
+    assert {r["motor_model"] for r in rows if r["stage"] != "fine"} == {"speed"}     # explored under the speed limit
     assert float(best["speed_bl_per_min"]) == max(float(r["speed_bl_per_min"]) for r in upright)
     assert (int(best["n_cycle"]), int(best["n_keyframes"])) == (res.settings["n_cycle"], res.settings["n_keyframes"])
     assert res.evaluation["speed_bl_per_min"] == pytest.approx(float(best["speed_bl_per_min"]), rel=1e-12)
@@ -107,6 +109,7 @@ def test_speed_max_obeys_the_limit_over_ten_cycles(speed_max):
     res = Result.load(speed_max)
     assert res.settings["motor_limit"]["max_step_m"] == pytest.approx([STEP, STEP], rel=1e-12)
     assert _obeys_over_ten_cycles(res, np.zeros(2)) <= 1e-9
+    assert max(res.evaluation["motor_load"]["worst_line_excess"]) <= 0.01          # and the torque-speed line
 
 
 def test_play_dry_run_accepts_the_speed_max_result(speed_max, capsys):

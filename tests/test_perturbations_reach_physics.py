@@ -113,3 +113,35 @@ def test_every_domain_randomisation_factor_reaches_the_robot(law):
     expected = parameter_values(base, names) * np.array([f["friction"], *(f[n] for n in names[1:])])
     np.testing.assert_allclose(parameter_values(drawn, names), expected, rtol=1e-12)
     assert drawn.node_masses.sum() != pytest.approx(base.node_masses.sum(), rel=1e-6)
+
+
+def test_the_stall_torque_reaches_the_motors_of_a_gait_made_under_the_line(monkeypatch):
+    """A gait made under the torque-speed line is replayed by motors that follow it: the
+    environment stepped has each motor's stall torque x the factor (and its no-load speed x
+    ``motor_speed``), and a weaker motor winds the step more slowly (issue #38)."""
+    seen = []
+    real = rb.SoftRobotEnv
+
+    def spy(robot, **kw):
+        seen.append((robot, kw))
+        return real(robot, **kw)
+    monkeypatch.setattr(rb, "SoftRobotEnv", spy)
+    robot = load_robot("tripod")
+    u = _step_controls(robot)
+    out = {}
+    for factor in (0.8, 1.2):
+        p = {**IDENTITY, "motor_speed": 1.0, "stall_torque": factor}
+        job = rb.SampleJob("tripod", u, 0.033, 2, 4, 0.0, 0.0, 0, 0, p, "coulomb", motor_model="torque-speed")
+        out[factor] = rb.run_sample(job)
+        env_robot, kw = seen[-1]
+        assert kw["motor_model"] == "torque-speed"
+        assert [m.stall_torque for m in env_robot.motors] == pytest.approx([0.39 * factor] * 2, rel=1e-12)
+        assert [m.max_speed_rpm for m in env_robot.motors] == pytest.approx([100.0, 100.0], rel=1e-12)
+    assert out[0.8]["speed_bl_per_min"] != out[1.2]["speed_bl_per_min"]
+    assert "stall_torque" in rb.PERTURBATIONS and rb.PERTURBATIONS["stall_torque"] == ("factor", 0.8, 1.2)
+    # a gait made under the speed limit alone: the stall torque plays no part
+    speed = rb.run_sample(rb.SampleJob("tripod", u, 0.033, 2, 4, 0.0, 0.0, 0, 0,
+                                       {**IDENTITY, "stall_torque": 0.8}, "coulomb"))
+    same = rb.run_sample(rb.SampleJob("tripod", u, 0.033, 2, 4, 0.0, 0.0, 0, 0,
+                                      {**IDENTITY, "stall_torque": 1.2}, "coulomb"))
+    assert speed["speed_bl_per_min"] == same["speed_bl_per_min"]

@@ -20,7 +20,7 @@ DOCUMENTED_PERTURBATIONS = {
     "friction": (0.5, 1.5, False), "youngs_modulus": (0.7, 1.3, False), "density": (0.9, 1.1, False),
     "payload_mass": (0.85, 1.15, False), "contact_stiffness": (0.5, 2.0, True), "cable_stiffness": (0.5, 2.0, True),
     "motor_lag_s": (0.0, 0.1, False), "motor_speed": (0.6, 1.4, False), "timing_jitter_s": (0.0, 0.010, False),
-    "slope_deg": (0.0, 10.0, False), "slope_direction_deg": (0.0, 360.0, False)}
+    "slope_deg": (0.0, 10.0, False), "slope_direction_deg": (0.0, 360.0, False), "stall_torque": (0.8, 1.2, False)}
 
 
 @pytest.fixture(scope="module")

@@ -202,7 +202,8 @@ def test_env_ids_have_one_home():
     assert ROBOT_IDS == {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
     assert COULOMB_IDS == {"tripod": "SoftTripod-v2", "puppy": "SoftPuppy-v2"}
     assert set(soft_envs.ENV_IDS) == {*ROBOT_IDS.values(), *COULOMB_IDS.values(), "SoftTripod-v1", "SoftPuppy-v1"}
-    paper, coulomb_33ms = {"contact": "paper", "substeps": 1}, {"contact": "coulomb", "substeps": 1}
+    speed = {"motor_model": "speed"}          # -v0 and -v1 keep the motors of their making
+    paper, coulomb_33ms = {"contact": "paper", "substeps": 1, **speed}, {"contact": "coulomb", "substeps": 1, **speed}
     assert soft_envs.ENV_KWARGS == {"SoftTripod-v0": paper, "SoftPuppy-v0": paper,
                                     "SoftTripod-v1": coulomb_33ms, "SoftPuppy-v1": coulomb_33ms,
                                     "SoftTripod-v2": {"contact": "coulomb"}, "SoftPuppy-v2": {"contact": "coulomb"}}

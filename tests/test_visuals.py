@@ -232,7 +232,7 @@ def test_cli_render_plot_export(tmp_path):
     assert titles[0] == "tripod, walk: t = 0.00 s" and titles[1] == f"tripod, walk: t = {4 * res.dt:.2f} s"
     assert Image.open(tmp_path / "r.gif").n_frames == len(range(0, 4 + 12 + 1, 4))
     assert main(["plot", str(path), "--out", str(tmp_path / "plots")]) == 0
-    assert len(list((tmp_path / "plots").glob("*.png"))) == 4
+    assert len(list((tmp_path / "plots").glob("*.png"))) == 5          # com, controls, convergence, speed, motors
     assert main(["export", str(path), "--vtu", str(tmp_path / "vtu"), "--cycles", "1"]) == 0
     assert len(list((tmp_path / "vtu").glob("r_0*.vtu"))) == 4 + 12 + 1
     assert main(["evaluate", str(path), "--cycles", "1"]) == 0          # upright (1 would be: fell)

@@ -25,6 +25,7 @@ from .hardware.signals import Terminated, signal_label
 from .results.files import RESULTS_DIR
 from .optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
+from .optim.motor_limit import IDEAL, MOTOR_MODELS, TORQUE_SPEED
 from .optim.optimize import optimize_gait
 from .results.reservation import lock_path, reserve
 from .results.robot_match import robot_reference
@@ -44,8 +45,9 @@ class OptimizeRun:
     :mod:`trajopt.fastest`, with its search table beside the result), heading [deg], turn side, slope ``angle`` [deg] (a task
     on a slope), contact law (None: the task's, else the robot file's), physics ``substeps`` per
     control step (None: the contact law's default), symmetry (None: the
-    task's), warm start result, whether to optimise without the motors' speed limit
-    (``no_motor_limit``: the results of before the limit), Gauss-Newton iterations, keyframes and their ``interpolation`` (None: the task's; :data:`trajopt.optim.gait.INTERPOLATIONS`), cycle
+    task's), warm start result, the motors' law the controls obey (``motor_model``:
+    ``"torque-speed"``, ``"speed"`` or ``"ideal"``, :mod:`soft_envs.sim.motors`; ``no_motor_limit``
+    is ``"ideal"``, kept for scripts of before the model), Gauss-Newton iterations, keyframes and their ``interpolation`` (None: the task's; :data:`trajopt.optim.gait.INTERPOLATIONS`), cycle
     steps (None: the paper's 72; with ``speed="max"``: searched) and prep steps, random seeds, evaluation cycles,
     the ``speed="max"`` search's budget of simulation steps (``max_sim_steps``, None: none), output folder and
     result name (None:
@@ -62,6 +64,7 @@ class OptimizeRun:
     symmetry: bool | None = None
     warm_start: Path | None = None
     no_motor_limit: bool = False
+    motor_model: str = TORQUE_SPEED
     iterations: int = 10
     keyframes: int | None = None
     interpolation: str | None = None
@@ -81,6 +84,15 @@ class OptimizeRun:
         """The run of ``options`` (a command's parsed arguments, a sweep run's parameters);
         keys that are no option are ignored."""
         return cls(**{k: v for k, v in options.items() if k in OPTIMIZE_OPTIONS})
+
+    def model(self) -> str:
+        """The motor model the run obeys (``no_motor_limit``: ``"ideal"``); ValueError for an
+        unknown name or both options contradicting each other."""
+        if self.motor_model not in MOTOR_MODELS:
+            raise ValueError(f"--motor-model must be one of {', '.join(MOTOR_MODELS)}, got {self.motor_model!r}")
+        if self.no_motor_limit and self.motor_model not in (TORQUE_SPEED, IDEAL):
+            raise ValueError(f"--no-motor-limit (no limit) contradicts --motor-model {self.motor_model}")
+        return IDEAL if self.no_motor_limit else self.motor_model
 
     def result_file(self) -> Path:
         """``OUT/NAME.npz`` (NAME default ``ROBOT_TASK``; a dot in NAME is kept)."""
@@ -102,6 +114,11 @@ def _physics(env) -> str:
 
 def _refuse(path: Path, what: str, advice: str) -> None:
     raise ValueError(f"{path}: {what}; {advice}")
+
+
+#: how the run's header names each motor model
+_MOTOR_WORDS = {TORQUE_SPEED: "the torque-speed line and the gearbox limit", "speed": "the speed limit alone",
+                IDEAL: "no limit"}
 
 
 def _plan(out: Path, partial: Path, run: OptimizeRun) -> tuple[Result | None, bool]:
@@ -166,6 +183,7 @@ def _check_speed_max(run: OptimizeRun) -> None:
     if run.task != "walk":
         raise ValueError(f"--speed max finds the fastest walk: it needs --task walk, got --task {run.task}")
     refused = [flag for flag, on in (("--no-motor-limit", run.no_motor_limit),
+                                     ("--motor-model ideal", run.motor_model == IDEAL),
                                      ("--warm-start", run.warm_start is not None)) if on]
     if refused:
         raise ValueError(f"--speed max cannot be combined with {', '.join(refused)}: the search starts from its "
@@ -227,6 +245,7 @@ def run_optimization(run: OptimizeRun, progress: Callable[[int], Any] | None = N
     :class:`~trajopt.hardware.signals.Terminated` by the command line): the last iterate is saved
     as an "interrupted" checkpoint (continue with ``resume``) and the exception raised again."""
     get_task(run.task)
+    run.model()                    # an unknown or contradicting motor model: refused before anything is written
     out = run.result_file()
     partial = partial_path(out)
     if run.speed == "max":
@@ -264,13 +283,15 @@ def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Resul
         max_sim_steps=run.max_sim_steps)
     with compile_ahead(run.robot):
         env = make_gradient_env(run.robot, heading_deg=run.heading, contact=run.contact, substeps=run.substeps)
-    print(f"{env.robot.summary()}; task walk at the highest speed within the motors' limit; {env.contact_model} "
-          f"contact law; {_physics(env)}{'; quick search (SOFT_ENVS_QUICK)' if quick else ''}")
+    print(f"{env.robot.summary()}; task walk at the highest speed within the motors' limits ({run.model()} "
+          f"model); {env.contact_model} contact law; {_physics(env)}"
+          f"{'; quick search (SOFT_ENVS_QUICK)' if quick else ''}")
     if resume:
         print(f"resuming the --speed max search in {folder}")
     try:
         res, rows = fastest_gait(env, settings=settings, cycle_steps=run.cycle_steps, heading_deg=run.heading,
-                                 robot_spec=robot_reference(run.robot), quiet=run.quiet, checkpoint=folder, resume=resume)
+                                 robot_spec=robot_reference(run.robot), quiet=run.quiet, checkpoint=folder, resume=resume,
+                                 motor_model=run.model())
     except (KeyboardInterrupt, Terminated) as exc:
         by = "" if isinstance(exc, KeyboardInterrupt) else f" by {signal_label(exc.signum)}"
         n = _finished_runs(folder)
@@ -312,7 +333,8 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
           + (f" (the {task.name}'s default; --contact paper for the paper's)" if contact and not run.contact
              else " (the robot file's; --contact paper for the paper's)"
              if not run.contact and env.contact_model != "paper" else "")
-          + (f", slope {incline:g} deg" if incline else "") + f"; {_physics(env)}")
+          + (f", slope {incline:g} deg" if incline else "") + f"; {_physics(env)}"
+          + f"; motors: {_MOTOR_WORDS[run.model()]} (--motor-model {run.model()})")
     print(f"writes {out} (+ .json) when it finishes; checkpoints in {partial} until then")
     done_before = len(resume.history) if resume else 0
     progress = None if make_progress is None else make_progress(done_before + 1)
@@ -329,7 +351,7 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
         res = optimize_gait(env, task.name, gait=gait, speed_bl_per_min=run.speed, heading_deg=run.heading,
                             turn=run.turn, options=options, warm_start=warm, n_seeds=run.seeds,
                             eval_cycles=run.cycles, robot_spec=robot_reference(run.robot), callback=checkpoint, resume=resume,
-                            motor_limit=not run.no_motor_limit)
+                            motor_model=run.model())
     except (KeyboardInterrupt, Terminated) as exc:     # Ctrl-C, SIGTERM, SIGHUP: the same way out
         if progress is not None:
             progress.close()

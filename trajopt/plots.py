@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 __all__ = ["plot_com_topdown", "plot_controls", "plot_convergence", "plot_speed_per_cycle",
-           "plot_speed_vs_steps", "controls_figure", "motor_groups"]
+           "plot_speed_vs_steps", "plot_motor_line", "motor_line_figure", "controls_figure", "motor_groups"]
 
 
 def _title(what: str, subject: str | None) -> str:
@@ -200,3 +200,55 @@ def plot_speed_vs_steps(curves: Mapping[str, tuple[np.ndarray, np.ndarray]], pat
     ax.legend(loc="best")
     ax.set_title("speed vs simulation budget")
     return _save(fig, path)
+
+
+def plot_motor_line(speed: np.ndarray, torque_before: np.ndarray, torque_after: np.ndarray, no_load_speed: np.ndarray,
+                    stall_torque: np.ndarray, max_torque: np.ndarray, motor_names: Sequence[str], path: str | Path, *,
+                    subject: str | None = None) -> Path:
+    """:func:`motor_line_figure` written to ``path``."""
+    return _save(motor_line_figure(speed, torque_before, torque_after, no_load_speed, stall_torque, max_torque,
+                                   motor_names, subject=subject), path)
+
+
+def motor_line_figure(speed: np.ndarray, torque_before: np.ndarray, torque_after: np.ndarray,
+                      no_load_speed: np.ndarray, stall_torque: np.ndarray, max_torque: np.ndarray,
+                      motor_names: Sequence[str], *, subject: str | None = None) -> Figure:
+    """Each motor's torque-speed line (:mod:`soft_envs.sim.motors`) and a gait's steps under it, one
+    panel per motor: load torque [N m] across, winding speed [mm/s] up; the line from the
+    no-load speed ``v_0`` at zero torque to zero at the stall torque, the gearbox's ``max_torque``
+    dashed. Every winding step of the gait (``speed`` (S, M) [m/s] > 0) is a point at the larger
+    of its torques before and after the step (``torque_before``, ``torque_after`` (S, M) [N m]):
+    a point beyond the line (by more than the optimiser's 1 % tolerance: orange) is a step the
+    motor cannot make."""
+    speed, tb, ta = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (speed, torque_before, torque_after))
+    M = speed.shape[1]
+    if tb.shape != speed.shape or ta.shape != speed.shape or len(motor_names) != M:
+        raise ValueError(f"speed {speed.shape}, torques {tb.shape} / {ta.shape} and {len(motor_names)} motor names "
+                         "must agree")
+    cols = min(M, 4)
+    rows = -(-M // cols)
+    fig = Figure(figsize=(2.6 * cols + 0.6, 2.4 * rows + 0.8), layout="constrained")
+    axes = fig.subplots(rows, cols, squeeze=False, sharex=True, sharey=True).ravel()
+    for m in range(M):
+        ax = axes[m]
+        v0, st, mx = float(no_load_speed[m]), float(stall_torque[m]), float(max_torque[m])
+        ax.plot([0.0, st], [1e3 * v0, 0.0], color="k", lw=1.5, label="torque-speed line")
+        ax.axvline(mx, color="tab:red", ls="--", lw=1, label="max_torque (gearbox)")
+        winding = speed[:, m] > 0
+        tau = np.maximum(tb[:, m], ta[:, m])[winding]
+        v = 1e3 * speed[winding, m]
+        above = v / (1e3 * v0) + tau / st - 1 > 0.01
+        ax.scatter(tau[~above], v[~above], s=8, color="tab:blue", label="winding step (under the line, to 1 %)")
+        if above.any():
+            ax.scatter(tau[above], v[above], s=10, color="tab:orange", label="winding step beyond the line")
+        ax.set_title(motor_names[m], fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.set_xlim(0.0, 1.05 * max(st, mx))
+        ax.set_ylim(0.0, 1.1e3 * v0)
+    for ax in axes[M:]:
+        ax.set_visible(False)
+    fig.supxlabel("load torque [N m] (the larger of before and after the step)", fontsize=9)
+    fig.supylabel("winding speed [mm/s]", fontsize=9)
+    axes[0].legend(loc="upper right", fontsize=6)          # above the line: where no step should be
+    fig.suptitle(_title("motors: torque-speed line and the gait's steps", subject), fontsize=10)
+    return fig

@@ -7,13 +7,17 @@ the physics: the :class:`GradientEnv` protocol (rollouts with exact sensitivitie
 simulation time step, the slope) with :func:`make_gradient_env` / :func:`as_gradient_env`, plus the
 re-exports below (the failure exception, body-frame measurements, cable points, strain energy, the
 robot fingerprint that ties a result to its robot, the physical parameters and tracked markers of
-calibration, compiling the kernels ahead of a first run).
+calibration, compiling the kernels ahead of a first run, and the motors' law of
+:mod:`soft_envs.sim.motors`: :class:`MotorLaw`, :data:`MOTOR_MODELS`, :func:`motor_step`,
+:func:`line_excess`, :func:`winding_speed`, :func:`load_torque`, :data:`MOTOR_DEFAULTS`).
 It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`; never
 ``trajopt``.
 """
 from ..sim import RolloutStopped, Robot, SimulationError, Trajectory, load_robot
 from ..sim.contact import CONTACT_LAWS
 from ..sim.fingerprint import robot_fingerprint
+from ..sim.motors import MOTOR_MODELS, MotorLaw, check_motor_model, line_excess, load_torque, motor_step, winding_speed
+from ..sim.robot import MOTOR_DEFAULTS
 from ..sim.warmup import compile_ahead
 from .base import MOTOR_NO_LOAD_RPM, PAPER_GAIT_PERIOD, PAPER_TIMESTEP, SoftRobotEnv, with_contact_law
 from .domain import DEFAULT_DOMAIN_RANDOMIZATION
@@ -33,4 +37,5 @@ __all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv", "make
            "tilt_deg_of", "wrap_angle", "heading_vector", "cable_points", "strain_energy_density",
            "PAPER_TIMESTEP", "PAPER_GAIT_PERIOD", "MOTOR_NO_LOAD_RPM", "DEFAULT_DOMAIN_RANDOMIZATION",
            "PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "scale_parameters", "check_parameters", "Marker",
-           "MarkerSet", "compile_ahead", "with_contact_law", "CONTACT_LAWS"]
+           "MarkerSet", "compile_ahead", "with_contact_law", "CONTACT_LAWS", "MOTOR_MODELS", "MotorLaw",
+           "check_motor_model", "line_excess", "load_torque", "motor_step", "winding_speed", "MOTOR_DEFAULTS"]

@@ -1,11 +1,19 @@
-"""The motors of an environment: actions in [-1, 1] -> commanded cable contractions, followed at
-the motors' speed limit.
+"""The motors of an environment: actions in [-1, 1] -> commanded cable contractions, followed as
+the motors can (the law: :mod:`soft_envs.sim.motors`).
 
 ``u_cmd = u_min + (a + 1) / 2 (u_max - u_min)`` per motor; in every simulation step the applied
-contraction moves towards ``u_cmd`` by at most ``v_max * timestep``, with ``v_max =
-rpm * 2 pi / 60 * spool_radius``. The rpm is each motor's ``max_speed_rpm`` from the robot
-(``motor_speed_rpm="robot"``, the default: :attr:`~soft_envs.sim.Robot.max_contraction_speed`),
-or one number for every motor (an override), or ``None``: no limit.
+contraction moves towards ``u_cmd`` as the motor model allows (``motor_model``):
+
+* ``"torque-speed"`` (the default): winding at most ``v_max (1 - tau / stall_torque) * timestep``
+  at the load torque ``tau`` of the state before the step, and not at all once ``tau`` reaches
+  the gearbox's ``max_torque``; unwinding at most ``v_max * timestep``;
+* ``"speed"``: at most ``v_max * timestep`` either way (the law of ``-v0`` and ``-v1``);
+* ``"ideal"``: ``u_cmd`` at once.
+
+``v_max = rpm * 2 pi / 60 * spool_radius`` is the no-load contraction speed; the rpm is each
+motor's ``max_speed_rpm`` from the robot (``motor_speed_rpm="robot"``, the default:
+:attr:`~soft_envs.sim.Robot.max_contraction_speed`), or one number for every motor (an override),
+or ``None``: no speed limit (the torque limit of ``"torque-speed"`` still holds).
 """
 from __future__ import annotations
 
@@ -16,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ..sim import Robot
+from ..sim.motors import TORQUE_SPEED, MotorLaw, check_motor_model, motor_step
 
 __all__ = ["Actuation", "MOTOR_SPEED_FROM_ROBOT"]
 
@@ -24,12 +33,14 @@ MOTOR_SPEED_FROM_ROBOT = "robot"
 
 
 class Actuation:
-    """Action <-> contraction maps and the speed limit of a robot's motors.
+    """Action <-> contraction maps and the law of a robot's motors.
 
-    ``lo``, ``hi``, ``range`` (M,) contraction bounds [m]; ``speed`` (M,) contraction speed
-    limit [m/s]; ``du_max`` (M,) largest change of the contraction in one simulation step [m]."""
+    ``lo``, ``hi``, ``range`` (M,) contraction bounds [m]; ``speed`` (M,) no-load contraction
+    speed [m/s]; ``du_max`` (M,) largest change of the contraction in one simulation step [m];
+    ``model`` the motor model; ``law`` the motors' :class:`~soft_envs.sim.motors.MotorLaw` (torques)."""
 
-    def __init__(self, robot: Robot, motor_speed_rpm: float | str | None, timestep: float):
+    def __init__(self, robot: Robot, motor_speed_rpm: float | str | None, timestep: float,
+                 motor_model: str = TORQUE_SPEED):
         self.lo, self.hi = robot.u_bounds[:, 0].copy(), robot.u_bounds[:, 1].copy()
         self.range = self.hi - self.lo
         if isinstance(motor_speed_rpm, str) and motor_speed_rpm == MOTOR_SPEED_FROM_ROBOT:
@@ -39,6 +50,8 @@ class Actuation:
             rpm = math.inf if motor_speed_rpm is None else float(motor_speed_rpm)
             self.speed = rpm * 2.0 * math.pi / 60.0 * radius
         self.du_max = self.speed * timestep
+        self.model = check_motor_model(motor_model)
+        self.law = MotorLaw.of_robot(robot, self.speed)
 
     def check_action(self, action: Any) -> np.ndarray:
         """``action`` as float64 clipped to [-1, 1]; ValueError for a wrong shape, a non-numeric
@@ -67,8 +80,14 @@ class Actuation:
         """The action (float64, not clipped) commanding contractions ``u`` [m], (..., M)."""
         return 2.0 * (np.asarray(u, dtype=np.float64) - self.lo) / self.range - 1.0
 
-    def follow(self, u: np.ndarray, u_cmd: np.ndarray) -> np.ndarray:
-        """The contraction one simulation step after ``u`` when the motors drive towards
-        ``u_cmd`` at their speed limit."""
-        d = u_cmd - u
-        return np.where(np.abs(d) <= self.du_max, u_cmd, u + np.clip(d, -self.du_max, self.du_max))
+    def torque(self, tension: np.ndarray) -> np.ndarray:
+        """(M,) each motor's load torque [N m] of the tendon tensions ``tension`` (T,) [N]."""
+        return self.law.torque_of_tensions(tension)
+
+    def follow(self, u: np.ndarray, u_cmd: np.ndarray, tau: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """``(u_next, limited)``: the contraction one simulation step after ``u`` when the motors
+        drive towards ``u_cmd`` under load torque ``tau`` [N m] (of the state before the step;
+        needed by ``"torque-speed"`` only), and which motors the law held back
+        (:func:`soft_envs.sim.motors.motor_step`)."""
+        return motor_step(u, u_cmd, tau, self.du_max, self.law.stall_torque, self.law.max_torque, self.model)

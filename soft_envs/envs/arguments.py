@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from ..sim.motors import check_motor_model
+
 __all__ = ["check_env_arguments", "is_number", "RENDER_MODES"]
 
 RENDER_MODES = ("human", "rgb_array")
@@ -25,7 +27,7 @@ def _is_integer(v: Any) -> bool:
 
 
 def check_env_arguments(*, frame_skip: Any, timestep: Any, substeps: Any, gait_period: Any, reset_noise_scale: Any,
-                        motor_speed_rpm: Any, incline_deg: Any, observe_nodes: Any, render_mode: Any,
+                        motor_speed_rpm: Any, motor_model: Any, incline_deg: Any, observe_nodes: Any, render_mode: Any,
                         width: Any, height: Any, camera_config: Any) -> None:
     """Raise ValueError naming the first bad keyword (see the module docstring)."""
     if not (_is_integer(frame_skip) and frame_skip >= 1):
@@ -42,6 +44,7 @@ def check_env_arguments(*, frame_skip: Any, timestep: Any, substeps: Any, gait_p
             or (is_number(motor_speed_rpm) and math.isfinite(motor_speed_rpm) and motor_speed_rpm > 0)):
         raise ValueError(f"motor_speed_rpm must be \"robot\" (each motor's max_speed_rpm from the robot file), a "
                          f"positive number [rpm] or None (no limit), got {motor_speed_rpm!r}")
+    check_motor_model(motor_model)
     if not (is_number(incline_deg) and abs(incline_deg) < 90):
         raise ValueError(f"incline_deg must be a number in (-90, 90), got {incline_deg!r}")
     if not isinstance(observe_nodes, (bool, np.bool_)):

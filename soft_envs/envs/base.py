@@ -1,7 +1,7 @@
 """SoftRobotEnv: the Gymnasium environment shared by ``SoftTripod-v2`` and ``SoftPuppy-v2`` (and their ``-v0``, ``-v1``).
 
 A thin layer over :class:`soft_envs.sim.Simulator`: actions in [-1, 1] become cable
-contractions (with a motor speed limit), ``frame_skip`` implicit-Euler steps are taken, and the
+contractions (followed as the motors can: ``motor_model``, :mod:`.actuation`), ``frame_skip`` implicit-Euler steps are taken, and the
 observation, reward and termination are computed from the node positions. The full
 specification (spaces, rewards, arguments) is in the docstrings of
 :class:`~soft_envs.envs.tripod.SoftTripodEnv` and :class:`~soft_envs.envs.puppy.SoftPuppyEnv`.
@@ -32,6 +32,7 @@ from ..sim import (DEFAULT_DT, GAIT_CYCLE_STEPS, FactorCache, Robot, SimulationE
                    incline_gravity, load_robot)
 from ..sim.contact import CONTACT_LAWS
 from ..sim.robot import DEFAULT_MAX_SPEED_RPM
+from ..sim.motors import TORQUE_SPEED
 from .actuation import MOTOR_SPEED_FROM_ROBOT, Actuation
 from .arguments import RENDER_MODES, check_env_arguments
 from .domain import draw_standing_robot, parse_domain_randomization, randomized_robot
@@ -84,6 +85,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         healthy_height_fraction: float = 0.5,
         reset_noise_scale: float = 1e-4,
         motor_speed_rpm: float | str | None = MOTOR_SPEED_FROM_ROBOT,
+        motor_model: str = TORQUE_SPEED,
         gait_period: float = PAPER_GAIT_PERIOD,
         observe_nodes: bool = False,
         domain_randomization: Mapping[str, tuple[float, float]] | bool | None = None,
@@ -101,7 +103,8 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
             healthy_height_fraction=healthy_height_fraction)
         check_env_arguments(frame_skip=frame_skip, timestep=timestep, substeps=substeps, gait_period=gait_period,
                             reset_noise_scale=reset_noise_scale, motor_speed_rpm=motor_speed_rpm,
-                            incline_deg=incline_deg, observe_nodes=observe_nodes, render_mode=render_mode,
+                            motor_model=motor_model, incline_deg=incline_deg, observe_nodes=observe_nodes,
+                            render_mode=render_mode,
                             width=width, height=height, camera_config=camera_config)
         if not isinstance(robot, (str, os.PathLike, Robot)):
             raise ValueError(f"robot must be a shipped name, a robot.toml path or a Robot, got {type(robot).__name__}")
@@ -126,13 +129,13 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         self._viewer: EnvViewer | None = None
         self._steps_beyond_terminated = 0        # steps after terminated=True (warned at the first)
         self._init_physics(timestep)
-        self._init_actuation(motor_speed_rpm)
+        self._init_actuation(motor_speed_rpm, motor_model)
         self._init_spaces()
 
-    def _init_actuation(self, motor_speed_rpm: float | str | None) -> None:
+    def _init_actuation(self, motor_speed_rpm: float | str | None, motor_model: str) -> None:
         """The motors, and the cable-deformation scale of the observation (each tendon's Gamma
         divided by its motor's range)."""
-        self._actuation = Actuation(self._base_robot, motor_speed_rpm, self.timestep)
+        self._actuation = Actuation(self._base_robot, motor_speed_rpm, self.timestep, motor_model)
         self.motor_speed = self._actuation.speed                          # (M,) [m/s]
         rng = self._actuation.range
         tm = self._base_robot.tendon_motor
@@ -190,6 +193,12 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         seconds, the controls joined by straight lines): the ``substeps`` keyword, by default
         the contact law's (:attr:`~soft_envs.sim.contact.ContactLaw.default_substeps`)."""
         return self._substeps
+
+    @property
+    def motor_model(self) -> str:
+        """The motors' law: ``"torque-speed"``, ``"speed"`` or ``"ideal"`` (the ``motor_model``
+        keyword; :mod:`soft_envs.sim.motors`)."""
+        return self._actuation.model
 
     @property
     def incline_deg(self) -> float:
@@ -287,10 +296,13 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         u_cmd = self._actuation.command(a)
         state, u = self._state, self._u
         u_sub = np.empty((self.frame_skip, len(u)))
+        limited = np.zeros(len(u), dtype=bool)
         cache = FactorCache()         # the sub-steps of this step share factorisations, no others
         try:
             for i in range(self.frame_skip):
-                u = self._actuation.follow(u, u_cmd)
+                tau = self._motor_torque(state.x, u) if self.motor_model == TORQUE_SPEED else None
+                u, held = self._actuation.follow(u, u_cmd, tau)    # the load of the state before the step
+                limited |= held
                 state = self._sim.step(state, u, factor_cache=cache)
                 u_sub[i] = u
         except SimulationError as err:     # keep the state of before the step
@@ -306,7 +318,8 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         reward, reward_info = self._task.reward(forward_velocity, yaw_rate, a, self.is_healthy, self._body_length)
         terminated = self._task.terminate_when_unhealthy and not self.is_healthy
         info = self._get_info()
-        info.update(forward_velocity=forward_velocity, yaw_rate=yaw_rate, u_substeps=u_sub, **reward_info)
+        info.update(forward_velocity=forward_velocity, yaw_rate=yaw_rate, u_substeps=u_sub, motor_limited=limited,
+                    **reward_info)
         if self.render_mode == "human":
             self.render()
         # truncation is left to the TimeLimit wrapper added by gymnasium.make
@@ -377,11 +390,16 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
             obs[j + 2:] = (self._x - self._com).ravel()
         return obs
 
+    def _motor_torque(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """(M,) each motor's load torque [N m] at positions ``x`` with contractions ``u``."""
+        return self._actuation.torque(self._sim.cable_tension(x, u))
+
     def _get_info(self) -> dict[str, Any]:
         return {"x_position": float(self._com[0]), "z_position": float(self._com[2]),
                 "com": self._com.copy(), "displacement": self._com - self._com_start,
                 "yaw": self._yaw, "tilt_deg": self._tilt, "time": self._n_sub * self.timestep,
-                "u": self._u.copy(), "is_healthy": self.is_healthy}
+                "u": self._u.copy(), "motor_torque": self._motor_torque(self._x, self._u),
+                "is_healthy": self.is_healthy}
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()

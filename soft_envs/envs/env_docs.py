@@ -77,27 +77,42 @@ def _span(start: int, size: int) -> str:
     return str(start) if size == 1 else f"{start}-{start + size - 1}"
 
 
+#: what each ``motor_model`` lets a motor do in one simulation step (the Action Space's table)
+_MOTOR_MODEL_ROWS = [
+    ('`"torque-speed"` (default)', "at most `v_max (1 - tau / stall_torque) timestep`; none once `tau >= max_torque`",
+     "at most `v_max timestep`"),
+    ('`"speed"` (`-v0`, `-v1`)', "at most `v_max timestep`", "at most `v_max timestep`"),
+    ('`"ideal"`', "to `u_cmd` at once", "to `u_cmd` at once"),
+]
+
+
 def _action_section(r: RobotDoc) -> str:
     m = r.motor_figures()
     rows = [(str(i), what, f"-1 (u_min = {m['u_min_mm']:g} mm)", f"1 (u_max = {m['u_max_mm']:g} mm)", name,
              "cable length (m)") for i, (what, name) in enumerate(r.actions)]
     table = markdown_table(("Num", "Action", "Control Min", "Control Max", "Name (robot.toml)", "Type (Unit)"), rows)
-    speed = m["rpm"] * 2 * math.pi / 60 * m["spool_radius_mm"]             # [mm/s]
-    stroke = m["u_max_mm"] - m["u_min_mm"]
+    motor_table = markdown_table(("motor_model", "winding (u rises)", "unwinding (u falls)"), _MOTOR_MODEL_ROWS)
     return f"""## Action Space
 The action space is a `Box(-1, 1, ({r.n_motors},), float32)`. Action *a* commands the cable
 contraction (metres of cable pulled in by the motor) `u_cmd = u_min + (a + 1) / 2 (u_max - u_min)`;
 values outside [-1, 1] are clipped, NaN/inf or a wrong shape raise `ValueError`.
-The applied contraction follows the command at the motor's speed limit: in every
-control step of `timestep` seconds it moves towards `u_cmd` by at most `v_max * timestep`, with
-`v_max = motor_speed_rpm * 2 pi / 60 * spool_radius` (by default the robot's
-`[[motors]] max_speed_rpm`: {m['rpm']:g} rpm for the shipped robot, a Pololu 298:1 micro metal
-gearmotor's no-load speed at 6 V; spool radius {m['spool_radius_mm']:g} mm: {speed:.0f} mm/s,
-{speed * 0.033:.2f} mm per 0.033 s step; the full {stroke:g} mm stroke of the shipped robot.toml takes
-{math.ceil(stroke / (speed * 0.033)):d} steps). Inside a control step the physics takes `substeps` steps
-with the contraction moving at a constant speed. `info["u"]` is the contraction
-applied at the end of the step and `info["u_substeps"]` (frame_skip, {r.n_motors}) the contraction at the
-end of each control step.
+The applied contraction follows the command as the motors can (`motor_model`,
+`soft_envs.sim.motors`). With `v_max = motor_speed_rpm * 2 pi / 60 * spool_radius`, the
+no-load contraction speed (by default the robot's `[[motors]] max_speed_rpm`: 100 rpm for the
+shipped robots, a Pololu 298:1 HP micro metal gearmotor's no-load speed at 6 V; spool radius
+5 mm: 52 mm/s, 1.73 mm per 0.033 s step), in every control step it moves towards
+`u_cmd`:
+
+{motor_table}
+
+The load torque is *tau* = `spool_radius` x the sum of the tensions of the motor's tendons, of
+the state before the step; `stall_torque` and `max_torque` are the robot's `[[motors]]` keys
+(0.39 and 0.196 N m for the shipped robots). Back-driving (a tension beyond the stall torque
+turning the motor backwards) is not modelled. `info["u"]` is the contraction applied at the end
+of the step, `info["u_substeps"]` (frame_skip, {r.n_motors}) the contraction at the end of each
+control step, `info["motor_torque"]` ({r.n_motors},) each motor's load torque [N m] at the current
+state (the one the next step's law uses) and `info["motor_limited"]` ({r.n_motors},) whether the
+law held the motor back from its command in the step.
 
 {{table}}
 """.replace("{table}", table)
@@ -132,8 +147,8 @@ up vectors (a continuous 6-D representation of the rotation; at rest (1, 0, 0) a
 
 `info` holds `com`, `x_position`, `z_position`, `displacement` (COM minus the COM at
 reset), `yaw` (rad, from +x towards +z: clockwise seen from above), `tilt_deg`, `time`, `u`,
-`is_healthy` and, after a step, `forward_velocity` (body lengths per second along the
-target heading), `yaw_rate` (rad/s, > 0 turning right), `u_substeps` and the reward terms.
+`motor_torque`, `is_healthy` and, after a step, `forward_velocity` (body lengths per second along the
+target heading), `yaw_rate` (rad/s, > 0 turning right), `u_substeps`, `motor_limited` and the reward terms.
 """
 
 
@@ -220,7 +235,13 @@ def _arguments(r: RobotDoc) -> list[tuple[str, str, str, str]]:
         ("`motor_speed_rpm`", "**str \\| float \\| None**", '`"robot"`',
          "motor output speed limit [rpm] (times the spool radius: the contraction speed limit); "
          "`\"robot\"`: the robot's `[[motors]] max_speed_rpm` (100 rpm for the shipped robots); a number "
-         "overrides it; `None`: no limit"),
+         "overrides it; `None`: no speed limit (the torque limit of `\"torque-speed\"` still holds); the "
+         "no-load speed of `motor_model`'s line"),
+        ("`motor_model`", "**str**", '`"torque-speed"`',
+         "the motors' law (Action Space): `\"torque-speed\"` (a DC gearmotor's torque-speed line at the load "
+         "torque and its gearbox's `max_torque`), `\"speed\"` (the speed limit alone), `\"ideal\"` (no limit). "
+         f"`{r.env_name}-v0` and `{r.env_name}-v1` pass `\"speed\"` (their dynamics are kept); "
+         "`soft_envs.sim.motors`"),
         ("`gait_period`", "**float**", "`2.376`", "period [s] of the gait-phase observation (the paper's cycle: 72 steps)"),
         ("`observe_nodes`", "**bool**", "`False`", "append all node positions relative to the COM to the observation"),
         ("`domain_randomization`", "**dict \\| bool \\| None**", "`None`",
@@ -304,6 +325,10 @@ def _version_section(r: RobotDoc) -> str:
   own number of physics steps per 0.033 s control step (`substeps=None`: 4 for the Coulomb
   law, where the fast gaits' speeds hold at finer steps; 1 for the paper's law). Actions,
   observations (the COM velocity over the last physics step) and rewards as in v1.
+  The motors' law came without a new id: v0 and v1 pass `motor_model="speed"` and keep the
+  speed limit alone; `info` gained `motor_torque` and `motor_limited` on every id.
+* v2 also puts the motors on their torque-speed line (`motor_model="torque-speed"`, the class's
+  default: the winding speed falls with the load torque, which stops at `max_torque`).
 """
 
 

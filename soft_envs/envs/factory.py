@@ -8,6 +8,7 @@ import os
 from typing import Any
 
 from ..sim import Robot
+from ..sim.motors import TORQUE_SPEED
 from .base import PAPER_TIMESTEP, SoftRobotEnv
 from .protocol import GRADIENT_ENV_MEMBERS, GradientEnv
 from .puppy import SoftPuppyEnv
@@ -18,7 +19,8 @@ __all__ = ["as_gradient_env", "make_gradient_env"]
 
 def make_gradient_env(robot: str | os.PathLike | Robot = "puppy", *, incline_deg: float = 0.0,
                       heading_deg: float = 0.0, timestep: float = PAPER_TIMESTEP,
-                      contact: str | None = None, substeps: int | None = None) -> SoftRobotEnv:
+                      contact: str | None = None, substeps: int | None = None,
+                      motor_model: str = TORQUE_SPEED) -> SoftRobotEnv:
     """A bare environment for trajectory optimisation, reset without noise: its rollouts start
     at the exact rest state with the motors at ``robot.u_rest``.
 
@@ -27,11 +29,12 @@ def make_gradient_env(robot: str | os.PathLike | Robot = "puppy", *, incline_deg
     rising along ``heading_deg`` (degrees from +x towards +z); ``timestep`` is the control step
     [s] (one row of a rollout's controls); ``contact`` the contact law ("paper", "coulomb"; None:
     the robot file's); ``substeps`` the physics steps per control step (None: the law's default,
-    :attr:`~soft_envs.sim.contact.ContactLaw.default_substeps`)."""
+    :attr:`~soft_envs.sim.contact.ContactLaw.default_substeps`); ``motor_model`` the motors' law of
+    its steps (:mod:`soft_envs.sim.motors`; rollouts apply controls as given, whatever the law)."""
     shipped = {"tripod": SoftTripodEnv, "puppy": SoftPuppyEnv}
     cls = shipped.get(robot, SoftRobotEnv) if isinstance(robot, str) else SoftRobotEnv
     env = cls(robot, incline_deg=incline_deg, target_heading_deg=heading_deg, timestep=timestep,
-              reset_noise_scale=0.0, contact=contact, substeps=substeps)
+              reset_noise_scale=0.0, contact=contact, substeps=substeps, motor_model=motor_model)
     env.reset(seed=0)
     return env
 

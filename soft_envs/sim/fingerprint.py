@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from .mesh import load_mesh
-from .robot import DEFAULT_MAX_SPEED_RPM, Robot
+from .robot import MOTOR_DEFAULTS, Robot
 from .robot_file import read_robot_toml, robot_file_path
 
 __all__ = ["robot_fingerprint"]
@@ -40,8 +40,9 @@ def robot_fingerprint(source: str | Path | Robot) -> dict[str, Any] | None:
     "toml_sha256", "mesh_sha256", "toml"}``: the ``[robot].name``, the file, and SHA-256 hashes
     of the whole, of the ``robot.toml`` as parsed (comments, layout, key order, ``1`` vs ``1.0``,
     ``[robot].mesh`` and ``description`` do not count, nor the ``[design]`` table (what co-design
-    may vary does not change the robot), nor a motor's ``max_speed_rpm`` written
-    out at its default; ``toml`` is that normalised document, so a
+    may vary does not change the robot), nor a motor's ``max_speed_rpm``, ``stall_torque`` or
+    ``max_torque`` written out at its default (:data:`~.robot.MOTOR_DEFAULTS`: the same motor as a
+    file without the key; another value is part of it); ``toml`` is that normalised document, so a
     mismatch can name the fields that changed) and of the mesh as read (node positions rounded to
     1e-9 of the mesh's size, and tets; the file format does not count)."""
     if isinstance(source, Robot):
@@ -61,8 +62,9 @@ def robot_fingerprint(source: str | Path | Robot) -> dict[str, Any] | None:
     norm.get("robot", {}).pop("description", None)
     norm.pop("design", None)     # what co-design may vary is no part of the robot (docs/codesign.md)
     for motor in norm.get("motors", []) if isinstance(norm.get("motors"), list) else []:
-        if isinstance(motor, dict) and motor.get("max_speed_rpm") == DEFAULT_MAX_SPEED_RPM:
-            del motor["max_speed_rpm"]      # the default written out is the same robot (older files)
+        for key, default in MOTOR_DEFAULTS.items():    # the default written out is the same robot (older files)
+            if isinstance(motor, dict) and motor.get(key) == default:
+                del motor[key]
     toml_text = json.dumps(norm, sort_keys=True, separators=(",", ":"), default=str)
     size = float(np.ptp(mesh.points, axis=0).max()) or 1.0
     h = hashlib.sha256()

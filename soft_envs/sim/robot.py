@@ -21,11 +21,20 @@ from .materials import lame_parameters
 from .mesh import TetMesh, load_mesh
 
 __all__ = ["Robot", "Tendon", "Motor", "ContactParams", "CableData", "Marker", "CONTACT_MODELS",
-           "DEFAULT_MAX_SPEED_RPM"]
+           "DEFAULT_MAX_SPEED_RPM", "DEFAULT_STALL_TORQUE", "DEFAULT_MAX_TORQUE", "MOTOR_DEFAULTS"]
 
-#: [rpm] a motor's output speed limit when its ``[[motors]]`` entry gives none: the no-load speed
-#: of the Pololu 298:1 micro metal gearmotor at 6 V
+#: [rpm] a motor's no-load output speed when its ``[[motors]]`` entry gives none: the Pololu 298:1
+#: micro metal gearmotor, HP (high-power) motor at 6 V (docs/robots.md: figures and sources)
 DEFAULT_MAX_SPEED_RPM = 100.0
+#: [N m] a motor's stall torque when its ``[[motors]]`` entry gives none: the 298:1 HP at 6 V,
+#: about 4 kg cm (docs/robots.md)
+DEFAULT_STALL_TORQUE = 0.39
+#: [N m] the torque a motor's gearbox must not exceed when its ``[[motors]]`` entry gives none:
+#: Pololu's recommended limit for the micro metal gearboxes up to 298:1, 2 kg cm
+DEFAULT_MAX_TORQUE = 0.196
+#: each optional number of a ``[[motors]]`` entry that describes the motor itself, with its default
+MOTOR_DEFAULTS = {"max_speed_rpm": DEFAULT_MAX_SPEED_RPM, "stall_torque": DEFAULT_STALL_TORQUE,
+                  "max_torque": DEFAULT_MAX_TORQUE}
 
 #: The built-in contact laws' names; every law, those registered later included, is a key of
 #: :data:`soft_envs.sim.contact.CONTACT_LAWS`.
@@ -44,14 +53,24 @@ class Tendon:
     rest_length: float | None = None
 
 
+def _is_positive_number(value: Any) -> bool:
+    """A finite number > 0 (not a bool, not a string)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    return bool(np.isfinite(value) and value > 0)
+
+
 @dataclass(frozen=True)
 class Motor:
     """A motor winding all its ``tendons`` by the same contraction u [m] (a tendon pair).
 
     ``mirror`` names the motor on the other side (bilateral symmetry), ``u_min``/``u_max`` bound
     the contraction [m], ``spool_radius`` [m] converts u to motor angle (u = r theta),
-    ``max_speed_rpm`` is the output shaft's speed limit [rpm] (default
-    :data:`DEFAULT_MAX_SPEED_RPM`): the contraction moves at most ``max_contraction_speed``."""
+    ``max_speed_rpm`` is the output shaft's no-load speed [rpm] (default
+    :data:`DEFAULT_MAX_SPEED_RPM`): the contraction moves at most ``max_contraction_speed``;
+    ``stall_torque`` [N m] is where the motor's speed falls to zero along its torque-speed line,
+    ``max_torque`` [N m] the torque its gearbox must not exceed (defaults
+    :data:`DEFAULT_STALL_TORQUE`, :data:`DEFAULT_MAX_TORQUE`; the law: :mod:`.motors`)."""
 
     name: str
     tendons: tuple[str, ...]
@@ -60,6 +79,8 @@ class Motor:
     u_max: float = 0.01
     spool_radius: float = 0.005
     max_speed_rpm: float = DEFAULT_MAX_SPEED_RPM
+    stall_torque: float = DEFAULT_STALL_TORQUE
+    max_torque: float = DEFAULT_MAX_TORQUE
 
     @property
     def max_contraction_speed(self) -> float:
@@ -193,9 +214,10 @@ class Robot:
                 raise ValueError(f"{where}: need finite u_min < u_max, got {m.u_min}, {m.u_max}")
             if not (np.isfinite(m.spool_radius) and m.spool_radius > 0):
                 raise ValueError(f"{where}.spool_radius must be a finite positive number, got {m.spool_radius}")
-            if isinstance(m.max_speed_rpm, bool) or not (np.isfinite(m.max_speed_rpm) and m.max_speed_rpm > 0):
-                raise ValueError(f"{where}.max_speed_rpm must be a finite positive number [rpm], "
-                                 f"got {m.max_speed_rpm!r}")
+            for key, unit in (("max_speed_rpm", "rpm"), ("stall_torque", "N m"), ("max_torque", "N m")):
+                value = getattr(m, key)
+                if not _is_positive_number(value):
+                    raise ValueError(f"{where}.{key} must be a finite positive number [{unit}], got {value!r}")
             if m.mirror is not None:
                 if m.mirror not in mnames:
                     raise ValueError(f"{where}.mirror names unknown motor {m.mirror!r}")
@@ -254,6 +276,21 @@ class Robot:
         """(M,) each motor's contraction speed limit [m/s] (:attr:`Motor.max_contraction_speed`:
         ``max_speed_rpm * 2 pi / 60 * spool_radius``)."""
         return np.array([m.max_contraction_speed for m in self.motors], dtype=np.float64)
+
+    @property
+    def stall_torques(self) -> np.ndarray:
+        """(M,) each motor's stall torque [N m] (:attr:`Motor.stall_torque`)."""
+        return np.array([m.stall_torque for m in self.motors], dtype=np.float64)
+
+    @property
+    def max_torques(self) -> np.ndarray:
+        """(M,) the torque each motor's gearbox must not exceed [N m] (:attr:`Motor.max_torque`)."""
+        return np.array([m.max_torque for m in self.motors], dtype=np.float64)
+
+    @property
+    def spool_radii(self) -> np.ndarray:
+        """(M,) each motor's spool radius [m]."""
+        return np.array([m.spool_radius for m in self.motors], dtype=np.float64)
 
     def max_contraction_step(self, dt: float) -> np.ndarray:
         """(M,) largest change of each motor's contraction in a time step of ``dt`` seconds [m]."""

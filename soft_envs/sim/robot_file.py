@@ -58,8 +58,11 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     u_min = 0.0                  # [m]
     u_max = 0.008                # [m]
     spool_radius = 0.005         # [m]
-    max_speed_rpm = 100.0        # [rpm] output speed limit (default 100: Pololu 298:1, no load, 6 V);
+    max_speed_rpm = 100.0        # [rpm] no-load output speed (default 100: Pololu 298:1 HP, 6 V);
                                  # the contraction moves at most max_speed_rpm * 2 pi / 60 * spool_radius
+    stall_torque = 0.39          # [N m] where the torque-speed line reaches zero speed (default: 298:1 HP, 6 V)
+    max_torque = 0.196           # [N m] the gearbox's limit (default: Pololu's 2 kg cm); the law:
+                                 # soft_envs.sim.motors (docs/robots.md)
 
     [design]                     # optional: what co-design may change (soft_envs.sim.design;
     routing = ["fore_left_front_a"]   # absent: the robot is fixed); see docs/codesign.md
@@ -87,7 +90,7 @@ from typing import Any
 import numpy as np
 
 from .mesh import TetMesh, load_mesh
-from .robot import DEFAULT_MAX_SPEED_RPM, ContactParams, Marker, Motor, Robot, Tendon
+from .robot import MOTOR_DEFAULTS, ContactParams, Marker, Motor, Robot, Tendon
 
 __all__ = ["load_robot", "asset_path", "robot_file_path", "robot_document", "read_robot_toml", "SHIPPED_ROBOTS"]
 
@@ -112,7 +115,8 @@ _TENDON = {"name": (str, True), "points": (list, True), "stiffness": ((int, floa
 _MARKER = {"name": (str, True), "point": (list, True)}
 _MOTOR = {"name": (str, True), "tendons": (list, True), "mirror": (str, False),
           "u_min": ((int, float), False), "u_max": ((int, float), True),
-          "spool_radius": ((int, float), False), "max_speed_rpm": ((int, float), False)}
+          "spool_radius": ((int, float), False), "max_speed_rpm": ((int, float), False),
+          "stall_torque": ((int, float), False), "max_torque": ((int, float), False)}
 _AXES = {"+x": (0, 1.0), "-x": (0, -1.0), "+y": (1, 1.0), "-y": (1, -1.0), "+z": (2, 1.0), "-z": (2, -1.0)}
 
 
@@ -360,7 +364,7 @@ def _motors(raw_m: Any, src: str) -> list[Motor]:
             raise ValueError(f"{src}: motors[{i}].tendons must be a list of tendon names")
         motors.append(Motor(m["name"], tuple(m["tendons"]), m.get("mirror"), float(m.get("u_min", 0.0)),
                             float(m["u_max"]), float(m.get("spool_radius", 0.005)),
-                            float(m.get("max_speed_rpm", DEFAULT_MAX_SPEED_RPM))))
+                            **{key: float(m.get(key, default)) for key, default in MOTOR_DEFAULTS.items()}))
     return motors
 
 

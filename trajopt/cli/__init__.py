@@ -35,6 +35,7 @@ from ..argtypes import (contact_law, cycles, file_name, frame_size, integer, num
                        positive_float, positive_int, slope_deg, speed, steps)
 from ..results.files import RESULTS_DIR
 from ..optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
+from ..optim.motor_limit import MOTOR_MODELS, TORQUE_SPEED
 from ..tasks.registry import TURN_KEYFRAMES, command_line_tasks
 
 __all__ = ["main", "build_parser", "RESULTS_DIR"]
@@ -69,10 +70,16 @@ def _add_optimize(sub) -> None:
                      help="bilateral symmetry on (default for walk and incline)")
     sym.add_argument("--no-symmetry", dest="symmetry", action="store_false", help="symmetry off (default for turn)")
     p.add_argument("--warm-start", type=Path, default=None,
-                   help="start from this result's keyframes (moved into the motors' speed limit when outside it)")
-    p.add_argument("--no-motor-limit", action="store_true",
-                   help="optimise without the motors' speed limit (robot.toml max_speed_rpm; the results of "
-                        "before the limit); default: every step of the controls obeys it")
+                   help="start from this result's keyframes (moved into the motors' limits when outside them)")
+    motors = p.add_mutually_exclusive_group()
+    motors.add_argument("--motor-model", choices=MOTOR_MODELS, default=TORQUE_SPEED,
+                        help="the motors' law every step of the controls obeys: torque-speed (default: a DC "
+                             "gearmotor's speed falls linearly with the load torque of its cables' tensions, from "
+                             "robot.toml max_speed_rpm at no load to 0 at stall_torque, and the torque stays below "
+                             "max_torque), speed (the speed limit max_speed_rpm alone: the results of before the "
+                             "line), ideal (no limit: the results of before the limit)")
+    motors.add_argument("--no-motor-limit", action="store_true",
+                        help="the same as --motor-model ideal (kept for scripts of before --motor-model)")
     p.add_argument("--iterations", type=integer(0, 100_000), default=10,
                    help="Gauss-Newton iterations at most (0: evaluate the starting gait)")
     paper = GaitSpec()
@@ -141,7 +148,7 @@ def _add_result_commands(sub) -> None:
     p.add_argument("--overwrite", action="store_true", help=_OVERWRITE_HELP)
     p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
     p.set_defaults(func=_cmd_export)
-    p = sub.add_parser("plot", help="COM path, controls, convergence and speed plots")
+    p = sub.add_parser("plot", help="COM path, controls, convergence, speed and motor (torque-speed line) plots")
     p.add_argument("result", type=Path)
     p.add_argument("--out", type=output_dir, default=RESULTS_DIR / "plots",
                    help=f"output directory (default {RESULTS_DIR}/plots/)")

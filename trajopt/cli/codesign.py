@@ -37,6 +37,9 @@ def add_codesign_parser(sub) -> None:
     p.add_argument("--baseline", type=Path, default=None,
                    help="the shipped design's fastest gait (a result of optimize --speed max on the same robot and "
                         "law); default: run that search first")
+    p.add_argument("--motor-model", choices=("torque-speed", "speed"), default="torque-speed",
+                   help="the motors' law every gait obeys, as for optimize: torque-speed (default: the torque-speed "
+                        "line and the gearbox's torque limit) or speed (the speed limit alone)")
     p.add_argument("--stages", type=integer(1, 100), default=None, help="co-design stages (rising targets; default 4)")
     p.add_argument("--iterations", type=integer(1, 10_000), default=None,
                    help="Gauss-Newton iterations per stage at most (default 8)")
@@ -65,7 +68,7 @@ def _cmd_codesign(args) -> int:
     from ..sweep import quick_requested
     kw = dict(vary=args.vary, contact=args.contact, baseline=args.baseline, reoptimise=not args.no_reoptimise,
               resume=args.resume, overwrite=args.overwrite, quiet=args.quiet,
-              workers=args.workers)          # None: one per core
+              workers=args.workers, motor_model=args.motor_model)          # workers None: one per core
     run = (CodesignRun.quick(args.robot, Path(args.out), **kw) if quick_requested(args.quick)
            else CodesignRun(args.robot, Path(args.out), **kw))
     joint = {k: v for k, v in (("stages", args.stages), ("iterations", args.iterations)) if v is not None}

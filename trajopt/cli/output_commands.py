@@ -13,9 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from soft_envs.envs import cable_points, strain_energy_density
+from soft_envs.envs import MotorLaw, cable_points, strain_energy_density
 
 from ..results.files import RESULTS_DIR, atomic_output, refuse_existing
+from ..results.motor_load import motor_figures, recorded_torque
 from ..replay import env_for_result, replay
 from ..results.result import Result
 from ..tasks.registry import speed_along_path
@@ -96,15 +97,36 @@ def run_export(args) -> int:
     return 0
 
 
+def _plot_motors(res: Result, env, path: Path, subject: str) -> Path:
+    """The motors' torque-speed line and the steps of ``res.u`` (from rest, every row, the
+    wrap-around of a looped cycle) at the load torques of its rollout (recorded when it was
+    made, else simulated on ``env``)."""
+    from .. import plots
+    torque = recorded_torque(res)
+    if torque is None:
+        torque = MotorLaw.of_robot(env.robot).torque(env.rollout(res.u).cable_deformation)
+    fig = motor_figures(res.robot_fingerprint)
+    u = np.asarray(res.u, dtype=np.float64)
+    speed = np.diff(np.vstack([env.robot.u_rest, u]), axis=0) / res.dt
+    tb, ta = torque[:-1], torque[1:]
+    n_prep, n_cycle = res.settings.get("n_prep"), res.settings.get("n_cycle")
+    if n_prep is not None and n_cycle and len(u) < int(n_prep) + 2 * int(n_cycle):   # one cycle: its wrap-around too
+        speed = np.vstack([speed, (u[int(n_prep)] - u[-1]) / res.dt])
+        tb, ta = np.vstack([tb, torque[-1]]), np.vstack([ta, torque[-1]])
+    return plots.plot_motor_line(speed, tb, ta, fig.v0, fig.stall_torque, fig.max_torque, res.motor_names, path,
+                                 subject=subject)
+
+
 def run_plot(args) -> int:
     from .. import plots
     res = Result.load(args.result)
     out = Path(args.out)
     stem = Path(args.result).stem
     ext = args.format
-    names = {k: out / f"{stem}_{k}.{ext}" for k in ("com", "controls", "convergence", "speed")}
+    names = {k: out / f"{stem}_{k}.{ext}" for k in ("com", "controls", "convergence", "speed", "motors")}
     speeds = res.evaluation.get("speed_per_cycle_bl_per_min")
-    wanted = ["com", "controls"] + (["convergence"] if res.history else []) + (["speed"] if speeds else [])
+    wanted = (["com", "controls"] + (["convergence"] if res.history else []) + (["speed"] if speeds else [])
+              + (["motors"] if motor_figures(res.robot_fingerprint) is not None else []))
     refuse_existing([names[k] for k in wanted], args.overwrite)
     env = env_for_result(res, ignore_robot_mismatch=args.ignore_robot_mismatch)
     x0, _ = env.reset_state()
@@ -121,6 +143,7 @@ def run_plot(args) -> int:
                                                       target=(None if speed_along_path(res.task)
                                                               else s.get("speed_bl_per_min")),
                                                       reference={"tripod": 6.1, "puppy": 8.6}.get(res.robot)),
+        "motors": lambda p: _plot_motors(res, env, p, subject),
     }
     for key in wanted:
         with atomic_output(names[key]) as tmp:

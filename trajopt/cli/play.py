@@ -78,6 +78,9 @@ def add_play_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--ignore-robot-mismatch", action="store_true",
                         help="play a result made for another robot than the hardware file's, or for an "
                              "edited robot.toml")
+    parser.add_argument("--force", action="store_true",
+                        help="play a gait whose predicted load torque exceeds a motor's robot.toml max_torque "
+                             "(its gearbox's limit; refused otherwise)")
     parser.set_defaults(func=run_play)
     return parser
 
@@ -124,6 +127,36 @@ def _as_streamed(res: Any, loops: int, loop_start: int) -> Any:
                                  robot_fingerprint=getattr(res, "robot_fingerprint", None))
 
 
+def _check_motor_load(res: Any, args: argparse.Namespace) -> str | None:
+    """Print each motor's predicted peak torque and its margin to the torque-speed line
+    (:mod:`trajopt.results.motor_load`: recorded when the result was made, else simulated when
+    ``soft_envs`` is installed); the reason to refuse a gait beyond a motor's ``max_torque``
+    (None: play it; ``--force`` plays it anyway)."""
+    from trajopt.results.motor_load import load_report, recorded_torque, simulated_torque
+    torque = recorded_torque(res)
+    if torque is None:
+        try:
+            torque = simulated_torque(res)
+        except Exception as exc:  # noqa: BLE001 - a prediction only: say why there is none
+            _say(f"the motors' load is not checked: {args.result} records none and it cannot be simulated here "
+                 f"({type(exc).__name__}: {exc})")
+            return None
+    report = load_report(res, torque, args.loops)
+    if report is None:
+        return None
+    _say(report.describe())
+    if report.over_line.any():
+        names = [n for n, o in zip(report.names, report.over_line) if o]
+        _say(f"warning: {', '.join(names)} beyond the torque-speed line: the motor cannot wind that fast under "
+             "that load and falls behind the trajectory")
+    if report.over_max_torque.any() and not getattr(args, "force", False):
+        over = [f"{n} {p:.3f} N m > {m:g}" for n, p, m, o in zip(report.names, report.peak_torque,
+                                                               report.figures.max_torque, report.over_max_torque) if o]
+        return (f"the gait loads motor(s) beyond their gearbox's max_torque ({'; '.join(over)}): "
+                "re-optimise it under --motor-model torque-speed, or pass --force to play it anyway")
+    return None
+
+
 def run_play(args: argparse.Namespace) -> int:
     """Handler of ``trajopt play``; returns the process exit code (messages go to stderr)."""
     from ..hardware.config import load_hardware_config
@@ -152,6 +185,10 @@ def run_play(args: argparse.Namespace) -> int:
     note = playback_note(_as_streamed(res, args.loops, loop_start))    # the motor limit (robot.toml max_speed_rpm)
     if note:
         print(f"trajopt play: {note}", file=sys.stderr)
+    refusal = _check_motor_load(res, args)
+    if refusal:
+        print(f"trajopt play: refused: {refusal}", file=sys.stderr)
+        return EXIT_INPUT
     log_path = args.log
     if log_path is None and not args.dry_run:
         log_path = f"play_{Path(args.result).stem}_{time.strftime('%Y%m%d-%H%M%S')}.csv"

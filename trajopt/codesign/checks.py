@@ -6,8 +6,8 @@ in the written files. Check this independently of the optimiser").
 quantity here:
 
 * **same motors**: the ``[[motors]]`` tables equal the source's (name, tendons, mirror, u_min,
-  u_max, spool_radius, max_speed_rpm; a missing key as its default) and the ``[[tendons]]`` keep
-  their names, stiffness and number of points;
+  u_max, spool_radius, max_speed_rpm, stall_torque, max_torque; a missing key as its default) and
+  the ``[[tendons]]`` keep their names, stiffness and number of points;
 * **total mass**: tet volumes of the mesh file times ``[material].density`` (file units times
   ``[robot].scale`` cubed: SI, as :mod:`soft_envs.sim.robot_file` scales lengths) plus
   ``[payload].mass``, at least ``mass_floor`` times the source's;
@@ -47,7 +47,10 @@ CLEARANCE_TOL = 1e-9
 DEFAULT_MODULUS_BOUNDS = (0.3, 3.0)
 #: relative slack of the modulus bounds and the mass floor (round-off of the written numbers)
 _REL_TOL = 1e-12
-_MOTOR_DEFAULTS = {"mirror": None, "u_min": 0.0, "spool_radius": 0.005, "max_speed_rpm": 100.0}
+#: a ``[[motors]]`` key's value when absent (written independently of the loader; the motor's own
+#: numbers are ``soft_envs.envs.MOTOR_DEFAULTS``, tests/test_motor_model.py pins the two)
+_MOTOR_DEFAULTS = {"mirror": None, "u_min": 0.0, "spool_radius": 0.005, "max_speed_rpm": 100.0,
+                   "stall_torque": 0.39, "max_torque": 0.196}
 
 
 @dataclass(frozen=True)

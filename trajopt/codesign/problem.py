@@ -28,7 +28,11 @@ where Gauss-Newton asks for a Jacobian (an accepted iterate); trial points of th
 the current block's :meth:`~DesignParameters.robot_at`.
 
 Constraints. Linear in w: the motors' speed limit on z (:mod:`trajopt.optim.motor_limit`) and the
-bounds of z and theta. Nonlinear in theta, linearised at every accepted iterate
+bounds of z and theta. Under the motors' torque-speed line (``motor_model="torque-speed"``,
+:mod:`trajopt.optim.motor_torque`) its rows on z, linearised at every accepted iterate through
+``dgammadz`` of the design's rollout; the tensions' dependence on the design is not in the rows
+(no ``dGamma/dtheta``), so a trial whose own rollout breaks the line beyond its 1 % tolerance is
+refused like a trial that breaks the clearance. Nonlinear in theta, linearised at every accepted iterate
 (:meth:`CodesignProblem.linearised_constraints`): every routed via point stays
 ``min_clearance`` (2 mm) inside the body (``TendonRouting.clearance``), and the total mass
 stays at least ``mass_floor`` (98 %) of the shipped robot's. A trial point that breaks either
@@ -41,11 +45,12 @@ from typing import Any
 
 import numpy as np
 
-from soft_envs.envs import SimulationError, as_gradient_env
+from soft_envs.envs import MotorLaw, SimulationError, as_gradient_env
 from soft_envs.envs.design import MAX_MASS_LOSS, MIN_CLEARANCE, DesignParameters, design_rollout
 
 from ..optim.gait import GaitSpec
-from ..optim.motor_limit import speed_limit_constraints
+from ..optim.motor_limit import IDEAL, SPEED, TORQUE_SPEED, speed_limit_constraints
+from ..optim.motor_torque import LINE_TOLERANCE, MotorLine
 from ..optim.parameterization import GaitParameterization
 from ..optim.qp import LinearConstraints
 from ..tasks.targets import bl_per_min_to_mps
@@ -98,11 +103,12 @@ class CodesignWeights:
         return asdict(self)
 
 
-def design_env(robot, contact: str, newton: Any = None, substeps: int | None = None):
+def design_env(robot, contact: str, newton: Any = None, substeps: int | None = None, motor_model: str = TORQUE_SPEED):
     """A gradient environment of a design's robot under ``contact`` with ``substeps`` physics
     steps per control step (None: the law's default), with Newton options ``newton`` (None: the
-    environment's)."""
-    env = as_gradient_env(robot, contact=contact, substeps=substeps)
+    environment's) and the motors' law ``motor_model`` (what the gaits optimised on it obey)."""
+    from soft_envs.envs import make_gradient_env
+    env = make_gradient_env(robot, contact=contact, substeps=substeps, motor_model=motor_model)
     if newton is not None:
         env.simulator.newton.options = newton
     return env
@@ -114,14 +120,15 @@ class CodesignProblem:
     ``env``: the shipped robot's gradient environment (its contact law is used for every
     design); ``design``: its design parameters; ``gait``: the gait's shape (cycle, keyframes,
     interpolation); ``speed_bl_per_min``: the target speed (:meth:`set_target` changes it);
-    ``max_step``: the motors' limit per step [m] (None: none); ``newton``: Newton options set on
-    every design's environment (default: the environment's; tests take finite differences at a
-    tight tolerance)."""
+    ``max_step``: the motors' limit per step [m] (None: none); ``motor_model``: with
+    ``"torque-speed"`` the motors' line too (module docstring; None: the environment's model, or
+    none without ``max_step``); ``newton``: Newton options set on every design's environment
+    (default: the environment's; tests take finite differences at a tight tolerance)."""
 
     def __init__(self, env, design: DesignParameters, gait: GaitSpec, speed_bl_per_min: float,
                  weights: CodesignWeights = CodesignWeights(), max_step: np.ndarray | None = None,
                  min_clearance: float = MIN_CLEARANCE, mass_floor: float = 1.0 - MAX_MASS_LOSS,
-                 newton: Any = None, trust: "TrustRegion | None" = None):
+                 newton: Any = None, trust: "TrustRegion | None" = None, motor_model: str | None = None):
         self.env = as_gradient_env(env)
         self.newton = newton
         self.trust = TrustRegion() if trust is None else trust
@@ -148,6 +155,13 @@ class CodesignProblem:
         self.theta_range = np.where(bounds[:, 1] > bounds[:, 0], bounds[:, 1] - bounds[:, 0], 1.0)
         self.nz, self.ntheta = self.param.nz, len(design)
         self.motor_rows = None if max_step is None else speed_limit_constraints(self.param, max_step)
+        if motor_model is None:
+            motor_model = IDEAL if max_step is None else getattr(self.env, "motor_model", SPEED)
+        self.motor_model = motor_model
+        self.line = None
+        if motor_model == TORQUE_SPEED and max_step is not None:
+            law = MotorLaw.of_robot(self.env.robot, np.asarray(max_step, dtype=np.float64) / self.env.timestep)
+            self.line = MotorLine(self.param, law, self.env.timestep)
         self.set_target(speed_bl_per_min)
         self.sim_steps = 0
         self.rollouts = 0
@@ -182,7 +196,8 @@ class CodesignProblem:
     def env_of(self, robot):
         """The gradient environment of a design's robot (same contact law; the last one is kept)."""
         if self._env_robot is not robot:
-            self._env, self._env_robot = design_env(robot, self.contact, self.newton, self.substeps), robot
+            self._env, self._env_robot = design_env(robot, self.contact, self.newton, self.substeps,
+                                                    self.motor_model), robot
         return self._env
 
     def robot_at(self, theta: np.ndarray):
@@ -234,6 +249,11 @@ class CodesignProblem:
         if self.motor_rows is not None:
             rows.append(np.hstack([self.motor_rows.G, np.zeros((len(self.motor_rows.h), self.ntheta))]))
             rhs.append(self.motor_rows.h)
+        if self.line is not None:               # the line on z, at the current design (module docstring)
+            traj = self.last_traj
+            lin = self.line.linearised(self.split(w)[0], traj.cable_deformation, traj.dgammadz)
+            rows.append(np.hstack([lin.G, np.zeros((len(lin.h), self.ntheta))]))
+            rhs.append(lin.h)
         routing, sl = self._routing()
         if routing is not None:
             d, J = routing.clearance(self.block.robot)
@@ -275,6 +295,10 @@ class CodesignProblem:
         traj = design_rollout(env, u, self.block, self.dudz) if need_jac else env.rollout(u)
         self.sim_steps += len(u)
         self.rollouts += 1
+        if not need_jac and self.line is not None:
+            worst = self.line.worst(z, traj.cable_deformation)
+            if worst.excess > LINE_TOLERANCE:
+                raise InfeasibleDesign(worst.describe(list(robot.motor_names)))
         r, J, terms = self.residuals(traj, z, theta, robot.body_length, need_jac)
         if need_jac:
             self.last_traj = traj

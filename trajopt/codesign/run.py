@@ -43,7 +43,7 @@ from ..results.files import atomic_write_bytes
 from ..results.reservation import reserve
 from ..optim.gait import GaitSpec
 from ..optim.gauss_newton import GaussNewtonOptions
-from ..optim.motor_limit import max_step_of_env
+from ..optim.motor_limit import SPEED, TORQUE_SPEED, max_step_of_env, motor_model_of
 from ..optim.optimize import optimize_gait
 from ..results.result import Result
 from ..results.robot_match import describe_difference, robot_reference
@@ -78,10 +78,14 @@ class CodesignRun:
     name: str | None = None
     workers: int | None = 1             # processes scoring the screening's candidates (None: one per core;
                                         # > 1 from a script: run it under `if __name__ == "__main__":`)
+    motor_model: str = "torque-speed"   # the motors' law every gait obeys ("torque-speed" or "speed")
 
     def __post_init__(self):
         if self.workers is not None and int(self.workers) < 1:
             raise ValueError(f"workers must be >= 1, got {self.workers}")
+        if self.motor_model not in (TORQUE_SPEED, SPEED):
+            raise ValueError(f"motor_model must be {TORQUE_SPEED!r} or {SPEED!r} (co-design needs the motors' "
+                             f"limits), got {self.motor_model!r}")
 
     def n_workers(self) -> int:
         return int(self.workers) if self.workers is not None else max(1, os.cpu_count() or 1)
@@ -173,9 +177,10 @@ def _check_out(run: CodesignRun, name: str) -> CodesignOutcome | None:
     return None
 
 
-def check_baseline(path: Path, env, robot: str) -> Result:
+def check_baseline(path: Path, env, robot: str, motor_model: str) -> Result:
     """The given baseline (``--baseline``), checked: a ``--speed max`` result (the shipped
-    design's fastest gait within the motors' limit) of the same robot and contact law."""
+    design's fastest gait within the motors' limit) of the same robot, contact law, physics steps
+    and motor model."""
     res = Result.load(path)
     changed = describe_difference(res.robot_fingerprint, robot_fingerprint(env.robot)) \
         if res.robot_fingerprint else "it records no robot"
@@ -186,6 +191,12 @@ def check_baseline(path: Path, env, robot: str) -> Result:
                          f"the co-design runs under {env.contact_model!r} (--contact)")
     if not res.settings.get("motor_limit"):
         raise ValueError(f"{path}: the baseline was made without the motors' speed limit")
+    if motor_model_of(res.settings) != motor_model:
+        raise ValueError(f"{path}: the baseline was made under the {motor_model_of(res.settings)!r} motor model, "
+                         f"the co-design runs under {motor_model!r} (--motor-model)")
+    if int(res.settings.get("substeps", 1)) != int(env.substeps):
+        raise ValueError(f"{path}: the baseline was made with {res.settings.get('substeps', 1)} physics steps per "
+                         f"control step, the co-design runs with {env.substeps}")
     if res.task != "walk" or "search" not in res.settings:
         raise ValueError(f"{path}: not a --speed max result (a {res.task} of {res.settings.get('n_cycle')} steps a "
                          f"cycle at a target of {res.settings.get('speed_bl_per_min')} BL/min): the co-design's ratio "
@@ -205,7 +216,7 @@ def _baseline(run: CodesignRun, env, given: Result | None, say) -> Result:
             table.unlink(missing_ok=True)
         return given
     if run.resume and path.is_file():
-        return check_baseline(path, env, run.robot)
+        return check_baseline(path, env, run.robot, run.motor_model)
     say(f"baseline: the shipped {env.robot.name}'s fastest gait within the motors' limit (--speed max)")
     res, rows = fastest_gait(env, settings=run.search, robot_spec=robot_reference(run.robot), quiet=run.quiet,
                              log=say)
@@ -235,11 +246,11 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     co-design into it is refused); ``resume`` of a finished co-design does nothing (the outcome
     says ``finished``)."""
     t_start = time.perf_counter()
-    env = make_gradient_env(run.robot, contact=run.contact)
+    env = make_gradient_env(run.robot, contact=run.contact, motor_model=run.motor_model)
     shipped = env.robot
     design = load_design(shipped, run.vary)
     _check_design(design, run.vary, shipped.source)
-    given = check_baseline(Path(run.baseline), env, run.robot) if run.baseline is not None else None
+    given = check_baseline(Path(run.baseline), env, run.robot, run.motor_model) if run.baseline is not None else None
     with reserve(run.out / LOCK, f"co-design folder {run.out}"):
         done = _check_out(run, run.name or f"{shipped.name}_walk")
         if done is not None:
@@ -269,9 +280,11 @@ def _run_reserved(run: CodesignRun, env, design, given: Result | None, t_start: 
     gait = GaitSpec.from_settings(baseline.settings)
     base_speed = float(baseline.evaluation["speed_bl_per_min"])
     settings = {"robot": run.robot, "vary": list(run.vary), "contact": env.contact_model, "gait": gait.to_settings(),
+                "motor_model": run.motor_model,
                 "joint": asdict(run.joint), "screen": asdict(run.screen), "weights": run.weights.to_dict(), "parameters": list(design.names),
                 "baseline_speed_bl_per_min": base_speed}
-    problem = CodesignProblem(env, design, gait, run.joint.target(base_speed), run.weights, max_step_of_env(env))
+    problem = CodesignProblem(env, design, gait, run.joint.target(base_speed), run.weights, max_step_of_env(env),
+                              motor_model=run.motor_model)
     state = None
     if saved is not None:
         expected = json.loads(json.dumps(settings, default=float))
@@ -310,7 +323,8 @@ def _run_reserved(run: CodesignRun, env, design, given: Result | None, t_start: 
     say(f"wrote the designed robot {robot_file}")
     from .checks import check_designed_robot, format_checks
     checks = check_designed_robot(shipped.source, robot_file)
-    new_env = make_gradient_env(str(robot_file), contact=env.contact_model, substeps=env.substeps)
+    new_env = make_gradient_env(str(robot_file), contact=env.contact_model, substeps=env.substeps,
+                                motor_model=run.motor_model)
     name = run.name or f"{shipped.name}_walk"
     result = _gait_on_written_robot(run, new_env, gait, z_best, state, robot_file)
     result_file = run.out / f"{name}.npz"

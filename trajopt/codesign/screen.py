@@ -175,12 +175,13 @@ class _ScoreJob:
     settings: ScreenSettings
     z0: np.ndarray | None
     search: SearchSettings
+    motor_model: str = "torque-speed"
 
 
 def _score(job: _ScoreJob):
     """:func:`_gait` of a job on a fresh environment of its robot, or ``SimulationError``'s text
     (a failed candidate, not a failed screening)."""
-    env = design_env(job.robot, job.contact, job.newton, job.substeps)
+    env = design_env(job.robot, job.contact, job.newton, job.substeps, job.motor_model)
     try:
         return _gait(env, job.gait, job.target, job.settings, job.z0, job.search)
     except SimulationError as err:
@@ -343,7 +344,7 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
             rows[-1]["status"] = f"skipped: {why}"
             continue
         jobs.append(_ScoreJob(robot, problem.contact, problem.newton, problem.substeps, problem.gait, target, settings,
-                              start_z if settings.score == "warm" else None, search))
+                              start_z if settings.score == "warm" else None, search, problem.motor_model))
     scores = scorer.map(jobs)                  # in the order of the rows left unscored above
     scored: list[tuple[float, str, np.ndarray, np.ndarray]] = []
     for row, (label, th) in zip(rows, todo):

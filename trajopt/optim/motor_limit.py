@@ -21,6 +21,12 @@ the limit) to the nearest feasible keyframes.
 
 A result records the limit it was made under in ``settings["motor_limit"]`` (:func:`settings_entry`;
 None: made without) and :func:`worst_step` measures a control sequence against it.
+
+The motor models (:data:`MOTOR_MODELS`, the names of :data:`soft_envs.envs.MOTOR_MODELS`, written
+here too because this module is read without the simulator): ``"torque-speed"`` adds the
+torque-speed line to this limit (:mod:`trajopt.optim.motor_torque`), ``"speed"`` is this limit
+alone, ``"ideal"`` none. :func:`choose_motor_model` picks an optimisation's, :func:`motor_model_of`
+reads a result's (older results: ``"speed"`` when they record the limit, else ``"ideal"``).
 """
 from __future__ import annotations
 
@@ -32,11 +38,37 @@ from .parameterization import GaitParameterization
 from .qp import LinearConstraints, nearest_feasible
 
 __all__ = ["speed_limit_constraints", "gait_constraints", "played_steps", "worst_step", "max_step_of_env",
-           "describe_projection", "max_step_of_fingerprint", "playback_note",
-           "settings_entry", "project_start", "STEP_ATOL"]
+           "describe_projection", "max_step_of_fingerprint", "playback_note", "rest_keyframes",
+           "settings_entry", "project_start", "STEP_ATOL", "MOTOR_MODELS", "TORQUE_SPEED", "SPEED", "IDEAL",
+           "choose_motor_model", "motor_model_of"]
 
 #: [m] what a recorded limit allows beyond ``max_step`` when a result is checked (rounding only)
 STEP_ATOL = 1e-9
+TORQUE_SPEED, SPEED, IDEAL = "torque-speed", "speed", "ideal"
+#: the motor models, the default first (module docstring)
+MOTOR_MODELS = (TORQUE_SPEED, SPEED, IDEAL)
+
+
+def choose_motor_model(env: Any, motor_model: str | None, motor_limit: bool = True) -> str:
+    """The motor model of an optimisation: ``motor_model``, else the environment's
+    (``env.motor_model``; :data:`TORQUE_SPEED` for one without); ``motor_limit=False`` (the
+    flag of before the line) is :data:`IDEAL`. ValueError for an unknown name or a contradiction."""
+    if motor_model is not None and motor_model not in MOTOR_MODELS:
+        raise ValueError(f"motor_model must be one of {', '.join(map(repr, MOTOR_MODELS))}, got {motor_model!r}")
+    if not motor_limit:
+        if motor_model not in (None, IDEAL):
+            raise ValueError(f"motor_limit=False (no limit) contradicts motor_model={motor_model!r}")
+        return IDEAL
+    return motor_model if motor_model is not None else getattr(env, "motor_model", TORQUE_SPEED)
+
+
+def motor_model_of(settings: dict[str, Any]) -> str:
+    """The motor model a result was made under (``settings["motor_model"]``; results of before
+    it: :data:`SPEED` when they record the speed limit, else :data:`IDEAL`)."""
+    model = settings.get("motor_model")
+    if model is None:
+        return SPEED if settings.get("motor_limit") else IDEAL
+    return str(model)
 
 
 def max_step_of_env(env: Any) -> np.ndarray:
@@ -114,7 +146,7 @@ def settings_entry(robot: Any, max_step: np.ndarray | None, dt: float) -> dict[s
                               for v, r in zip(speed, radius)]}
 
 
-def _rest_keyframes(param: GaitParameterization) -> np.ndarray:
+def rest_keyframes(param: GaitParameterization) -> np.ndarray:
     """Keyframes that hold every motor at rest (no step moves): a point inside the limit."""
     kf = np.repeat(param.u_rest[:, None], param.n_keyframes, axis=1)
     return np.clip(param.z_from_keyframes(kf), *param.bounds())
@@ -131,18 +163,28 @@ def project_start(z: np.ndarray, param: GaitParameterization, constraints: Linea
         return z, None
     before = constraints.violation(z)
     lo, hi = param.bounds()
-    p = nearest_feasible(z, constraints, anchor=_rest_keyframes(param), scale=np.where(hi > lo, hi - lo, 1.0))
+    p = nearest_feasible(z, constraints, anchor=rest_keyframes(param), scale=np.where(hi > lo, hi - lo, 1.0))
     p = np.clip(p, lo, hi)
     return p, {"violation_before_m": before, "moved_max_m": float(np.abs(p - z).max()),
                "moved_rms_m": float(np.sqrt(np.mean((p - z) ** 2)))}
 
 
 def describe_projection(report: dict[str, Any], source: str, max_step: np.ndarray) -> str:
-    """One line saying how far a start was moved into the limit (:func:`project_start`)."""
-    limit = "/".join(dict.fromkeys(f"{1e3 * s:.3f}" for s in np.asarray(max_step, dtype=np.float64)))
-    return (f"{source}: breaks the motors' speed limit ({limit} mm per step) by up to "
-            f"{1e3 * report['violation_before_m']:.3f} mm in a step; projected onto it: keyframes moved by up to "
-            f"{1e3 * report['moved_max_m']:.3f} mm ({1e3 * report['moved_rms_m']:.3f} mm RMS)")
+    """How far a start was moved into the limit (:func:`project_start`) and into the torque-speed
+    line (its ``"line"`` entry, :func:`trajopt.optim.motor_torque.project_into_line`): a line each."""
+    lines = []
+    if "violation_before_m" in report:
+        limit = "/".join(dict.fromkeys(f"{1e3 * s:.3f}" for s in np.asarray(max_step, dtype=np.float64)))
+        lines.append(f"{source}: breaks the motors' speed limit ({limit} mm per step) by up to "
+                     f"{1e3 * report['violation_before_m']:.3f} mm in a step; projected onto it: keyframes moved by up "
+                     f"to {1e3 * report['moved_max_m']:.3f} mm ({1e3 * report['moved_rms_m']:.3f} mm RMS)")
+    line = report.get("line")
+    if line is not None:
+        what = "gearbox torque limit" if line["line_violation_kind"] == "torque" else "torque-speed line"
+        lines.append(f"{source}: breaks the motors' {what} by up to {100 * line['line_violation_before']:.2f} %; "
+                     f"moved into the line in {line['rounds']} linearisation(s): keyframes moved by up to "
+                     f"{1e3 * line['moved_max_m']:.3f} mm ({1e3 * line['moved_rms_m']:.3f} mm RMS)")
+    return "\n".join(lines)
 
 
 def max_step_of_fingerprint(fingerprint: dict[str, Any] | None, dt: float) -> tuple[list[float], np.ndarray] | None:

@@ -12,32 +12,35 @@ the same objective), or a custom ``target`` array (K+1, 2). Each task gives its 
 term, gait shape, weights and default contact law (:class:`trajopt.tasks.Task`).
 
 The steps, in order: :func:`build_problem` (parameterisation, target path, objective),
-:func:`choose_start` (resume, given z0, or the best of the warm start and the seeds),
+:func:`~trajopt.optim.start.choose_start` (resume, given z0, or the best of the warm start and the
+seeds, moved into the motors' limits; :mod:`trajopt.optim.start`),
 :func:`gauss_newton` (the solve, recorded by :class:`Recorder`), :func:`finish` (zero-slack
 controls and the evaluation over ``eval_cycles`` cycles).
 """
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from typing import Any, Callable
 
 import numpy as np
 
-from soft_envs.envs import GradientEnv, SimulationError, as_gradient_env
+from soft_envs.envs import GradientEnv, MotorLaw, SimulationError, as_gradient_env
 
 from ..evaluation import DEFAULT_EVAL_CYCLES, evaluate_controls, zero_slack_controls
 from .gait import GaitSpec
 from .gauss_newton import GaussNewtonOptions, GaussNewtonResult, gauss_newton
 from .heading import HeadingMeasure
-from .motor_limit import (describe_projection, gait_constraints, max_step_of_env, project_start, settings_entry,
-                          speed_limit_constraints)
+from .motor_limit import (IDEAL, SPEED, TORQUE_SPEED, choose_motor_model, describe_projection, max_step_of_env,
+                          settings_entry, speed_limit_constraints)
+from .motor_torque import LINE_TOLERANCE, MotorLine, line_settings_entry, motor_load_entry
 from .objectives import HeadingTarget, ObjectiveWeights, gait_residuals
 from .parameterization import GaitParameterization
 from ..results.result import Result
-from ..results.robot_match import describe_difference, fingerprint_of
+from ..results.robot_match import fingerprint_of
 from ..tasks.targets import bl_per_min_to_mps, from_array
 from ..tasks.registry import TASKS, Task, get_task
+from .start import RESUME_KEYS, Start, check_resume, choose_start   # noqa: F401  (re-exported)
 
 __all__ = ["optimize_gait", "GaitProblem", "Start", "Recorder", "build_problem", "choose_start", "check_resume",
            "finish", "DEFAULT_SPEED", "TASKS", "TASK_CONTACT"]
@@ -47,9 +50,6 @@ __all__ = ["optimize_gait", "GaitProblem", "Start", "Recorder", "build_problem",
 TASK_CONTACT = {name: t.contact for name, t in TASKS.items() if t.contact is not None}
 #: default target speeds [BL/min], a little above the paper's Table I (Tripod 6.1, Puppy 8.6)
 DEFAULT_SPEED = {"tripod": 8.0, "puppy": 10.0}
-#: the settings a resumed run must share with the interrupted one (besides the task)
-RESUME_KEYS = ("n_prep", "n_cycle", "n_cycles", "n_keyframes", "symmetry", "interpolation", "speed_bl_per_min", "heading_deg",
-               "turn", "incline_deg", "contact", "substeps", "motor_limit")
 
 
 class GaitProblem:
@@ -60,14 +60,23 @@ class GaitProblem:
     ``heading``: target headings of the body for the heading term (used when
     ``weights.heading > 0``; the rollouts then keep ``dxdz``). ``max_step`` (M,): the motors'
     speed limit as the largest change of a control in a step [m] (None: no limit); its
-    inequalities on z are ``speed_limit`` (:mod:`trajopt.optim.motor_limit`)."""
+    inequalities on z are ``speed_limit`` (:mod:`trajopt.optim.motor_limit`). ``motor_model``:
+    with ``"torque-speed"`` the motors' torque-speed line too (``line``,
+    :mod:`trajopt.optim.motor_torque`): its rows are linearised at every accepted iterate
+    (:meth:`linearised_constraints`) and a line-search trial whose rollout breaks it by more than
+    :data:`~trajopt.optim.motor_torque.LINE_TOLERANCE` is refused (a failed trial).
+    :attr:`constraints` is what Gauss-Newton keeps."""
 
     def __init__(self, env: GradientEnv, param: GaitParameterization, target: np.ndarray,
                  weights: ObjectiveWeights, heading: HeadingTarget | None = None,
-                 max_step: np.ndarray | None = None):
+                 max_step: np.ndarray | None = None, motor_model: str | None = None):
         self.env = env
         self.max_step = max_step
+        self.motor_model = (SPEED if max_step is not None else IDEAL) if motor_model is None else motor_model
         self.speed_limit = None if max_step is None else speed_limit_constraints(param, max_step)
+        no_load = None if max_step is None else np.asarray(max_step, dtype=np.float64) / env.timestep
+        self.law = MotorLaw.of_robot(env.robot, no_load)
+        self.line = MotorLine(param, self.law, env.timestep) if self.motor_model == TORQUE_SPEED else None
         self.param = param
         self.target = target
         self.weights = weights
@@ -76,38 +85,50 @@ class GaitProblem:
         self.u_offset = param.offset()
         self.sim_steps = 0
         self.rollouts = 0
+        self.refused_trials = 0           # line-search trials refused for breaking the motors' line
         self.last_traj = None
 
     def controls(self, z: np.ndarray) -> np.ndarray:
         """Controls (K, n_motors) of the optimised horizon (prep + ``gait.n_cycles`` cycles)."""
         return self.u_offset + self.dudz @ z
 
-    def __call__(self, z: np.ndarray, need_jac: bool = True):
+    def rollout(self, z: np.ndarray, sensitivities: bool = False, store_dxdz: bool = False):
+        """The rollout of keyframes ``z`` (with ``dgammadz`` and ``dcomdz`` when ``sensitivities``)."""
         u = self.controls(z)
-        with_heading = self.heading is not None and self.weights.heading > 0
-        traj = self.env.rollout(u, dudz=self.dudz if need_jac else None, store_dxdz=need_jac and with_heading)
+        traj = self.env.rollout(u, dudz=self.dudz if sensitivities else None, store_dxdz=store_dxdz)
         self.sim_steps += len(u)
         self.rollouts += 1
+        return traj
+
+    def __call__(self, z: np.ndarray, need_jac: bool = True):
+        return self.evaluate(z, need_jac)
+
+    def evaluate(self, z: np.ndarray, need_jac: bool = True, check: bool = True):
+        """``(r, J, info)`` at ``z`` (J None without ``need_jac``). With ``check``, a trial (no
+        ``need_jac``) that breaks the motors' line beyond the tolerance raises SimulationError."""
+        with_heading = self.heading is not None and self.weights.heading > 0
+        traj = self.rollout(z, need_jac, store_dxdz=need_jac and with_heading)
+        if check and not need_jac and self.line is not None:
+            worst = self.line.worst(z, traj.cable_deformation)
+            if worst.excess > LINE_TOLERANCE:
+                self.refused_trials += 1
+                raise SimulationError(f"trial refused: {worst.describe(self.env.robot.motor_names)}")
         r, J, terms = gait_residuals(traj, self.target, z, self.param, self.env.robot.body_length,
                                      self.weights, need_jac, self.heading)
         if need_jac:
             self.last_traj = traj
         return r, J, {"terms": terms}
 
+    def linearised_constraints(self, z: np.ndarray):
+        """The speed limit's rows and the line's, linearised at ``z`` (call after ``self(z, True)``)."""
+        traj = self.last_traj
+        return self.speed_limit & self.line.linearised(z, traj.cable_deformation, traj.dgammadz)
 
-@dataclass
-class Start:
-    """Where Gauss-Newton starts: parameters ``z``, and for a resumed run its history, damping,
-    next iteration number and current streak of rejected steps."""
-
-    z: np.ndarray
-    history: list[dict] = field(default_factory=list)
-    lam: float | None = None
-    first_iteration: int = 1
-    rejections: int = 0
-    #: how far the start was moved into the motors' speed limit (None: it obeyed it), see
-    #: :func:`trajopt.optim.motor_limit.project_start`
-    projection: dict[str, Any] | None = None
+    @property
+    def constraints(self):
+        """What Gauss-Newton keeps: the linearisation of the line as a function of z
+        (``"torque-speed"``), the speed limit's rows (``"speed"``), or None."""
+        return self.linearised_constraints if self.line is not None else self.speed_limit
 
 
 # ---------------------------------------------------------------------- 1. the problem
@@ -123,10 +144,11 @@ def _target_path(task: Task, env: GradientEnv, n_steps: int, speed: float, headi
 
 def build_problem(env: GradientEnv, task: str, gait: GaitSpec, *, speed_bl_per_min: float, heading_deg: float,
                   turn: str, target: np.ndarray | None, weights: ObjectiveWeights,
-                  max_step: np.ndarray | None = None) -> GaitProblem:
+                  max_step: np.ndarray | None = None, motor_model: str | None = None) -> GaitProblem:
     """The shooting problem of ``task`` on ``env``: keyframe parameterisation of ``gait``, the
     target COM path at ``speed_bl_per_min`` along ``heading_deg`` (or ``target``), the
-    objective's ``weights``, the motors' limit ``max_step`` (None: none)."""
+    objective's ``weights``, the motors' limit ``max_step`` (None: none) and model
+    (:class:`GaitProblem`)."""
     param = GaitParameterization.for_robot(env.robot, gait)
     the_task = get_task(task)
     path = _target_path(the_task, env, param.n_steps(), speed_bl_per_min, heading_deg, turn, target)
@@ -136,101 +158,7 @@ def build_problem(env: GradientEnv, task: str, gait: GaitSpec, *, speed_bl_per_m
     if yaw is not None:                  # e.g. the turn: the body turns as the arc does, from where it faces
         measure = HeadingMeasure(env.reset_state()[0], env.robot.node_masses)
         heading = HeadingTarget(measure, yaw)
-    return GaitProblem(env, param, path, weights, heading, max_step)
-
-
-# ---------------------------------------------------------------------- 2. the start
-def check_resume(resume: Result, task: str, settings: dict[str, Any],
-                 fingerprint: dict[str, Any] | None = None) -> None:
-    """The one check that an interrupted run ``resume`` can be continued with ``settings`` on
-    the robot of ``fingerprint`` (the error names ``resume.settings["source"]``, its file, when set)."""
-    saved = {**resume.settings, **GaitSpec.from_settings(resume.settings).to_settings(),
-             "contact": resume.settings.get("contact", "paper"),         # older results: the paper's law,
-             "substeps": resume.settings.get("substeps", 1)}             # one physics step per control step
-    differ = {k: (saved.get(k), settings[k]) for k in RESUME_KEYS if k in settings and saved.get(k) != settings[k]}
-    source = resume.settings.get("source")
-    if differ or resume.task != task:
-        raise ValueError(f"{source + ': ' if source else ''}cannot resume: the settings differ from the "
-                         f"interrupted run's (saved, asked): {differ or {'task': (resume.task, task)}}")
-    changed = describe_difference(resume.robot_fingerprint, fingerprint) \
-        if (resume.robot_fingerprint and fingerprint) else None
-    if changed:
-        raise ValueError(f"{source + ': ' if source else ''}cannot resume: the robot is not the interrupted "
-                         f"run's ({changed}); start afresh (--overwrite)")
-
-
-def _best_seed(problem: GaitProblem, seeds: list[np.ndarray]) -> np.ndarray:
-    best, best_f = seeds[0], np.inf
-    for z in seeds:
-        try:
-            r, _, _ = problem(z, need_jac=False)
-        except SimulationError:
-            continue
-        f = 0.5 * float(r @ r)
-        if f < best_f:
-            best, best_f = z, f
-    return best
-
-
-def _resumed(resume: Result) -> Start:
-    history = list(resume.history)
-    start = Start(z=np.asarray(resume.z, dtype=np.float64), history=history)
-    if history:
-        start.lam, start.first_iteration = history[-1].get("lambda_next"), history[-1]["iteration"] + 1
-        for entry in reversed(history):        # the run of rejected steps it stopped in
-            if entry.get("accepted", True):
-                break
-            start.rejections += 1
-    return start
-
-
-def choose_start(problem: GaitProblem, *, resume: Result | None = None, z0: np.ndarray | None = None,
-                 warm_start: Result | None = None, n_seeds: int = 8) -> Start:
-    """Continue ``resume`` (check its settings with :func:`check_resume` first), or start at
-    ``z0``, or at the best objective among ``warm_start``'s keyframes and ``param.seeds(n_seeds)``
-    (cheap rollouts without sensitivities; ``n_seeds=0`` with a warm start: the warm start). The
-    warm start's keyframes may be fewer, repeated (:meth:`GaitParameterization.keyframes_from`).
-    For a turn (a problem with target headings) the warm start with either side's motors
-    played backwards (:meth:`GaitParameterization.one_side_reversed`, tank turns) are candidates
-    too: the walk's strides alone hardly rotate the body, and Gauss-Newton is local."""
-    param = problem.param
-    if resume is not None:
-        start = _resumed(resume)
-    elif z0 is not None:
-        start = Start(z=np.asarray(z0, dtype=np.float64))
-        if start.z.shape == (param.nz,):
-            start.z, start.projection = _within_limit(problem, start.z)
-    else:
-        candidates = []
-        if warm_start is not None:
-            kf = np.asarray(warm_start.settings.get("keyframes"), dtype=np.float64)
-            try:
-                kf = param.keyframes_from(kf)
-            except ValueError as err:
-                source = warm_start.settings.get("source")
-                raise ValueError(f"{source + ': ' if source else ''}warm start: {err}") from None
-            candidates.append(np.clip(param.z_from_keyframes(kf), *param.bounds()))
-            if problem.heading is not None and not param.symmetry:      # a turn: tank turns too
-                candidates += [np.clip(param.z_from_keyframes(param.one_side_reversed(kf, side)), *param.bounds())
-                               for side in (0, 1)]
-        n_warm = len(candidates)
-        candidates += param.seeds(n_seeds) if (n_seeds > 0 or not candidates) else []
-        moved = [_within_limit(problem, z) for z in candidates]       # every candidate obeys the motors
-        candidates = [z for z, _ in moved]
-        start = Start(z=candidates[0] if len(candidates) == 1 else _best_seed(problem, candidates))
-        if n_warm:       # report the warm start's projection
-            start.projection = moved[0][1]
-    if start.z.shape != (param.nz,):
-        raise ValueError(f"starting parameters must have shape ({param.nz},), got {start.z.shape}")
-    return start
-
-
-def _within_limit(problem: GaitProblem, z: np.ndarray) -> tuple[np.ndarray, dict[str, Any] | None]:
-    """``z`` projected into the motors' speed limit (and report), unchanged without one."""
-    if problem.speed_limit is None:
-        return z, None
-    param = problem.param
-    return project_start(np.clip(z, *param.bounds()), param, gait_constraints(param, problem.max_step))
+    return GaitProblem(env, param, path, weights, heading, max_step, motor_model)
 
 
 # ---------------------------------------------------------------------- 3. the solve
@@ -282,6 +210,10 @@ def finish(recorder: Recorder, gn: GaussNewtonResult, eval_cycles: int, heading_
     result.evaluation["optimization_sim_steps"] = problem.sim_steps
     result.evaluation["optimization_wall_time_s"] = time.perf_counter() - recorder.t_start
     result.evaluation["objective"] = gn.objective
+    line = problem.line if problem.line is not None else MotorLine(problem.param, problem.law, env.timestep)
+    result.evaluation["motor_load"] = motor_load_entry(line, z, traj.cable_deformation)
+    if problem.line is not None:
+        result.evaluation["motor_load"]["refused_trials"] = problem.refused_trials
     return result
 
 
@@ -292,7 +224,7 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
                   z0: np.ndarray | None = None, n_seeds: int = 8, eval_cycles: int = DEFAULT_EVAL_CYCLES,
                   robot_spec: str | None = None,
                   callback: Callable[[dict, Result], bool | None] | None = None,
-                  resume: Result | None = None, motor_limit: bool = True) -> Result:
+                  resume: Result | None = None, motor_model: str | None = None, motor_limit: bool = True) -> Result:
     """Optimise a gait and return a :class:`Result` (evaluated over ``eval_cycles`` cycles).
 
     ``env``: a Gymnasium env offering :class:`~soft_envs.envs.GradientEnv` (its contact law is
@@ -309,13 +241,19 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
     ``n_seeds=0`` with a warm start starts from the warm start alone. ``resume``: continue an
     interrupted result (same settings; its z, history and damping are picked up).
     ``callback(entry, partial_result)`` runs after each Gauss-Newton iteration (checkpointing,
-    progress); returning True stops the optimisation. ``motor_limit``: every step of the
-    controls obeys the motors' speed limit (the environment's ``motor_speed``: the robot's
-    ``max_speed_rpm`` unless overridden; :mod:`trajopt.optim.motor_limit`); a start outside it (a
-    warm start made without it) is first projected into it, and the projection printed and
-    recorded in ``settings["start_projection"]``; the limit is recorded in
-    ``settings["motor_limit"]``. ``motor_limit=False`` optimises without (the results of
-    before the limit).
+    progress); returning True stops the optimisation. ``motor_model``: the motors' law the
+    controls obey at every step they play (:mod:`soft_envs.sim.motors`): ``"torque-speed"`` (the
+    torque-speed line at the tensions' load torque and the gearbox's torque limit,
+    :mod:`trajopt.optim.motor_torque`, within :data:`~trajopt.optim.motor_torque.LINE_TOLERANCE`),
+    ``"speed"`` (the speed limit alone, :mod:`trajopt.optim.motor_limit`: the results of before
+    the line, bit for bit) or ``"ideal"`` (none: the results of before the limit); None: the
+    environment's ``motor_model`` (a robot or name: ``"torque-speed"``). The no-load speed is the
+    environment's ``motor_speed`` (the robot's ``max_speed_rpm`` unless overridden). A start
+    outside the limits (a warm start made without them) is first moved into them, and the
+    projection printed and recorded in ``settings["start_projection"]``; the model is recorded in
+    ``settings["motor_model"]``, the speed limit in ``settings["motor_limit"]``, the line in
+    ``settings["motor_line"]``. ``motor_limit=False`` is ``motor_model="ideal"`` (kept for
+    scripts of before the line).
     """
     the_task = get_task(task)
     if the_task.needs_target and target is None:
@@ -332,12 +270,16 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
                 "gauss_newton": asdict(options), "eval_cycles": eval_cycles,
                 "warm_start": warm_start.settings.get("source") if warm_start is not None else None,
                 "control": "length", "contact": env.contact_model, "substeps": int(env.substeps)}
-    max_step = max_step_of_env(env) if motor_limit else None
+    model = choose_motor_model(env, motor_model, motor_limit)
+    max_step = max_step_of_env(env) if model != IDEAL else None
     settings["motor_limit"] = settings_entry(robot, max_step, env.timestep)
+    settings["motor_model"] = model
+    settings["motor_line"] = line_settings_entry(MotorLaw.of_robot(robot, max_step / env.timestep), env.timestep) \
+        if model == TORQUE_SPEED else None
     if resume is not None:
         check_resume(resume, task, settings, fingerprint_of(robot))
     problem = build_problem(env, task, gait, speed_bl_per_min=speed, heading_deg=heading_deg, turn=turn,
-                            target=target, weights=weights, max_step=max_step)
+                            target=target, weights=weights, max_step=max_step, motor_model=model)
     start = choose_start(problem, resume=resume, z0=z0, warm_start=warm_start, n_seeds=n_seeds)
     if start.projection is not None:
         settings["start_projection"] = start.projection
@@ -345,5 +287,5 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
     recorder = Recorder(problem, robot_spec or robot.name, task, settings, start.history, callback)
     gn = gauss_newton(problem, start.z, *problem.param.bounds(), options, callback=recorder.on_iteration,
                       lam=start.lam, first_iteration=start.first_iteration, rejections=start.rejections,
-                      constraints=problem.speed_limit)
+                      constraints=problem.constraints)
     return finish(recorder, gn, eval_cycles, heading_deg)

@@ -10,7 +10,10 @@ before every save) for results with keyframes; it needs no simulator:
   contraction into the cycle, then ``n_cycles`` cycles of the Hermite spline), to
   :data:`CONTROL_ATOL`; its length must be the gait's;
 * a result made under the motors' speed limit (``settings["motor_limit"]``) obeys it at every
-  step of ``u``, from rest and across the wrap-around (:mod:`trajopt.optim.motor_limit`);
+  step of ``u``, from rest and across the wrap-around (:mod:`trajopt.optim.motor_limit`); one
+  made under their torque-speed line (``settings["motor_line"]``) obeys it within its tolerance
+  at every step of ``u`` under the load torques it records (``evaluation["motor_load"]``,
+  :mod:`trajopt.optim.motor_torque`);
 * ``u_post`` adds slack only: ``u <= u_post``, and ``u_post <= u_max``;
 * with a robot fingerprint (which carries the robot's normalised ``robot.toml``), the motor
   names must be its motors in its order, the rest contraction is the robot's (otherwise one
@@ -37,6 +40,8 @@ __all__ = ["check_controls", "check_zero_slack", "motors_of_fingerprint", "CONTR
 CONTROL_ATOL = 1e-12
 #: [m] stored u_post against the zero-slack controls of a new rollout (the solver's tolerance)
 ZERO_SLACK_ATOL = 1e-6
+#: normalised rounding allowed beyond a recorded line's tolerance (the JSON round trip of its numbers)
+LINE_ATOL = 1e-9
 
 
 def motors_of_fingerprint(fingerprint: dict[str, Any]) -> tuple[list[str], np.ndarray, np.ndarray] | None:
@@ -97,6 +102,7 @@ def check_controls(res: Any, src: str) -> None:
         raise ValueError(f"{src}: field 'u' is not what its keyframes make ({_worst(res.u, expected)}): the "
                          "file was edited; evaluate would score the keyframes, play would stream something else")
     _check_motor_limit(res, rest, spec, src)
+    _check_motor_line(res, rest, src)
     if (res.u_post < res.u - CONTROL_ATOL).any():
         k, m = np.argwhere(res.u_post < res.u - CONTROL_ATOL)[0]
         raise ValueError(f"{src}: field 'u_post' is below u at step {k}, motor {m} (zero-slack controls only "
@@ -124,6 +130,36 @@ def _check_motor_limit(res: Any, rest: np.ndarray, spec: GaitSpec, src: str) -> 
         raise ValueError(f"{src}: field 'u' moves motor {res.motor_names[m]!r} by {1e3 * abs(d):.4f} mm in step {k} "
                          f"(0: from rest; the last: the wrap-around), beyond the limit it was made under "
                          f"({1e3 * max_step[m]:.4f} mm, settings 'motor_limit')")
+
+
+def _check_motor_line(res: Any, rest: np.ndarray, src: str) -> None:
+    """A result made under the motors' torque-speed line, with the load torques of its states
+    recorded, obeys the line at every step of ``u`` (the torque before and after it) and the
+    gearbox limit at every state, within the tolerance it records (plus rounding)."""
+    line = res.settings.get("motor_line")
+    load = (res.evaluation or {}).get("motor_load")
+    if not isinstance(line, dict) or not isinstance(load, dict) or "torque_nm" not in load:
+        return                 # made under another model, or a checkpoint (no load recorded yet)
+    try:
+        step = np.array(line["no_load_step_m"], dtype=np.float64)
+        stall = np.array(line["stall_torque_nm"], dtype=np.float64)
+        limit = np.minimum(np.array(line["max_torque_nm"], dtype=np.float64), stall)
+        tol = float(line["tolerance"])
+        tau = np.array(load["torque_nm"], dtype=np.float64)
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"{src}: settings field 'motor_line' or evaluation field 'motor_load' is malformed") from None
+    M = len(res.motor_names)
+    if step.shape != (M,) or stall.shape != (M,) or tau.shape != (len(res.u) + 1, M):
+        raise ValueError(f"{src}: settings field 'motor_line' or evaluation field 'motor_load' does not fit "
+                         f"{M} motors and {len(res.u)} steps")
+    du = np.diff(np.vstack([rest, res.u]), axis=0) / step
+    excess = np.maximum(du + tau[:-1] / stall, du + tau[1:] / stall) - 1.0
+    worst = max(float(excess.max()), float((tau[1:] / limit).max() - 1.0))
+    if worst > tol + LINE_ATOL:
+        k, m = np.unravel_index(int(np.argmax(excess)), excess.shape)
+        raise ValueError(f"{src}: field 'u' breaks the motors' torque-speed line it was made under by "
+                         f"{100 * worst:.2f} % (motor {res.motor_names[m]!r}, step {k}; tolerance "
+                         f"{100 * tol:g} %, settings 'motor_line', evaluation 'motor_load')")
 
 
 def check_zero_slack(u_post: np.ndarray, expected: np.ndarray, src: str) -> None:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..results.files import atomic_write_png, decode_utf8
+from ..optim.motor_limit import motor_model_of
 from ..replay import env_for_result, result_controls
 from ..results.robot_match import locate_robot
 from ..results.result import Result, atomic_write_bytes
@@ -41,7 +42,8 @@ def robustness_jobs(res: Result, cycles: int, samples: int, seed: int) -> tuple[
     s = res.settings
     common = dict(robot=locate_robot(res), u=u, dt=float(res.dt), n_prep=n_prep, n_cycle=n_cycle,
                   heading_deg=float(s.get("heading_deg", 0.0)), incline_deg=float(s.get("incline_deg", 0.0)),
-                  seed=int(seed), contact=env.contact_model, substeps=int(env.substeps))
+                  seed=int(seed), contact=env.contact_model, substeps=int(env.substeps),
+                  motor_model=motor_model_of(s))
     return (SampleJob(index=-1, **common),
             [SampleJob(index=i, perturbation=draw_perturbation(seed, i), **common) for i in range(samples)])
 

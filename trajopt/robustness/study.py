@@ -26,13 +26,22 @@ perturbation                range (uniform)                 what
                                                             control's time
 ``slope_deg``               0 - 10 deg                      extra ground slope ...
 ``slope_direction_deg``     0 - 360 deg                     ... rising towards this heading
+``stall_torque``            x 0.8 - 1.2                     each motor's stall torque (battery sag:
+                                                            the torque-speed line's end; gaits made
+                                                            under the torque-speed model)
 ==========================  ==============================  =========================================
 
 The applied controls of a replay are the gait's controls sampled at jittered times, followed by
 the motors with the lag ``u_k = u_{k-1} + (1 - exp(-h / tau)) (u_cmd - u_{k-1})`` and at most
 ``v_max h`` per step (``v_max`` = the ``motor_speed`` factor x the robot's
 :attr:`~soft_envs.sim.Robot.max_contraction_speed`, i.e. its ``max_speed_rpm`` x 2 pi / 60 x
-spool radius). Randomness is seeded per
+spool radius). A gait made under the motors' torque-speed line (``settings["motor_model"]``,
+:mod:`soft_envs.sim.motors`) is followed by motors with that line instead: the replay steps an
+environment with ``motor_model="torque-speed"`` (winding at most ``v_max h (1 - tau /
+stall_torque)`` at the load torque of the state before each step, none beyond ``max_torque``),
+its motors' no-load speed scaled by ``motor_speed`` and their stall torque by ``stall_torque``;
+gaits made under the speed limit alone are replayed open-loop as before (``stall_torque`` then
+plays no part). Randomness is seeded per
 sample (``numpy.random.default_rng([seed, i])``), so sample i is the same whatever N and
 whichever worker runs it: every sample is one picklable call of :func:`run_sample`, run in
 this process or, with ``--workers N``, as Ray tasks when Ray and ``trajopt sweep`` are installed.
@@ -49,12 +58,14 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from soft_envs.envs import SimulationError, load_robot, make_gradient_env, scale_parameters, with_contact_law
+from soft_envs.envs import (SimulationError, SoftRobotEnv, load_robot, make_gradient_env, scale_parameters,
+                            with_contact_law)
 
 from ..evaluation import measure_gait
 
 __all__ = ["PERTURBATIONS", "DERIVED_NAMES", "SampleJob", "draw_perturbation", "applied_controls",
-           "perturbed_slope", "run_sample", "map_samples", "summarize"]
+           "jittered_commands", "lag_share", "perturbed_motors", "stepped_replay", "perturbed_slope", "run_sample",
+           "map_samples", "summarize"]
 
 #: name -> (kind, low, high); kind "factor" (uniform), "log" (log-uniform factor) or "value"
 PERTURBATIONS = MappingProxyType({
@@ -62,7 +73,8 @@ PERTURBATIONS = MappingProxyType({
     "payload_mass": ("factor", 0.85, 1.15), "contact_stiffness": ("log", 0.5, 2.0),
     "cable_stiffness": ("log", 0.5, 2.0), "motor_lag_s": ("value", 0.0, 0.1),
     "motor_speed": ("factor", 0.6, 1.4), "timing_jitter_s": ("value", 0.0, 0.010),
-    "slope_deg": ("value", 0.0, 10.0), "slope_direction_deg": ("value", 0.0, 360.0)})
+    "slope_deg": ("value", 0.0, 10.0), "slope_direction_deg": ("value", 0.0, 360.0),
+    "stall_torque": ("factor", 0.8, 1.2)})        # drawn last: the other draws of a seed are as before
 
 #: the perturbations that scale the robot's physical parameters (``friction``: its contact law's friction
 #: parameter; :func:`soft_envs.envs.scale_parameters`)
@@ -97,6 +109,7 @@ class SampleJob:
     perturbation: dict | None = None          # None: the nominal replay
     contact: str | None = None                # the gait's contact law (None: the robot file's)
     substeps: int | None = None               # the gait's physics steps per control step (None: the law's)
+    motor_model: str = "speed"                # the motors' law the gait was made under
 
 
 def perturbed_slope(incline_deg: float, uphill_deg: float, slope_deg: float, direction_deg: float
@@ -118,23 +131,65 @@ def perturbed_slope(incline_deg: float, uphill_deg: float, slope_deg: float, dir
     return incline, uphill
 
 
+def jittered_commands(u: np.ndarray, dt: float, p: dict, rng: np.random.Generator) -> np.ndarray:
+    """The commanded controls ``u`` (K, M) sampled at times jittered by ``p["timing_jitter_s"]``."""
+    K = len(u)
+    t = dt * np.arange(K)
+    tj = np.clip(t + rng.uniform(-p["timing_jitter_s"], p["timing_jitter_s"], size=K), 0.0, t[-1])
+    return np.stack([np.interp(tj, t, u[:, m]) for m in range(u.shape[1])], axis=1)
+
+
+def lag_share(dt: float, p: dict) -> float:
+    """The share ``1 - exp(-h / tau)`` of the way to its command a lagged motor goes in a step."""
+    return 1.0 - math.exp(-dt / p["motor_lag_s"]) if p["motor_lag_s"] > 0 else 1.0
+
+
 def applied_controls(u: np.ndarray, dt: float, u_start: np.ndarray, bounds: np.ndarray, max_speed: np.ndarray,
                      p: dict, rng: np.random.Generator) -> np.ndarray:
     """The contractions the motors apply (module docstring) for commanded ``u`` (K, M);
     ``max_speed`` (M,) is the nominal contraction speed limit [m/s] (``robot.max_contraction_speed``),
     scaled by ``p["motor_speed"]``."""
-    K = len(u)
-    t = dt * np.arange(K)
-    tj = np.clip(t + rng.uniform(-p["timing_jitter_s"], p["timing_jitter_s"], size=K), 0.0, t[-1])
-    cmd = np.stack([np.interp(tj, t, u[:, m]) for m in range(u.shape[1])], axis=1)
-    alpha = 1.0 - math.exp(-dt / p["motor_lag_s"]) if p["motor_lag_s"] > 0 else 1.0
+    cmd = jittered_commands(u, dt, p, rng)
+    alpha = lag_share(dt, p)
     du_max = p["motor_speed"] * np.asarray(max_speed, dtype=np.float64) * dt
     out = np.empty_like(cmd)
     prev = np.asarray(u_start, dtype=np.float64)
-    for k in range(K):
+    for k in range(len(cmd)):
         prev = prev + np.clip(alpha * (cmd[k] - prev), -du_max, du_max)
         out[k] = prev
     return np.clip(out, bounds[:, 0], bounds[:, 1])
+
+
+def perturbed_motors(robot: Any, p: dict) -> Any:
+    """``robot`` with each motor's no-load speed scaled by ``p["motor_speed"]`` and its stall
+    torque by ``p["stall_torque"]``."""
+    import dataclasses
+    motors = tuple(dataclasses.replace(m, max_speed_rpm=m.max_speed_rpm * p["motor_speed"],
+                                       stall_torque=m.stall_torque * p["stall_torque"]) for m in robot.motors)
+    return robot.replace(motors=motors)
+
+
+class _Replayed:
+    """The states of a stepped replay as :func:`~trajopt.evaluation.measure_gait` reads them."""
+
+    def __init__(self, x: list[np.ndarray], com: list[np.ndarray]):
+        self.x, self.com = np.array(x), np.array(com)
+
+
+def stepped_replay(env: Any, cmd: np.ndarray, alpha: float) -> _Replayed:
+    """Step ``env`` (its motors' law, from its reset state) towards the lagged commands: each
+    step's target is ``u + alpha (cmd_k - u)`` from the applied contraction ``u``; a failed step
+    raises SimulationError."""
+    state = env.get_state()
+    u, xs, coms = state["u"], [state["x"]], [env.com()]
+    for row in cmd:
+        _, _, _, _, info = env.step(env.control_to_action(u + alpha * (row - u)))
+        if "sim_failure" in info:
+            raise SimulationError(info["sim_failure"])
+        u = info["u"]
+        xs.append(env.get_state()["x"])
+        coms.append(env.com())
+    return _Replayed(xs, coms)
 
 
 def run_sample(job: SampleJob) -> dict[str, Any]:
@@ -144,19 +199,31 @@ def run_sample(job: SampleJob) -> dict[str, Any]:
     robot = with_contact_law(load_robot(job.robot), job.contact)
     u, incline, uphill = np.asarray(job.u, dtype=np.float64), job.incline_deg, job.heading_deg
     p = job.perturbation
+    line = p is not None and job.motor_model == "torque-speed"      # motors that follow their line
     if p is not None:
         robot = scale_parameters(robot, {n: p[n] for n in PHYSICAL_FACTORS})   # "friction": the law's
         incline, uphill = perturbed_slope(job.incline_deg, job.heading_deg, p["slope_deg"], p["slope_direction_deg"])
         rng = np.random.default_rng([job.seed, job.index, 1])
-        u = applied_controls(u, job.dt, robot.u_rest, robot.u_bounds, robot.max_contraction_speed, p, rng)
+        if line:
+            robot = perturbed_motors(robot, {"stall_torque": 1.0, **p})
+            u = jittered_commands(u, job.dt, p, rng)
+        else:
+            u = applied_controls(u, job.dt, robot.u_rest, robot.u_bounds, robot.max_contraction_speed, p, rng)
     out: dict[str, Any] = {"index": job.index, **(p or {})}
     if p is not None:          # the part of the extra slope that the gait climbs (> 0) or descends
         out["slope_along_heading_deg"] = p["slope_deg"] * math.cos(math.radians(p["slope_direction_deg"]
                                                                                - job.heading_deg))
     try:
-        env = make_gradient_env(robot, incline_deg=incline, heading_deg=uphill, timestep=job.dt,
-                                substeps=job.substeps)
-        traj = env.rollout(u)
+        if line:
+            env = SoftRobotEnv(robot, incline_deg=incline, target_heading_deg=uphill, timestep=job.dt,
+                               substeps=job.substeps, reset_noise_scale=0.0, motor_model="torque-speed",
+                               terminate_when_unhealthy=False)
+            env.reset(seed=0)
+            traj = stepped_replay(env, u, lag_share(job.dt, p))
+        else:
+            env = make_gradient_env(robot, incline_deg=incline, heading_deg=uphill, timestep=job.dt,
+                                    substeps=job.substeps)
+            traj = env.rollout(u)
     except SimulationError as err:
         out.update(speed_bl_per_min=float("nan"), upright=False, heading_drift_deg_per_cycle=float("nan"),
                    max_tilt_deg=float("nan"), sim_failure=str(err))

@@ -20,6 +20,7 @@ from typing import Any, Callable, Mapping
 
 from ..argtypes import contact_law, cycles, integer, nonnegative_float, number, positive_int, slope_deg, speed, steps
 from ..optim.gait import INTERPOLATIONS
+from ..optim.motor_limit import MOTOR_MODELS
 from ..rl.envs import ROBOTS
 from ..rl.hyperparams import ALGOS
 from ..tasks.registry import command_line_tasks
@@ -114,7 +115,8 @@ _SEED = Option(integer(0, 2**32 - 1))           # what NumPy's legacy seeding ac
 _OPTIMIZE = {
     "task": Option(_task), "speed": Option(speed), "heading": Option(number()),
     "turn": Option(_choice("right", "left")), "angle": Option(slope_deg), "contact": Option(contact_law),
-    "substeps": Option(positive_int), "symmetry": _BOOL, "warm_start": Option(), "no_motor_limit": _BOOL, "iterations": Option(integer(0, 100_000)),
+    "substeps": Option(positive_int), "symmetry": _BOOL, "warm_start": Option(), "no_motor_limit": _BOOL,
+    "motor_model": Option(_choice(*MOTOR_MODELS)), "iterations": Option(integer(0, 100_000)),
     "keyframes": Option(steps), "interpolation": Option(_choice(*INTERPOLATIONS)), "cycle_steps": Option(steps), "prep_steps": Option(integer(0, 100_000)),
     "seeds": Option(integer(0, 10_000)), "cycles": Option(cycles), "max_sim_steps": Option(positive_int),
     "out": Option(), "name": Option(), "resume": _BOOL, "overwrite": _BOOL, "quiet": _BOOL,
