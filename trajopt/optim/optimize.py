@@ -25,7 +25,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from soft_envs.envs import GradientEnv, MotorLaw, SimulationError, as_gradient_env
+from soft_envs.envs import GradientEnv, MotorLaw, RolloutStopped, SimulationError, as_gradient_env
 
 from ..evaluation import DEFAULT_EVAL_CYCLES, evaluate_controls, zero_slack_controls
 from .gait import GaitSpec
@@ -34,7 +34,7 @@ from .heading import HeadingMeasure
 from .motor_limit import (IDEAL, SPEED, TORQUE_SPEED, choose_motor_model, describe_projection, max_step_of_env,
                           settings_entry, speed_limit_constraints)
 from .motor_torque import LINE_TOLERANCE, MotorLine, line_settings_entry, motor_load_entry
-from .objectives import HeadingTarget, ObjectiveWeights, gait_residuals
+from .objectives import HeadingTarget, ObjectiveWeights, gait_residuals, objective_stop
 from .parameterization import GaitParameterization
 from ..results.result import Result
 from ..results.robot_match import fingerprint_of
@@ -92,22 +92,38 @@ class GaitProblem:
         """Controls (K, n_motors) of the optimised horizon (prep + ``gait.n_cycles`` cycles)."""
         return self.u_offset + self.dudz @ z
 
-    def rollout(self, z: np.ndarray, sensitivities: bool = False, store_dxdz: bool = False):
-        """The rollout of keyframes ``z`` (with ``dgammadz`` and ``dcomdz`` when ``sensitivities``)."""
+    #: ``__call__`` takes a ``bound`` (:func:`~trajopt.optim.gauss_newton.gauss_newton`'s trials)
+    stops_above = True
+
+    def rollout(self, z: np.ndarray, sensitivities: bool = False, store_dxdz: bool = False, stop=None):
+        """The rollout of keyframes ``z`` (with ``dgammadz`` and ``dcomdz`` when ``sensitivities``;
+        ``stop``: see :meth:`soft_envs.envs.GradientEnv.rollout`). Its steps are counted, those of
+        a stopped rollout as far as it went."""
         u = self.controls(z)
-        traj = self.env.rollout(u, dudz=self.dudz if sensitivities else None, store_dxdz=store_dxdz)
-        self.sim_steps += len(u)
         self.rollouts += 1
+        try:
+            traj = self.env.rollout(u, dudz=self.dudz if sensitivities else None, store_dxdz=store_dxdz, stop=stop)
+        except RolloutStopped as stopped:
+            self.sim_steps += stopped.k
+            raise
+        self.sim_steps += len(u)
         return traj
 
-    def __call__(self, z: np.ndarray, need_jac: bool = True):
-        return self.evaluate(z, need_jac)
+    def __call__(self, z: np.ndarray, need_jac: bool = True, bound: float | None = None):
+        return self.evaluate(z, need_jac, bound=bound)
 
-    def evaluate(self, z: np.ndarray, need_jac: bool = True, check: bool = True):
+    def evaluate(self, z: np.ndarray, need_jac: bool = True, check: bool = True, bound: float | None = None):
         """``(r, J, info)`` at ``z`` (J None without ``need_jac``). With ``check``, a trial (no
-        ``need_jac``) that breaks the motors' line beyond the tolerance raises SimulationError."""
+        ``need_jac``) that breaks the motors' line beyond the tolerance raises SimulationError.
+        ``bound`` (no ``need_jac``): the rollout ends with :class:`~soft_envs.envs.RolloutStopped`
+        as soon as the objective must exceed it (:func:`~trajopt.optim.objectives.objective_stop`):
+        a trial or a seed whose value can no longer be accepted."""
         with_heading = self.heading is not None and self.weights.heading > 0
-        traj = self.rollout(z, need_jac, store_dxdz=need_jac and with_heading)
+        stop = None
+        if bound is not None and not need_jac and np.isfinite(bound):
+            stop = objective_stop(bound, self.target, z, self.param, self.env.robot.body_length, self.weights,
+                                  len(self.dudz), len(self.env.robot.tendons))
+        traj = self.rollout(z, need_jac, store_dxdz=need_jac and with_heading, stop=stop)
         if check and not need_jac and self.line is not None:
             worst = self.line.worst(z, traj.cable_deformation)
             if worst.excess > LINE_TOLERANCE:

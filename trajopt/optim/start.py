@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from soft_envs.envs import SimulationError
+from soft_envs.envs import RolloutStopped, SimulationError
 
 from ..results.result import Result
 from ..results.robot_match import describe_difference
@@ -64,9 +64,9 @@ def check_resume(resume: Result, task: str, settings: dict[str, Any],
 def _best_seed(problem: Any, seeds: list[np.ndarray]) -> np.ndarray:
     best, best_f = seeds[0], np.inf
     for z in seeds:
-        try:
-            r, _, _ = problem.evaluate(z, need_jac=False, check=False)     # a start is moved into the line after
-        except SimulationError:
+        try:     # a start is moved into the line after; a seed above the best so far cannot win: stopped
+            r, _, _ = problem.evaluate(z, need_jac=False, check=False, bound=best_f)
+        except (SimulationError, RolloutStopped):
             continue
         f = 0.5 * float(r @ r)
         if f < best_f:
