@@ -60,7 +60,7 @@ def test_the_torque_and_the_rows_match_central_differences(contact):
     J = law.torque_jacobian(gamma, traj.dgammadz)
     lin = line.linearised(z, gamma, traj.dgammadz, clamp=False)
     assert np.abs(lin.G @ z - lin.h - _flat(line.excess(z, gamma))).max() < 1e-14
-    h = 3e-7
+    h = 1e-7              # truncation error O(h^2) across the blends' kinks: 6e-6 at 3e-7 with 4 physics steps
     for _ in range(2):
         d = rng.normal(size=param.nz)
         d /= np.linalg.norm(d)
@@ -181,8 +181,8 @@ def test_every_optimised_result_obeys_the_line(task, contact):
     traj = env.rollout(res.u)
     assert line.worst(res.z, traj.cable_deformation).excess <= LINE_TOLERANCE
     load = res.evaluation["motor_load"]
-    tau = line.law.torque(traj.cable_deformation)             # a new rollout: equal to the Newton tolerance
-    assert np.abs(np.array(load["torque_nm"]) - tau).max() < 1e-6
+    tau = line.law.torque(traj.cable_deformation)             # a new rollout: equal to the Newton tolerance,
+    assert np.abs(np.array(load["torque_nm"]) - tau).max() < 2e-5  # 1e-7 m x 1e5 N/m x 5 mm per physics step
     assert max(load["worst_line_excess"]) <= LINE_TOLERANCE
 
 
