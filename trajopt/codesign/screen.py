@@ -233,13 +233,16 @@ class _Scorer:
             self.pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
                                             initializer=start_worker,
                                             initargs=(os.getpid(), f"{__name__}:_one_thread"))
-        results = self.pool.map(_score, jobs)
-        self._seen.update((getattr(self.pool, "_processes", None) or {}).values())
-        return results
+        try:        # a worker killed while the jobs are submitted breaks the pool inside map()
+            return self.pool.map(_score, jobs)
+        finally:
+            self._seen.update((getattr(self.pool, "_processes", None) or {}).values())
 
     def how_they_died(self) -> str:
         """How the first worker that died unasked ended ("killed by SIGKILL", "exit code 1")."""
         for proc in self._seen:
+            if proc.exitcode is None:
+                proc.join(timeout=1.0)      # the pool's manager may not have reaped it yet
             code = proc.exitcode
             if code is None or code == 0 or code == -signal.SIGTERM:      # alive, or terminated by the pool
                 continue
