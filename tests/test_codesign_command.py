@@ -17,11 +17,63 @@ from trajopt.codesign.checks import check_designed_robot
 from trajopt.evaluation import evaluate_result
 
 
+CHECKPOINTS: list[dict] = []       # every state ``done``'s run checkpointed (each screening round, each iteration)
+
+
 @pytest.fixture(scope="module")
 def done(tmp_path_factory):
+    import trajopt.codesign.run as run_module
     out = tmp_path_factory.mktemp("codesign") / "tripod"
-    assert main(["codesign", "tripod", "--quick", "--quiet", "--out", str(out)]) == 0
+    original = run_module._write_json
+
+    def keep(path, data):
+        if path.name == "codesign.partial.json":
+            CHECKPOINTS.append(json.loads(json.dumps(data["state"], default=float)))
+        original(path, data)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(run_module, "_write_json", keep)
+        assert main(["codesign", "tripod", "--quick", "--quiet", "--out", str(out)]) == 0
     return out
+
+
+def test_every_stage_keeps_the_design_within_its_bounds_and_over_the_mass_floor(done):
+    """Every design a stage moved to or stood at (the screening's rounds, each joint Gauss-Newton
+    iterate and its linearisation points, the written robot) lies within the [design] table's
+    bounds, and its total mass is at least 98 % of the shipped robot's (the floor is pinned)."""
+    from soft_envs.envs.design import MAX_MASS_LOSS, load_design
+    from trajopt.codesign import CodesignProblem
+    assert MAX_MASS_LOSS == 0.02
+    shipped = load_design(load_robot("tripod"))
+    lo, hi = shipped.bounds[:, 0], shipped.bounds[:, 1]
+    floor = 0.98 * shipped.total_mass()
+    n = len(shipped)
+    assert CHECKPOINTS and any(s["screened"] for s in CHECKPOINTS) and any(s["history"] for s in CHECKPOINTS)
+
+    def check(thetas, where):
+        block, anchor = shipped, shipped.values.copy()
+        for theta in thetas:
+            theta = np.asarray(theta, dtype=np.float64)
+            assert theta.shape == (n,), where
+            assert np.all(theta >= lo - 1e-12) and np.all(theta <= hi + 1e-12), (where, theta)
+            block, anchor = CodesignProblem.moved(block, anchor, theta)       # as the run moves
+            assert block.total_mass() >= floor * (1 - 1e-12), (where, block.total_mass(), floor)
+
+    stages = set()
+    for k, state in enumerate(CHECKPOINTS):
+        progress = state.get("screen_progress") or {}
+        check(progress.get("path", []), f"checkpoint {k}: the screening's path")
+        if progress:
+            stages.add("screen")
+            check(progress.get("path", []) + [progress["theta"]], f"checkpoint {k}: the screening's design")
+        check(state["path"], f"checkpoint {k}: the joint stage's designs")
+        check(state["path"] + [state["w"][-n:]], f"checkpoint {k}: the joint iterate")
+        if state["history"]:
+            stages.add("joint")
+    assert stages == {"screen", "joint"}
+    written = load_design(load_robot(done / "robot.toml"))
+    assert np.all(written.values >= lo - 1e-9) and np.all(written.values <= hi + 1e-9)
+    assert written.total_mass() >= floor * (1 - 1e-12)
 
 
 def test_writes_a_robot_folder_its_gait_and_a_report(done):
