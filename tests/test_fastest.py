@@ -264,3 +264,47 @@ def test_a_search_checkpoint_of_another_search_or_damaged_is_refused(tmp_path):
     store.state_file.write_text('{"identity": {')
     with pytest.raises(ValueError, match=r"state\.json: not JSON"):
         store.load()
+
+
+def test_speed_max_returns_the_fastest_upright_gait_never_one_that_fell(monkeypatch):
+    """Which gait ``fastest_gait`` returns, with the optimiser replaced by a table of outcomes:
+    in every stage the fastest gait falls (as an optimiser pushed past what the robot can hold
+    does). The fine stage continues only from upright coarse gaits (the fastest of them first),
+    and the result is the fastest upright run of the search's own motor model, marked chosen in
+    its table; with nothing upright the search raises instead of returning a fallen gait."""
+    from types import SimpleNamespace
+
+    import trajopt.fastest as fastest
+    from soft_envs.envs import SimulationError
+
+    settings = SearchSettings(cycle_steps=(8, 12, 16), keyframes=(4,), seeds=0, coarse_iterations=1,
+                              fine_iterations=1, n_fine=2, min_horizon_steps=16, n_prep=4, eval_cycles=2,
+                              revisit=False)
+    coarse = {8: (30.0, False), 12: (14.0, True), 16: (18.0, True)}       # n_cycle -> (speed, upright)
+    fine = {16: (21.0, True), 12: (40.0, False)}                          # the fine run from cycle 12 falls
+    calls = []
+
+    def fake_optimize(env, task, *, gait, z0=None, motor_model=None, **kw):
+        stage = "coarse" if z0 is None else "fine"
+        speed, upright = (coarse if stage == "coarse" else fine)[gait.n_cycle]
+        calls.append((stage, gait.n_cycle, motor_model))
+        settings_ = {"n_prep": gait.n_prep, "n_cycle": gait.n_cycle, "n_cycles": gait.n_cycles,
+                     "n_keyframes": gait.n_keyframes, "eval_cycles": 2, "symmetry": gait.symmetry,
+                     "interpolation": gait.interpolation, "keyframes": np.zeros((2, gait.n_keyframes)).tolist()}
+        return SimpleNamespace(settings=settings_, history=[{}], status="max_iter", z=np.full(4, gait.n_cycle),
+                               evaluation={"speed_bl_per_min": speed, "upright": upright, "max_tilt_deg": 5.0,
+                                           "optimization_sim_steps": 10})
+
+    monkeypatch.setattr(fastest, "optimize_gait", fake_optimize)
+    res, rows = fastest.fastest_gait("tripod", settings=settings, quiet=True, motor_model="speed")
+    assert [(s, n) for s, n, _ in calls] == [("coarse", 8), ("coarse", 12), ("coarse", 16), ("fine", 16), ("fine", 12)]
+    assert res.evaluation["speed_bl_per_min"] == 21.0 and res.evaluation["upright"]
+    chosen = [r for r in rows if r["chosen"]]
+    assert len(chosen) == 1 and (chosen[0]["stage"], chosen[0]["n_cycle"]) == ("fine", 16)
+    assert max(r["speed_bl_per_min"] for r in rows) == 40.0          # faster gaits were there, and fell
+
+    coarse.update({12: (14.0, False), 16: (18.0, False)})
+    calls.clear()
+    with pytest.raises(SimulationError, match="none of the 3 gaits tried stayed upright"):
+        fastest.fastest_gait("tripod", settings=settings, quiet=True, motor_model="speed")
+    assert all(stage == "coarse" for stage, _, _ in calls)            # nothing fell into the fine stage
