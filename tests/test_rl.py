@@ -68,6 +68,30 @@ def test_train_save_reload_evaluate(runs, robot, algo):
     assert ck.vecnormalize is not None
 
 
+def test_a_policy_plays_closed_loop_at_finer_physics(runs, capsys):
+    """The RL side of the fidelity protocol: the policy closed loop at its run's physics (the
+    Coulomb law's 4 steps per control step) and at 2x finer steps, through the environment
+    (``substeps``); its own row is the plain evaluation, the finer one a real replay on other
+    physics (another step count, another trajectory), and ``trajopt rl evaluate --fidelity``
+    prints the table."""
+    from trajopt.rl.evaluate import evaluate_policy_metric, load_policy, policy_fidelity
+    policy = load_policy(runs["tripod", "ppo"].run_dir)
+    own = evaluate_policy_metric(policy, n_cycles=1)
+    fid = policy_fidelity(policy, (2,), n_cycles=1)
+    assert own["substeps"] == fid["substeps"] == 4
+    assert [(r["factor"], r["substeps"]) for r in fid["rows"]] == [(1, 4), (2, 8)]
+    assert fid["rows"][0]["speed_bl_per_min"] == own["speed_bl_per_min"]
+    finer = evaluate_policy_metric(policy, n_cycles=1, substeps=8)
+    assert finer["substeps"] == 8 and fid["rows"][1]["speed_bl_per_min"] == finer["speed_bl_per_min"]
+    assert not np.allclose(finer["com"], own["com"], rtol=0, atol=1e-9)
+    assert fid["rows"][1]["deviation"] == pytest.approx((finer["speed_bl_per_min"] - own["speed_bl_per_min"])
+                                                        / abs(own["speed_bl_per_min"]))
+    capsys.readouterr()
+    main(["rl", "evaluate", str(runs["tripod", "ppo"].run_dir), "--cycles", "1", "--fidelity"])
+    out = capsys.readouterr().out
+    assert "finer physics steps" in out and "1.031 ms" in out and "spread" in out
+
+
 def test_evaluate_is_deterministic(runs):
     from trajopt.rl.evaluate import evaluate_policy_metric, load_policy
     run = runs["tripod", "sac"]

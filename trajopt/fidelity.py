@@ -19,7 +19,7 @@ import numpy as np
 from .evaluation import evaluate_controls
 from .optim.gait import DEFAULT_EVAL_CYCLES
 
-__all__ = ["FIDELITY_FACTORS", "RECORDED_FACTOR", "fidelity", "fidelity_record", "speed_at"]
+__all__ = ["FIDELITY_FACTORS", "RECORDED_FACTOR", "fidelity", "fidelity_record", "fidelity_rows", "speed_at"]
 
 #: the finer physics ``trajopt evaluate --fidelity`` replays at: 2x, 4x and 8x the physics steps
 FIDELITY_FACTORS = (2, 4, 8)
@@ -52,11 +52,17 @@ def fidelity(res, factors=FIDELITY_FACTORS, n_cycles: int | None = None, *, refe
     evaluation at the result's own physics when already made (not replayed again)."""
     from .replay import result_substeps
     n = result_substeps(res)
+    evs = {f: reference if (f == 1 and reference is not None) else speed_at(
+        res, n * f, n_cycles, ignore_robot_mismatch=ignore_robot_mismatch) for f in (1, *factors)}
+    return fidelity_rows(n, 1e3 * res.dt, evs)
+
+
+def fidelity_rows(substeps: int, control_dt_ms: float, evaluations: dict[int, dict]) -> dict[str, Any]:
+    """:func:`fidelity`'s dict from the evaluations at ``factor -> evaluation`` (factor 1: the
+    own physics of ``substeps`` steps per control step of ``control_dt_ms``)."""
     rows = []
-    for f in (1, *factors):
-        ev = reference if (f == 1 and reference is not None) else speed_at(
-            res, n * f, n_cycles, ignore_robot_mismatch=ignore_robot_mismatch)
-        rows.append({"factor": f, "substeps": n * f, "physics_dt_ms": 1e3 * res.dt / (n * f),
+    for f, ev in evaluations.items():
+        rows.append({"factor": f, "substeps": substeps * f, "physics_dt_ms": control_dt_ms / (substeps * f),
                      "speed_bl_per_min": float(ev["speed_bl_per_min"]), "upright": bool(ev.get("upright", False)),
                      "sim_failure": ev.get("sim_failure")})
     base = rows[0]["speed_bl_per_min"]
@@ -64,7 +70,7 @@ def fidelity(res, factors=FIDELITY_FACTORS, n_cycles: int | None = None, *, refe
         r["deviation"] = _deviation(r["speed_bl_per_min"], base)
     speeds = np.array([r["speed_bl_per_min"] for r in rows])
     spread = float((speeds.max() - speeds.min()) / abs(base)) if base and np.isfinite(speeds).all() else float("nan")
-    return {"substeps": n, "control_dt_ms": 1e3 * res.dt, "rows": rows, "spread": spread}
+    return {"substeps": substeps, "control_dt_ms": control_dt_ms, "rows": rows, "spread": spread}
 
 
 def fidelity_record(res, reference: dict | None = None) -> dict[str, Any]:

@@ -72,6 +72,9 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("--reset-noise", type=nonnegative_float, default=0.0,
                    help="reset noise [m] (default 0: trajopt's start, the exact rest state)")
+    p.add_argument("--fidelity", action="store_true",
+                   help="also play the policy closed loop at 2x, 4x and 8x finer physics steps (how credible its "
+                        "speed is, as trajopt evaluate --fidelity)")
     p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
     p.set_defaults(func=_cmd_evaluate)
 
@@ -128,6 +131,9 @@ def _cmd_evaluate(args) -> int:
         policy = load_policy(args.model)
         ev = evaluate_policy_metric(policy, n_cycles=args.cycles, seed=args.seed,
                                     reset_noise_scale=args.reset_noise)
+        if args.fidelity:
+            from ..rl.evaluate import policy_fidelity
+            ev["fidelity"] = policy_fidelity(policy, n_cycles=args.cycles, seed=args.seed, reference=ev)
     except MissingRLDependencies as exc:
         return _missing(exc)
     if args.json:
@@ -137,6 +143,9 @@ def _cmd_evaluate(args) -> int:
         print(f"{cfg['robot']} {cfg['algo'].upper()} seed {cfg.get('seed')}, "
               f"{cfg.get('timesteps_done', '?')} training steps ({cfg.get('status', '?')}); {policy.path}")
         _print_eval(ev)
+        if args.fidelity:
+            from .commands import fidelity_text
+            print(fidelity_text(ev["fidelity"]))
     return 0 if ev["upright"] else 1
 
 

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from soft_envs.envs import heading_vector
+from soft_envs.envs import PAPER_TIMESTEP, heading_vector
 from soft_envs.envs.actuation import MOTOR_SPEED_FROM_ROBOT
 
 from ..evaluation import evaluate_controls, evaluate_result, measure_gait, zero_slack_controls
@@ -152,21 +152,22 @@ def run_metric(env, u: np.ndarray, x: np.ndarray | None, *, gait: GaitSpec = GAI
     return evaluate_controls(base, u, n_prep=gait.n_prep, n_cycle=gait.n_cycle, heading_deg=heading_deg)
 
 
-def _eval_env(policy: LoadedPolicy, n_env_steps: int, reset_noise_scale: float):
+def _eval_env(policy: LoadedPolicy, n_env_steps: int, reset_noise_scale: float, substeps: int | None = None):
     cfg = policy.config["env"]
     kwargs = dict(cfg.get("env_kwargs", {}))
     kwargs["contact"] = run_contact(policy.config)          # runs made before it was recorded: their id's law
-    kwargs["substeps"] = run_substeps(policy.config)        # ... and their id's physics steps
+    kwargs["substeps"] = run_substeps(policy.config) if substeps is None else int(substeps)   # ... its physics
     kwargs.update(reset_noise_scale=float(reset_noise_scale), terminate_when_unhealthy=False)
     return make_env(cfg["robot"], frame_skip=int(cfg.get("frame_skip", 1)), max_episode_steps=n_env_steps,
                     drop_com_xz=bool(cfg.get("drop_com_xz", True)), env_kwargs=kwargs)
 
 
 def run_policy(policy: LoadedPolicy, *, n_cycles: int = DEFAULT_EVAL_CYCLES, seed: int = 0,
-               reset_noise_scale: float = 0.0, gait: GaitSpec = GAIT
+               reset_noise_scale: float = 0.0, gait: GaitSpec = GAIT, substeps: int | None = None
                ) -> tuple[dict[str, Any], dict[str, Any], Any]:
     """Run the policy deterministically for ``gait.n_prep + n_cycles * gait.n_cycle`` simulation
-    steps. Returns (evaluation, recording, env); see :func:`evaluate_policy_metric`."""
+    steps. Returns (evaluation, recording, env); see :func:`evaluate_policy_metric`. ``substeps``:
+    physics steps per control step (default: the run's own)."""
     if n_cycles < 1:
         raise ValueError(f"n_cycles must be >= 1, got {n_cycles}")
     fs = int(policy.config["env"].get("frame_skip", 1))
@@ -174,7 +175,7 @@ def run_policy(policy: LoadedPolicy, *, n_cycles: int = DEFAULT_EVAL_CYCLES, see
     K = gait.n_steps(n_cycles)
     if n_prep % fs or n_cycle % fs:
         raise ValueError(f"frame_skip {fs} must divide n_prep {n_prep} and n_cycle {n_cycle}")
-    env = _eval_env(policy, K // fs, reset_noise_scale)
+    env = _eval_env(policy, K // fs, reset_noise_scale, substeps)
     try:
         import torch
         torch.manual_seed(seed)
@@ -193,23 +194,44 @@ def run_policy(policy: LoadedPolicy, *, n_cycles: int = DEFAULT_EVAL_CYCLES, see
     i0 = n_prep // fs
     ev["displacement_m"] = float((com[-1] - com[i0]) @ d) if len(com) == K // fs + 1 else float("nan")
     ev.update(n_prep=n_prep, n_cycle=n_cycle, seed=int(seed), reset_noise_scale=float(reset_noise_scale),
-              heading_deg=heading, frame_skip=fs, method="closed-loop policy, deterministic",
+              heading_deg=heading, frame_skip=fs, substeps=int(env.unwrapped.substeps),
+              method="closed-loop policy, deterministic",
               model=str(policy.path), algo=policy.algo, robot=policy.robot)
     return ev, rec, env
 
 
 def evaluate_policy_metric(model: str | os.PathLike | LoadedPolicy, *, n_cycles: int = DEFAULT_EVAL_CYCLES,
-                           seed: int = 0, reset_noise_scale: float = 0.0) -> dict[str, Any]:
+                           seed: int = 0, reset_noise_scale: float = 0.0, substeps: int | None = None
+                           ) -> dict[str, Any]:
     """trajopt's metric for an RL policy (see the module docstring): a dict with
     ``speed_bl_per_min``, ``upright``, ``speed_per_cycle_bl_per_min``, ``max_tilt_deg``,
     ``heading_change_deg``, ``displacement_m`` (COM displacement along the target direction
     over the measured cycles), ``com`` (K+1, 3) and the settings. ``seed`` seeds the reset
     (irrelevant with the default ``reset_noise_scale=0``) and PyTorch; the same model and
-    seed give the same numbers."""
+    seed give the same numbers. ``substeps``: physics steps per control step (default: the
+    run's own; more: the policy closed loop on finer physics, :func:`policy_fidelity`)."""
     policy = model if isinstance(model, LoadedPolicy) else load_policy(model)
-    ev, _, env = run_policy(policy, n_cycles=n_cycles, seed=seed, reset_noise_scale=reset_noise_scale)
+    ev, _, env = run_policy(policy, n_cycles=n_cycles, seed=seed, reset_noise_scale=reset_noise_scale,
+                            substeps=substeps)
     env.close()
     return ev
+
+
+def policy_fidelity(model: str | os.PathLike | LoadedPolicy, factors=None, *, n_cycles: int = DEFAULT_EVAL_CYCLES,
+                    seed: int = 0, reference: dict | None = None) -> dict[str, Any]:
+    """How credible a policy's speed is, by the protocol of :func:`trajopt.fidelity.fidelity`:
+    the policy closed loop (deterministic, from the exact rest state) with its run's physics
+    steps per control step and ``factors`` (default 2, 4 and 8) times as many; the same dict
+    (``substeps``, ``rows`` with each speed and its deviation, ``spread``). ``reference``: the
+    evaluation at the run's own physics when already made."""
+    from ..fidelity import FIDELITY_FACTORS, fidelity_rows
+    policy = model if isinstance(model, LoadedPolicy) else load_policy(model)
+    own = reference if reference is not None else evaluate_policy_metric(policy, n_cycles=n_cycles, seed=seed)
+    n = int(own["substeps"])
+    evs = {1: own}
+    for f in (FIDELITY_FACTORS if factors is None else factors):
+        evs[f] = evaluate_policy_metric(policy, n_cycles=n_cycles, seed=seed, substeps=n * f)
+    return fidelity_rows(n, 1e3 * float(policy.config["env"].get("env_kwargs", {}).get("timestep", PAPER_TIMESTEP)), evs)
 
 
 def export_result(model: str | os.PathLike | LoadedPolicy, out: str | os.PathLike | None = None, *,
