@@ -55,17 +55,16 @@ after every optimisation its row and result go to a folder (``NAME.search.partia
 interrupted (Ctrl-C, SIGTERM, SIGHUP, a kill) continues after its last finished optimisation,
 the finished ones replayed from their files (the search is deterministic given them, so it ends
 where an uninterrupted search ends).
+
+This module runs the search; its parts live in :mod:`trajopt.search`: the settings
+(:mod:`~trajopt.search.settings`), the table (:mod:`~trajopt.search.table`) and the checkpoint
+(:mod:`~trajopt.search.checkpoint`), re-exported here.
 """
 from __future__ import annotations
 
-import csv
-import io
-import json
-import math
-import shutil
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -74,13 +73,15 @@ import numpy as np
 from soft_envs.envs import SimulationError, as_gradient_env
 
 from .hardware.signals import Terminated
-from .results.files import atomic_write_bytes
 from .optim.gait import GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
 from .optim.motor_limit import IDEAL, SPEED, TORQUE_SPEED, choose_motor_model
 from .optim.optimize import optimize_gait
 from .optim.parameterization import GaitParameterization
 from .results.result import Result
+from .search.checkpoint import SearchCheckpoint, finish_search, search_checkpoint_dir, search_identity
+from .search.settings import SEARCH_EVAL_CYCLES, SearchSettings
+from .search.table import TABLE_COLUMNS, search_table_paths, table_row, write_search_table
 
 __all__ = [
     "SEARCH_EVAL_CYCLES",
@@ -95,76 +96,6 @@ __all__ = [
     "search_table_paths",
     "write_search_table",
 ]
-
-#: cycles played after the prep phase when a candidate is evaluated (the issue's "10 cycles")
-SEARCH_EVAL_CYCLES = 10
-
-
-@dataclass(frozen=True)
-class SearchSettings:
-    """What :func:`fastest_gait` searches (module docstring). ``cycle_steps``: the cycle lengths
-    [simulation steps]; ``keyframes``: keyframe counts per cycle (a count is tried on a cycle of
-    at least ``min_steps_per_keyframe`` steps per keyframe); ``seeds``: random starts screened
-    besides the mid-range and square-wave starts; Gauss-Newton iterations per stage;
-    ``n_fine``: candidates refined; the target speed rule; the interpolation of the keyframes; bilateral symmetry;
-    ``revisit``: the shorter cycles again from the fastest coarse gait (module docstring).
-    ``explore_under_speed``: under the torque-speed model, the coarse and revisit stages run
-    under the speed limit alone and the fine stage tightens them to the line (module docstring).
-    ``max_sim_steps``: a budget of simulation steps (None: none) the search never exceeds: the
-    coarse stage keeps within ``coarse_share`` of it, the fine stage within all of it; a run
-    that would not fit is skipped (listed in the table), and one that runs stops early rather
-    than risk its next iteration and evaluation passing the budget."""
-
-    cycle_steps: tuple[int, ...] = (8, 12, 16, 24, 36, 72)
-    keyframes: tuple[int, ...] = (4, 8)
-    min_steps_per_keyframe: int = 2
-    seeds: int = 1
-    coarse_iterations: int = 3
-    fine_iterations: int = 6
-    n_fine: int = 2
-    min_target: float = 20.0
-    target_margin: float = 1.25
-    min_horizon_steps: int = 48
-    n_prep: int = 24
-    interpolation: str = "linear"
-    symmetry: bool = True
-    eval_cycles: int = SEARCH_EVAL_CYCLES
-    max_sim_steps: int | None = None
-    coarse_share: float = 0.75
-    revisit: bool = True
-    explore_under_speed: bool = True
-
-    @classmethod
-    def quick(cls) -> SearchSettings:
-        """A search small enough for tests and CI (a few seconds)."""
-        return cls(cycle_steps=(8, 12), keyframes=(4,), seeds=0, coarse_iterations=1, fine_iterations=1,
-                   n_fine=1, min_horizon_steps=16, n_prep=4, eval_cycles=2)
-
-    def candidates(self, cycle_steps: int | None = None) -> list[tuple[int, int]]:
-        """``(n_cycle, n_keyframes)`` in search order: shortest cycle first, fewer keyframes first
-        (``cycle_steps``: that cycle only)."""
-        cycles = (int(cycle_steps),) if cycle_steps is not None else self.cycle_steps
-        out = [(c, k) for c in sorted(cycles) for k in sorted(self.keyframes) if c >= self.min_steps_per_keyframe * k]
-        if not out:
-            raise ValueError(f"no (cycle, keyframes) candidate: cycles {cycles} are shorter than "
-                             f"{self.min_steps_per_keyframe} steps per keyframe for keyframes {self.keyframes}")
-        return out
-
-    def gait(self, n_cycle: int, n_keyframes: int) -> GaitSpec:
-        """The gait of a candidate: horizon of at least ``min_horizon_steps`` cycle steps."""
-        n_cycles = max(2, math.ceil(self.min_horizon_steps / n_cycle))
-        return GaitSpec(n_prep=self.n_prep, n_cycle=n_cycle, n_cycles=n_cycles, n_keyframes=n_keyframes,
-                        symmetry=self.symmetry, interpolation=self.interpolation)
-
-    def target(self, best: float) -> float:
-        """The tracking target [BL/min] when the fastest upright gait so far makes ``best``."""
-        return max(self.min_target, self.target_margin * best)
-
-
-#: the columns of the search table (one row per optimisation)
-TABLE_COLUMNS = ("stage", "motor_model", "n_cycle", "n_keyframes", "horizon_cycles", "start", "target_bl_per_min", "iterations",
-                 "status", "speed_bl_per_min", "upright", "max_tilt_deg", "optimization_sim_steps",
-                 "evaluation_sim_steps", "total_sim_steps", "wall_time_s", "chosen")
 
 
 class _KeyframeStart:
@@ -190,18 +121,6 @@ def _evaluation_steps(res: Result) -> int:
     return int(s["n_prep"]) + int(s["eval_cycles"]) * int(s["n_cycle"])
 
 
-def _row(stage: str, res: Result | None, gait: GaitSpec, start: str, target: float, opt_steps: int,
-         eval_steps: int, total: int, seconds: float, failure: str = "", motor_model: str = "") -> dict[str, Any]:
-    ev = res.evaluation if res is not None else {}
-    return {"stage": stage, "motor_model": motor_model, "n_cycle": gait.n_cycle, "n_keyframes": gait.n_keyframes,
-            "horizon_cycles": gait.n_cycles, "start": start, "target_bl_per_min": round(target, 3),
-            "iterations": len(res.history) if res is not None else 0,
-            "status": res.status if res is not None else failure,
-            "speed_bl_per_min": float(ev.get("speed_bl_per_min", float("nan"))),
-            "upright": bool(ev.get("upright", False)), "max_tilt_deg": float(ev.get("max_tilt_deg", float("nan"))),
-            "optimization_sim_steps": opt_steps, "evaluation_sim_steps": eval_steps, "total_sim_steps": total,
-            "wall_time_s": round(seconds, 2), "chosen": False}
-
 
 def _progress(total: int, quiet: bool):
     if quiet:
@@ -209,98 +128,6 @@ def _progress(total: int, quiet: bool):
     from tqdm.auto import tqdm
     return tqdm(total=total, desc="--speed max", unit="run", leave=True)
 
-
-def search_checkpoint_dir(result_file: str | Path) -> Path:
-    """``NAME.search.partial/`` beside the result ``NAME.npz``: an unfinished search's runs."""
-    p = Path(result_file)
-    return p.with_name(p.name.removesuffix(".npz") + ".search.partial")
-
-
-class SearchCheckpoint:
-    """The finished optimisations of a search in ``folder``: ``state.json`` (what the search
-    is: its settings, pinned cycle, heading, robot and contact law; its rows; ``status``
-    running or interrupted) and ``run_NNN.npz`` (+ ``.json``) per finished optimisation.
-    :meth:`load` reads and checks them (ValueError naming the file and the field);
-    :func:`fastest_gait` replays them and saves each new one."""
-
-    STATE = "state.json"
-
-    def __init__(self, folder: str | Path, identity: dict[str, Any] | None = None):
-        self.folder = Path(folder)
-        self.identity = identity or {}
-
-    @property
-    def state_file(self) -> Path:
-        return self.folder / self.STATE
-
-    def _run_file(self, i: int) -> Path:
-        return self.folder / f"run_{i:03d}.npz"
-
-    def _state(self, rows: list[dict], status: str) -> None:
-        data = {"identity": self.identity, "status": status, "rows": rows}
-        atomic_write_bytes(self.state_file, (json.dumps(data, indent=1, default=float) + "\n").encode())
-
-    def start(self, rows: list[dict]) -> None:
-        """Mark the search running (its ``rows`` replayed so far kept)."""
-        self.folder.mkdir(parents=True, exist_ok=True)
-        self._state(rows, "running")
-
-    def save_run(self, rows: list[dict], res: Result | None) -> None:
-        """After optimisation ``len(rows) - 1``: its result (if any), then the rows."""
-        if res is not None:
-            res.save(self._run_file(len(rows) - 1))
-        self._state(rows, "running")
-
-    def mark(self, rows: list[dict], status: str) -> None:
-        self._state(rows, status)
-
-    def remove(self) -> None:
-        shutil.rmtree(self.folder, ignore_errors=True)
-
-    def load(self) -> tuple[list[tuple[dict, Result | None]], str]:
-        """``(finished runs, status)``: each run's row and result (None: skipped or failed), in
-        the order the search made them. Refuses (ValueError naming the file and the field) a
-        damaged state or one of another search (its settings, robot, contact law)."""
-        path = self.state_file
-        hint = "continue with the same options, or start afresh with --overwrite"
-        try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except UnicodeDecodeError as err:
-            raise ValueError(f"{path}: not UTF-8 ({err.reason} at byte {err.start}); {hint}") from None
-        except json.JSONDecodeError as err:
-            raise ValueError(f"{path}: not JSON ({err.msg}, line {err.lineno}); {hint}") from None
-        if not isinstance(data, dict):
-            raise ValueError(f"{path}: expected a JSON object, got {type(data).__name__}; {hint}")
-        identity, rows, status = data.get("identity"), data.get("rows"), data.get("status")
-        if not isinstance(identity, dict):
-            raise ValueError(f"{path}: field 'identity' is missing or not an object; {hint}")
-        if not isinstance(rows, list) or not all(isinstance(r, dict) and set(TABLE_COLUMNS) <= set(r) for r in rows):
-            raise ValueError(f"{path}: field 'rows' must be a list of search-table rows ({', '.join(TABLE_COLUMNS)}); "
-                             f"{hint}")
-        expected = json.loads(json.dumps(self.identity, default=float))
-        changed = [k for k in sorted(set(expected) | set(identity)) if expected.get(k) != identity.get(k)]
-        if changed:
-            what = []
-            for k in changed:
-                a, b = identity.get(k), expected.get(k)
-                if isinstance(a, dict) and isinstance(b, dict):
-                    what += [f"{k}.{f}: {a.get(f)!r} -> {b.get(f)!r}" for f in sorted(set(a) | set(b))
-                             if a.get(f) != b.get(f)]
-                else:
-                    what.append(f"{k}: {a!r} -> {b!r}")
-            raise ValueError(f"{path}: cannot resume: this search differs from the interrupted one "
-                             f"({'; '.join(what[:4])}); run it with the interrupted search's options, or start afresh "
-                             "with --overwrite")
-        runs: list[tuple[dict, Result | None]] = []
-        for i, row in enumerate(rows):
-            res = None
-            if not str(row.get("status", "")).startswith(("skipped", "failed")):
-                file = self._run_file(i)
-                if not file.is_file():
-                    raise ValueError(f"{file}: missing: the checkpoint's row {i} has no result; {hint}")
-                res = Result.load(file)
-            runs.append((row, res))
-        return runs, str(status)
 
 
 class _Search:
@@ -377,7 +204,7 @@ class _Search:
         per_iteration = horizon * (options.max_backtracks + 2)
         target = self.settings.target(self.best)
         if self.total + (self._n_starts(gait, warm, z0, n_seeds) + 1) * horizon + per_iteration + eval_steps > cap:
-            self.rows.append(_row(stage, None, gait, start, target, 0, 0, self.total, 0.0, "skipped: budget",
+            self.rows.append(table_row(stage, None, gait, start, target, 0, 0, self.total, 0.0, "skipped: budget",
                                   self.model_of(stage)))
             if self.checkpoint is not None:
                 self.checkpoint.save_run(self.rows, None)
@@ -398,7 +225,7 @@ class _Search:
         except SimulationError as err:       # a start that cannot be simulated: the candidate fails
             failure, opt_steps, eval_steps = f"failed: {err}", 0, 0
         self.total += opt_steps + eval_steps
-        row = _row(stage, res, gait, start, target, opt_steps, eval_steps, self.total, time.perf_counter() - t0,
+        row = table_row(stage, res, gait, start, target, opt_steps, eval_steps, self.total, time.perf_counter() - t0,
                    failure, self.model_of(stage))
         self.rows.append(row)
         if self.checkpoint is not None:
@@ -434,18 +261,6 @@ def _revisit(search: _Search, settings: SearchSettings, candidates: list[tuple[i
         search.run("revisit", settings.gait(n_cycle, n_kf), source, settings.coarse_iterations,
                    settings.coarse_share, warm=warm, n_seeds=0)
 
-
-def search_identity(env: Any, settings: SearchSettings, cycle_steps: int | None, heading_deg: float,
-                    motor_model: str = SPEED) -> dict:
-    """What a search checkpoint must match to be resumed: the settings, the pinned cycle, the
-    heading, the robot (its fingerprint), the contact law, the physics steps per control step and
-    the motor model."""
-    from soft_envs.envs import robot_fingerprint
-    fp = robot_fingerprint(env.robot) or {}
-    return json.loads(json.dumps({"settings": asdict(settings), "cycle_steps": cycle_steps,
-                                  "heading_deg": float(heading_deg), "robot": fp.get("sha256", env.robot.name),
-                                  "contact": env.contact_model, "substeps": int(env.substeps),
-                                  "motor_model": motor_model}, default=float))
 
 
 def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle_steps: int | None = None,
@@ -532,35 +347,3 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     res.evaluation["search_sim_steps"] = total
     res.evaluation["search_wall_time_s"] = time.perf_counter() - search.t_start
     return res, rows
-
-
-def finish_search(checkpoint: str | Path) -> None:
-    """Remove a finished search's checkpoint folder (after its result and table are written)."""
-    SearchCheckpoint(checkpoint).remove()
-
-
-def search_table_paths(result_file: str | Path) -> tuple[Path, Path]:
-    """``(NAME.search.csv, NAME.search.md)`` beside the result ``NAME.npz``."""
-    p = Path(result_file)
-    stem = p.name.removesuffix(".npz")
-    return p.with_name(stem + ".search.csv"), p.with_name(stem + ".search.md")
-
-
-def _cell(v: Any) -> str:
-    if isinstance(v, float):
-        return f"{v:.3f}" if np.isfinite(v) else "nan"
-    return str(v)
-
-
-def write_search_table(rows: list[dict], result_file: str | Path) -> tuple[Path, Path]:
-    """Write the search table beside ``result_file`` as CSV and Markdown (atomically); the paths."""
-    csv_path, md_path = search_table_paths(result_file)
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=TABLE_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    atomic_write_bytes(csv_path, buf.getvalue().encode())
-    lines = ["| " + " | ".join(TABLE_COLUMNS) + " |", "|" + "---|" * len(TABLE_COLUMNS)]
-    lines += ["| " + " | ".join(_cell(r[c]) for c in TABLE_COLUMNS) + " |" for r in rows]
-    atomic_write_bytes(md_path, ("\n".join(lines) + "\n").encode())
-    return csv_path, md_path

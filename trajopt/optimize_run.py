@@ -195,7 +195,7 @@ def _plan_search(out: Path, partial: Path, run: OptimizeRun) -> tuple[Path, bool
     """``(checkpoint folder, resume it, nothing to do)`` of a ``--speed max`` run: the search
     interrupted in ``NAME.search.partial/`` is continued with ``resume`` (refused without it or
     ``overwrite``), a finished result is never replaced without ``overwrite``."""
-    from .fastest import search_checkpoint_dir
+    from .search.checkpoint import search_checkpoint_dir
     folder = search_checkpoint_dir(out)
     state = folder / "state.json"
     if out.exists() and not out.is_file():
@@ -370,7 +370,7 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
         if progress is not None:
             progress.close()
     path = _finish_files(res, out, partial)
-    from .fastest import search_table_paths
+    from .search.table import search_table_paths
     for table in search_table_paths(out):      # an earlier --speed max result's: not this result's search
         table.unlink(missing_ok=True)
     return res, path

@@ -26,7 +26,7 @@ import numpy as np
 from soft_envs.envs import SimulationError
 
 from ..evaluation import evaluate_controls
-from ..fastest import SEARCH_EVAL_CYCLES
+from ..search.settings import SEARCH_EVAL_CYCLES
 from ..optim.gauss_newton import GaussNewtonOptions, gauss_newton
 from .problem import CodesignProblem
 

@@ -32,13 +32,17 @@ again after every accepted step (after ``fun(z, True)``); ``fun`` then refuses t
 break the nonlinear constraints themselves (raises :class:`~soft_envs.envs.SimulationError`: a
 rejected trial).
 
-Stopping criteria (the first that holds; ``status`` in the result names it):
-  * ``"max_iter"``: ``max_iter`` iterations done;
-  * ``"ftol"``: an accepted step decreased O by less than ``ftol * O``;
-  * ``"gtol"``: the projected gradient's max-norm is below ``gtol``;
-  * ``"xtol"``: the accepted step's max-norm is below ``xtol * (upper - lower)``;
-  * ``"stalled"``: ``max_rejections`` consecutive iterations found no decrease;
-  * ``"callback"``: the callback returned True.
+Stopping criteria: all are tested in one place, before every iteration (``_stop_reason``), in
+this order; the first that holds ends the run and ``status`` in the result names it:
+  * ``"callback"``: the callback returned True after the last iteration;
+  * ``"ftol"``: the last iteration's step was accepted and decreased O by less than ``ftol * O``;
+  * ``"xtol"``: the last iteration's step was accepted and moved every variable by less than
+    ``xtol`` times its range ``upper - lower``;
+  * ``"stalled"``: ``max_rejections`` iterations in a row found no decrease (a resumed run counts
+    the rejections it is given);
+  * ``"max_iter"``: this call made ``max_iter`` iterations (0: none, the start is only evaluated);
+  * ``"gtol"``: the projected gradient's max-norm, each component times its variable's range,
+    is below ``gtol`` (a local minimum on the bounds).
 """
 from __future__ import annotations
 
@@ -157,6 +161,93 @@ def _require_feasible(constraints: LinearConstraints | None, z: np.ndarray) -> N
                          "project it first (trajopt.optim.motor_limit.project_start)")
 
 
+@dataclass
+class _Iterate:
+    """Where the solver stands: the point ``z`` and what was evaluated there (objective ``f``,
+    residual ``r``, Jacobian ``J``, the problem's ``info``), the damping ``lam``, the rejected steps
+    in a row, and the linear inequalities kept from ``z`` on (None: none)."""
+
+    z: np.ndarray
+    f: float
+    r: np.ndarray
+    J: np.ndarray
+    info: dict
+    lam: float
+    rejections: int
+    constraints: LinearConstraints | None
+
+
+@dataclass(frozen=True)
+class _StepOutcome:
+    """What the stopping rule reads of the last iteration: whether its step was accepted, the
+    objective before it, the step taken (None when rejected), and whether the callback asked to
+    stop."""
+
+    accepted: bool
+    f_before: float
+    step: np.ndarray | None
+    stop_requested: bool
+
+
+def _stop_reason(opt: GaussNewtonOptions, x: _Iterate, last: _StepOutcome | None, iterations: int,
+                 g: np.ndarray, free: np.ndarray, scale: np.ndarray) -> str | None:
+    """The stopping rule: the status of the first stopping criterion that holds (module
+    docstring, in its order), None: iterate on. ``last``: the iteration just made (None before
+    the first); ``iterations``: how many this call made; ``g``, ``free``: the gradient and the
+    free variables at ``x``; ``scale``: each variable's range."""
+    if last is not None:
+        if last.stop_requested:
+            return "callback"
+        if last.accepted and last.f_before - x.f < opt.ftol * last.f_before:
+            return "ftol"
+        if last.accepted and np.abs(last.step / scale).max() < opt.xtol:
+            return "xtol"
+        if x.rejections >= opt.max_rejections:
+            return "stalled"
+    if iterations >= opt.max_iter:
+        return "max_iter"
+    if np.abs(np.where(free, g, 0.0) * scale).max() < opt.gtol:
+        return "gtol"
+    return None
+
+
+def _step(fun: Callable, x: _Iterate, g: np.ndarray, free: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+          opt: GaussNewtonOptions, linearise: Callable[[np.ndarray], LinearConstraints] | None
+          ) -> tuple[dict, np.ndarray | None]:
+    """Steps 3-5 of one iteration from ``x`` (updated in place): the direction (the QP's when the
+    unconstrained trials would leave the feasible set), the line search, the damping, and at an
+    accepted point the Jacobian rollout (and the constraints linearised again). Returns the
+    history entry (without its iteration number and time) and the step taken (None: rejected)."""
+    f_before, lam = x.f, x.lam
+    dz = _direction(x.J, g, free, lam)
+    qp_step = x.constraints is not None and not all(
+        x.constraints.feasible(np.clip(x.z + a * dz, lower, upper)) for a in _trial_alphas(opt))
+    if qp_step:                  # the unconstrained trials would leave the feasible set
+        dz = _constrained_direction(x.J, g, x.z, lam, lower, upper, x.constraints)
+    accepted, alpha, z_try, trials, info_try = _line_search(fun, x.z, dz, g, f_before, lower, upper, opt)
+    entry = {"objective": f_before, "accepted": accepted, "alpha": alpha if accepted else 0.0,
+             "step": float(np.abs(z_try - x.z).max()) if accepted else 0.0, "lambda": lam,
+             "trials": trials, "terms": x.info.get("terms", {})}
+    if x.constraints is not None:
+        entry["qp_step"] = bool(qp_step)
+    if not accepted:
+        x.lam = lam * opt.lambda_increase
+        x.rejections += 1
+        entry.update(objective_after=x.f, sim_failure=info_try.get("sim_failure"))
+        return entry, None
+    step = z_try - x.z                  # step 5: less damping after a full step
+    x.lam = max(lam * (opt.lambda_decrease if alpha == 1.0 else opt.lambda_increase), 1e-12)
+    x.rejections = 0
+    f, r, J, info = _evaluate(fun, z_try, True)
+    if not np.isfinite(f):              # cannot happen: z_try was just simulated
+        raise SimulationError(f"re-evaluation failed: {info['sim_failure']}")
+    x.z, x.f, x.r, x.J, x.info = z_try, f, r, J, info
+    if linearise is not None:
+        x.constraints = linearise(x.z)
+    entry.update(objective_after=f, terms_after=info.get("terms", {}))
+    return entry, step
+
+
 def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                  options: GaussNewtonOptions = GaussNewtonOptions(), *,
                  callback: Callable[[dict], bool | None] | None = None,
@@ -164,12 +255,14 @@ def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.nda
                  rejections: int = 0,
                  constraints: LinearConstraints | Callable[[np.ndarray], LinearConstraints] | None = None
                  ) -> GaussNewtonResult:
-    """Run the solver from ``z0`` (projected onto the bounds). ``callback(entry)`` is called
-    after every iteration with its history entry (plus ``"z"``); returning True stops.
-    ``lam``, ``first_iteration`` and ``rejections`` (consecutive rejected steps so far) let an
-    interrupted run resume where it stopped. ``constraints``: linear inequalities the iterates
-    keep (module docstring); ``z0`` must obey them (ValueError otherwise). History entries then
-    say whether the step was the QP's (``"qp_step"``)."""
+    """Run the solver from ``z0`` (projected onto the bounds) until a stopping criterion holds
+    (module docstring; :func:`_stop_reason` tests them all before every iteration). ``callback(entry)``
+    is called after every iteration with its history entry (plus ``"z"`` and ``"lam"``, after the
+    step); returning True stops. ``lam``, ``first_iteration`` and ``rejections`` (consecutive
+    rejected steps so far) let an interrupted run resume where it stopped. ``constraints``: linear
+    inequalities the iterates keep (module docstring); ``z0`` must obey them (ValueError
+    otherwise). History entries then say whether the step was the QP's (``"qp_step"``). Raises
+    :class:`~soft_envs.envs.SimulationError` when ``z0`` cannot be simulated."""
     opt = options
     lower = np.asarray(lower, dtype=np.float64)
     upper = np.asarray(upper, dtype=np.float64)
@@ -183,60 +276,26 @@ def gauss_newton(fun: Callable, z0: np.ndarray, lower: np.ndarray, upper: np.nda
     if linearise is not None:
         constraints = linearise(z)
         _require_feasible(constraints, z)
+    x = _Iterate(z, f, r, J, info, opt.lambda0 if lam is None else float(lam), int(rejections), constraints)
     scale = np.where(upper > lower, upper - lower, 1.0)
-    lam = opt.lambda0 if lam is None else float(lam)
     history: list[dict] = []
-    status = "max_iter"
-    rejections = int(rejections)
-    it = first_iteration - 1
-    for it in range(first_iteration, first_iteration + opt.max_iter):
+    last: _StepOutcome | None = None
+    it = first_iteration - 1            # the last iteration made
+    while True:
         t0 = time.perf_counter()
-        g = J.T @ r
-        free = _active_set(g, z, lower, upper)
-        if np.abs(np.where(free, g, 0.0) * scale).max() < opt.gtol:
-            status = "gtol"
+        g = x.J.T @ x.r
+        free = _active_set(g, x.z, lower, upper)
+        status = _stop_reason(opt, x, last, it - first_iteration + 1, g, free, scale)
+        if status is not None:
             break
-        dz = _direction(J, g, free, lam)
-        qp_step = constraints is not None and not all(
-            constraints.feasible(np.clip(z + a * dz, lower, upper)) for a in _trial_alphas(opt))
-        if qp_step:                  # the unconstrained trials would leave the feasible set
-            dz = _constrained_direction(J, g, z, lam, lower, upper, constraints)
-        accepted, alpha, z_try, trials, info_try = _line_search(fun, z, dz, g, f, lower, upper, opt)
-        entry = {"iteration": it, "objective": f, "accepted": accepted, "alpha": alpha if accepted else 0.0,
-                 "step": float(np.abs(z_try - z).max()) if accepted else 0.0, "lambda": lam,
-                 "trials": trials, "terms": info.get("terms", {})}
-        if constraints is not None:
-            entry["qp_step"] = bool(qp_step)
-        if accepted:                        # step 5: less damping after a full step
-            step = z_try - z
-            f_old = f
-            z = z_try
-            lam = max(lam * (opt.lambda_decrease if alpha == 1.0 else opt.lambda_increase), 1e-12)
-            rejections = 0
-            f, r, J, info = _evaluate(fun, z, True)
-            if not np.isfinite(f):          # cannot happen: z_try was just simulated
-                raise SimulationError(f"re-evaluation failed: {info['sim_failure']}")
-            if linearise is not None:
-                constraints = linearise(z)
-            entry.update(objective_after=f, terms_after=info.get("terms", {}))
-        else:
-            lam *= opt.lambda_increase
-            rejections += 1
-            entry.update(objective_after=f, sim_failure=info_try.get("sim_failure"))
-        entry["time"] = time.perf_counter() - t0
+        it += 1
+        f_before = x.f
+        entry, step = _step(fun, x, g, free, lower, upper, opt, linearise)
+        entry = {"iteration": it, **entry, "time": time.perf_counter() - t0}
         history.append(entry)
-        stop = callback({**entry, "z": z.copy(), "lam": lam}) if callback else False
-        if stop:
-            status = "callback"
-            break
-        if accepted and f_old - f < opt.ftol * f_old:
-            status = "ftol"
-            break
-        if accepted and np.abs(step / scale).max() < opt.xtol:
-            status = "xtol"
-            break
-        if rejections >= opt.max_rejections:
-            status = "stalled"
-            break
-    return GaussNewtonResult(z=z, objective=f, status=status, history=history, lam=lam,
-                             info={**info, "last_iteration": it})
+        stop = callback({**entry, "z": x.z.copy(), "lam": x.lam}) if callback else False
+        last = _StepOutcome(step is not None, f_before, step, bool(stop))
+    if status == "gtol":                # the iteration that found the gradient vanished counts as begun
+        it += 1
+    return GaussNewtonResult(z=x.z, objective=x.f, status=status, history=history, lam=x.lam,
+                             info={**x.info, "last_iteration": it})

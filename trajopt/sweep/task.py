@@ -153,7 +153,7 @@ def resumes(run: Run, run_dir: Path) -> bool:
     ``NAME.search.partial/``)."""
     if run.kind != "optimize":
         return False
-    from ..fastest import search_checkpoint_dir
+    from ..search.checkpoint import search_checkpoint_dir
     out = result_path(run, run_dir)
     return _resumable(partial_path(out)) or (search_checkpoint_dir(out) / "state.json").is_file()
 
