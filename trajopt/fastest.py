@@ -62,6 +62,8 @@ This module runs the search; its parts live in :mod:`trajopt.search`: the settin
 """
 from __future__ import annotations
 
+import math
+
 import time
 from collections.abc import Callable
 from dataclasses import asdict
@@ -75,6 +77,7 @@ from soft_envs.envs import SimulationError, as_gradient_env
 from .hardware.signals import Terminated
 from .optim.gait import GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
+from .optim.ensemble import ensemble_substeps
 from .optim.motor_limit import IDEAL, SPEED, TORQUE_SPEED, choose_motor_model
 from .optim.optimize import optimize_gait
 from .optim.parameterization import GaitParameterization
@@ -118,6 +121,8 @@ def keyframes_at(keyframes: np.ndarray, n_keyframes: int) -> np.ndarray:
 def _evaluation_steps(res: Result) -> int:
     """The steps of a result's evaluation (prep + its cycles; a failed one counted in full)."""
     s = res.settings
+    if "evaluation_sim_steps" in res.evaluation:            # an ensemble's: every member's, in default steps
+        return int(round(res.evaluation["evaluation_sim_steps"]))
     return int(s["n_prep"]) + int(s["eval_cycles"]) * int(s["n_cycle"])
 
 
@@ -160,12 +165,13 @@ class _Search:
             raise ValueError(f"{where}: row {i} is {row['stage']} cycle {row['n_cycle']} keyframes "
                              f"{row['n_keyframes']}, but the search now runs {stage} cycle {gait.n_cycle} keyframes "
                              f"{gait.n_keyframes}: not this search's; start afresh with --overwrite")
+        row.setdefault("credible_bl_per_min", row["speed_bl_per_min"])      # checkpoints of before ensembles
         self.rows.append(row)
         self.total = int(row["total_sim_steps"])
         if res is not None:
             self.runs.append((row, res))
-            if row["upright"] and row["speed_bl_per_min"] > self.best:
-                self.best = row["speed_bl_per_min"]
+            if row["upright"] and row["credible_bl_per_min"] > self.best:
+                self.best = row["credible_bl_per_min"]
         self.say(f"{stage} cycle {gait.n_cycle} keyframes {gait.n_keyframes}: {row['speed_bl_per_min']:.2f} BL/min "
                  f"(from the checkpoint)")
         self._tick()
@@ -200,7 +206,9 @@ class _Search:
         if replayed:
             return res
         cap, options = self._cap(share), GaussNewtonOptions(max_iter=iterations)
-        horizon, eval_steps = gait.n_steps(), gait.n_prep + self.settings.eval_cycles * gait.n_cycle
+        weight = sum(ensemble_substeps(self.env, self.settings.ensemble)) / int(self.env.substeps)  # an ensemble's
+        horizon = int(math.ceil(weight * gait.n_steps()))                 # steps, in steps of the default physics
+        eval_steps = int(math.ceil(weight * (gait.n_prep + self.settings.eval_cycles * gait.n_cycle)))
         per_iteration = horizon * (options.max_backtracks + 2)
         target = self.settings.target(self.best)
         if self.total + (self._n_starts(gait, warm, z0, n_seeds) + 1) * horizon + per_iteration + eval_steps > cap:
@@ -220,7 +228,8 @@ class _Search:
             res = optimize_gait(self.env, "walk", gait=gait, speed_bl_per_min=target, heading_deg=self.heading_deg,
                                 options=options, warm_start=warm, z0=z0, n_seeds=n_seeds,
                                 eval_cycles=self.settings.eval_cycles, robot_spec=self.robot_spec,
-                                callback=within_budget, motor_model=self.model_of(stage))
+                                callback=within_budget, motor_model=self.model_of(stage),
+                                ensemble=self.settings.ensemble)
             opt_steps, eval_steps = int(res.evaluation["optimization_sim_steps"]), _evaluation_steps(res)
         except SimulationError as err:       # a start that cannot be simulated: the candidate fails
             failure, opt_steps, eval_steps = f"failed: {err}", 0, 0
@@ -232,10 +241,11 @@ class _Search:
             self.checkpoint.save_run(self.rows, res)
         if res is not None:
             self.runs.append((row, res))
-            if row["upright"] and row["speed_bl_per_min"] > self.best:
-                self.best = row["speed_bl_per_min"]
-        self.say(f"{stage} cycle {gait.n_cycle} keyframes {gait.n_keyframes}: {row['speed_bl_per_min']:.2f} BL/min "
-                 f"({'upright' if row['upright'] else 'fell'}), {self.total:,} simulation steps so far")
+            if row["upright"] and row["credible_bl_per_min"] > self.best:
+                self.best = row["credible_bl_per_min"]
+        credible = (f", credible {row['credible_bl_per_min']:.2f}" if self.settings.ensemble else "")
+        self.say(f"{stage} cycle {gait.n_cycle} keyframes {gait.n_keyframes}: {row['speed_bl_per_min']:.2f} BL/min"
+                 f"{credible} ({'upright' if row['upright'] else 'fell'}), {self.total:,} simulation steps so far")
         self._tick()
         return res
 
@@ -252,7 +262,7 @@ def _revisit(search: _Search, settings: SearchSettings, candidates: list[tuple[i
     upright = [(row, res) for row, res in search.runs if row["upright"]]
     if not upright:
         return
-    row, best = max(upright, key=lambda p: p[0]["speed_bl_per_min"])
+    row, best = max(upright, key=lambda p: p[0]["credible_bl_per_min"])
     source = f"cycle {row['n_cycle']}, {row['n_keyframes']} keyframes"
     for n_cycle, n_kf in candidates:
         if n_cycle >= row["n_cycle"]:
@@ -315,7 +325,7 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
             if search.bar is not None:                    # the revisits were not known in advance
                 search.bar.total = len(search.rows) + settings.n_fine
                 search.bar.refresh()
-        upright = sorted((p for p in search.runs if p[0]["upright"]), key=lambda p: -p[0]["speed_bl_per_min"])
+        upright = sorted((p for p in search.runs if p[0]["upright"]), key=lambda p: -p[0]["credible_bl_per_min"])
         for row, res in upright[:settings.n_fine]:
             gait = GaitSpec.from_settings(res.settings)
             search.run("fine", gait, f"coarse cycle {gait.n_cycle}, {gait.n_keyframes} keyframes",
@@ -340,7 +350,7 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     if not upright:
         raise SimulationError(f"--speed max: none of the {len(rows)} gaits tried stayed upright over "
                               f"{settings.eval_cycles} cycles ({total:,} simulation steps)")
-    row, res = max(upright, key=lambda p: p[0]["speed_bl_per_min"])
+    row, res = max(upright, key=lambda p: p[0]["credible_bl_per_min"])
     row["chosen"] = True
     res.settings["search"] = {"settings": asdict(settings), "cycle_steps_pinned": cycle_steps, "runs": len(rows),
                               "sim_steps": total, "wall_time_s": time.perf_counter() - search.t_start}

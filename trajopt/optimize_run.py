@@ -44,7 +44,9 @@ class OptimizeRun:
     [BL/min] (None: the robot's default; ``"max"``: the fastest walk within the motors' limit,
     :mod:`trajopt.fastest`, with its search table beside the result), heading [deg], turn side, slope ``angle`` [deg] (a task
     on a slope), contact law (None: the task's, else the robot file's), physics ``substeps`` per
-    control step (None: the contact law's default), symmetry (None: the
+    control step (None: the contact law's default), the ``ensemble`` of other physics the gait is
+    optimised on as well (physics steps per control step, :mod:`trajopt.optim.ensemble`; an empty
+    list: :data:`~trajopt.optim.ensemble.DEFAULT_ENSEMBLE`; None or ``()``: none), symmetry (None: the
     task's), warm start result, the motors' law the controls obey (``motor_model``:
     ``"torque-speed"``, ``"speed"`` or ``"ideal"``, :mod:`soft_envs.sim.motors`; ``no_motor_limit``
     is ``"ideal"``, kept for scripts of before the model), Gauss-Newton iterations, keyframes and their ``interpolation`` (None: the task's; :data:`trajopt.optim.gait.INTERPOLATIONS`), cycle
@@ -61,6 +63,7 @@ class OptimizeRun:
     angle: float = 20.0
     contact: str | None = None
     substeps: int | None = None
+    ensemble: tuple[int, ...] | list[int] | None = ()
     symmetry: bool | None = None
     warm_start: Path | None = None
     no_motor_limit: bool = False
@@ -93,6 +96,13 @@ class OptimizeRun:
         if self.no_motor_limit and self.motor_model not in (TORQUE_SPEED, IDEAL):
             raise ValueError(f"--no-motor-limit (no limit) contradicts --motor-model {self.motor_model}")
         return IDEAL if self.no_motor_limit else self.motor_model
+
+    def ensemble_members(self) -> tuple[int, ...]:
+        """The ensemble's other physics (``--ensemble`` alone: :data:`DEFAULT_ENSEMBLE`)."""
+        from .optim.ensemble import DEFAULT_ENSEMBLE
+        if self.ensemble is None:
+            return ()
+        return tuple(self.ensemble) if len(self.ensemble) else DEFAULT_ENSEMBLE
 
     def result_file(self) -> Path:
         """``OUT/NAME.npz`` (NAME default ``ROBOT_TASK``; a dot in NAME is kept)."""
@@ -280,7 +290,7 @@ def _fastest_reserved(run: OptimizeRun, out: Path, partial: Path) -> tuple[Resul
         keyframes=(run.keyframes,) if run.keyframes is not None else settings.keyframes,
         symmetry=settings.symmetry if run.symmetry is None else run.symmetry,
         interpolation=settings.interpolation if run.interpolation is None else run.interpolation,
-        max_sim_steps=run.max_sim_steps)
+        max_sim_steps=run.max_sim_steps, ensemble=run.ensemble_members())
     with compile_ahead(run.robot):
         env = make_gradient_env(run.robot, heading_deg=run.heading, contact=run.contact, substeps=run.substeps)
     print(f"{env.robot.summary()}; task walk at the highest speed within the motors' limits ({run.model()} "
@@ -351,7 +361,7 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
         res = optimize_gait(env, task.name, gait=gait, speed_bl_per_min=run.speed, heading_deg=run.heading,
                             turn=run.turn, options=options, warm_start=warm, n_seeds=run.seeds,
                             eval_cycles=run.cycles, robot_spec=robot_reference(run.robot), callback=checkpoint, resume=resume,
-                            motor_model=run.model())
+                            motor_model=run.model(), ensemble=run.ensemble_members())
     except (KeyboardInterrupt, Terminated) as exc:     # Ctrl-C, SIGTERM, SIGHUP: the same way out
         if progress is not None:
             progress.close()

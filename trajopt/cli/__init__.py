@@ -65,6 +65,10 @@ def _add_optimize(sub) -> None:
     p.add_argument("--substeps", type=positive_int, default=None, metavar="N",
                    help="physics steps per 0.033 s control step (default: the contact law's, 4 for coulomb, "
                         "1 for paper, where the gaits' speeds converge: docs/fidelity.md)")
+    p.add_argument("--ensemble", type=positive_int, nargs="*", default=None, metavar="N",
+                   help="optimise on other physics as well, N physics steps per control step each (alone: 2 and 8, "
+                        "2x coarser and finer than the default), and rank --speed max's gaits by the slowest "
+                        "member's speed, the credible one (docs/fidelity.md)")
     sym = p.add_mutually_exclusive_group()
     sym.add_argument("--symmetry", dest="symmetry", action="store_true", default=None,
                      help="bilateral symmetry on (default for walk and incline)")

@@ -66,6 +66,11 @@ def evaluation_rows(ev: dict, task: str = "walk") -> list[tuple[str, str]]:
             rows.append(("heading, horizon", f"{ev['horizon_heading_change_deg']:+.1f} deg over the optimised "
                                              f"{ev['horizon_steps']} steps; COM {ev['horizon_rms_to_target_bl']:.3f} "
                                              "BL RMS from the target"))
+    if "ensemble" in ev:
+        rows.append(("credible speed", f"{ev.get('credible_bl_per_min', nan):.3f} BL/min, the slowest of the "
+                                       "ensemble's physics: " + ", ".join(
+                                           f"{m['speed_bl_per_min']:.2f} at {m['substeps']} steps per control step"
+                                           f"{'' if m['upright'] else ' (fell)'}" for m in ev["ensemble"])))
     return rows + [("max tilt", f"{ev.get('max_tilt_deg', nan):.1f} deg"),
                    ("upright", "yes" if ev["upright"] else "NO: it fell (tilt over 60 deg or COM below half its height)")]
 

@@ -28,6 +28,7 @@ import numpy as np
 from soft_envs.envs import GradientEnv, MotorLaw, RolloutStopped, SimulationError, as_gradient_env
 
 from ..evaluation import DEFAULT_EVAL_CYCLES, evaluate_controls, zero_slack_controls
+from .ensemble import EnsembleProblem, credible_speed, ensemble_substeps, member_env
 from .gait import GaitSpec
 from .gauss_newton import GaussNewtonOptions, GaussNewtonResult, gauss_newton
 from .heading import HeadingMeasure
@@ -230,6 +231,17 @@ def finish(recorder: Recorder, gn: GaussNewtonResult, eval_cycles: int, heading_
     result.evaluation["motor_load"] = motor_load_entry(line, z, traj.cable_deformation)
     if problem.line is not None:
         result.evaluation["motor_load"]["refused_trials"] = problem.refused_trials
+    members = getattr(problem, "members", None)
+    if members:                      # an ensemble: every member's speed, the slowest is the credible one
+        evs = [result.evaluation] + [evaluate_controls(m.env, m.param.controls(z, eval_cycles), n_prep=gait.n_prep,
+                                                       n_cycle=gait.n_cycle, heading_deg=heading_deg)
+                                     for m in members[1:]]
+        result.evaluation["ensemble"] = [{"substeps": int(m.env.substeps),
+                                          "speed_bl_per_min": float(ev.get("speed_bl_per_min", float("nan"))),
+                                          "upright": bool(ev.get("upright", False))} for m, ev in zip(members, evs)]
+        result.evaluation["credible_bl_per_min"] = credible_speed(evs)
+        result.evaluation["evaluation_sim_steps"] = sum(len(m.param.controls(z, eval_cycles)) * w
+                                                        for m, w in zip(members, problem._weight))
     return result
 
 
@@ -240,7 +252,8 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
                   z0: np.ndarray | None = None, n_seeds: int = 8, eval_cycles: int = DEFAULT_EVAL_CYCLES,
                   robot_spec: str | None = None,
                   callback: Callable[[dict, Result], bool | None] | None = None,
-                  resume: Result | None = None, motor_model: str | None = None, motor_limit: bool = True) -> Result:
+                  resume: Result | None = None, motor_model: str | None = None, motor_limit: bool = True,
+                  ensemble: tuple[int, ...] = ()) -> Result:
     """Optimise a gait and return a :class:`Result` (evaluated over ``eval_cycles`` cycles).
 
     ``env``: a Gymnasium env offering :class:`~soft_envs.envs.GradientEnv` (its contact law is
@@ -269,7 +282,11 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
     projection printed and recorded in ``settings["start_projection"]``; the model is recorded in
     ``settings["motor_model"]``, the speed limit in ``settings["motor_limit"]``, the line in
     ``settings["motor_line"]``. ``motor_limit=False`` is ``motor_model="ideal"`` (kept for
-    scripts of before the line).
+    scripts of before the line). ``ensemble``: physics steps per control step of other physics
+    the gait is optimised on as well (e.g. ``(2, 8)`` besides the default 4;
+    :mod:`trajopt.optim.ensemble`: the residuals stack; the result
+    records each member's speed in ``evaluation["ensemble"]`` and the slowest,
+    ``evaluation["credible_bl_per_min"]``; ``settings["ensemble"]`` the members' physics steps).
     """
     the_task = get_task(task)
     if the_task.needs_target and target is None:
@@ -292,10 +309,17 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
     settings["motor_model"] = model
     settings["motor_line"] = line_settings_entry(MotorLaw.of_robot(robot, max_step / env.timestep), env.timestep) \
         if model == TORQUE_SPEED else None
+    members = ensemble_substeps(env, ensemble)
+    if len(members) > 1:
+        settings["ensemble"] = members
     if resume is not None:
         check_resume(resume, task, settings, fingerprint_of(robot))
     problem = build_problem(env, task, gait, speed_bl_per_min=speed, heading_deg=heading_deg, turn=turn,
                             target=target, weights=weights, max_step=max_step, motor_model=model)
+    if len(members) > 1:
+        problem = EnsembleProblem([problem] + [
+            build_problem(member_env(env, n), task, gait, speed_bl_per_min=speed, heading_deg=heading_deg, turn=turn,
+                          target=target, weights=weights, max_step=max_step, motor_model=model) for n in members[1:]])
     start = choose_start(problem, resume=resume, z0=z0, warm_start=warm_start, n_seeds=n_seeds)
     if start.projection is not None:
         settings["start_projection"] = start.projection

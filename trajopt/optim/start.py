@@ -22,7 +22,8 @@ __all__ = ["Start", "choose_start", "check_resume", "RESUME_KEYS"]
 
 #: the settings a resumed run must share with the interrupted one (besides the task)
 RESUME_KEYS = ("n_prep", "n_cycle", "n_cycles", "n_keyframes", "symmetry", "interpolation", "speed_bl_per_min", "heading_deg",
-               "turn", "incline_deg", "contact", "substeps", "motor_limit", "motor_model", "motor_line")
+               "turn", "incline_deg", "contact", "substeps", "motor_limit", "motor_model", "motor_line",
+               "ensemble")
 
 
 @dataclass

@@ -25,6 +25,9 @@ class SearchSettings:
     ``revisit``: the shorter cycles again from the fastest coarse gait (:mod:`trajopt.fastest`).
     ``explore_under_speed``: under the torque-speed model, the coarse and revisit stages run
     under the speed limit alone and the fine stage tightens them to the line (:mod:`trajopt.fastest`).
+    ``ensemble``: physics steps per control step of other physics every candidate is optimised
+    on as well (:mod:`trajopt.optim.ensemble`; empty: the default physics alone); the search then
+    ranks the candidates by their credible speed, the slowest member's.
     ``max_sim_steps``: a budget of simulation steps (None: none) the search never exceeds: the
     coarse stage keeps within ``coarse_share`` of it, the fine stage within all of it; a run
     that would not fit is skipped (listed in the table), and one that runs stops early rather
@@ -48,6 +51,7 @@ class SearchSettings:
     coarse_share: float = 0.75
     revisit: bool = True
     explore_under_speed: bool = True
+    ensemble: tuple[int, ...] = ()
 
     @classmethod
     def quick(cls) -> SearchSettings:

@@ -1,5 +1,7 @@
 """The table of a ``--speed max`` search: one row per optimisation (:data:`TABLE_COLUMNS`),
-written beside the result as ``NAME.search.csv`` and ``NAME.search.md``."""
+written beside the result as ``NAME.search.csv`` and ``NAME.search.md``. ``credible_bl_per_min``
+is what the search ranks by: the slowest member's speed of a gait optimised on an ensemble of
+physics (:mod:`trajopt.optim.ensemble`; NaN and not upright when a member fell), else its speed."""
 from __future__ import annotations
 
 import csv
@@ -17,7 +19,7 @@ __all__ = ["TABLE_COLUMNS", "table_row", "search_table_paths", "write_search_tab
 
 #: the columns of the search table (one row per optimisation)
 TABLE_COLUMNS = ("stage", "motor_model", "n_cycle", "n_keyframes", "horizon_cycles", "start", "target_bl_per_min", "iterations",
-                 "status", "speed_bl_per_min", "upright", "max_tilt_deg", "optimization_sim_steps",
+                 "status", "speed_bl_per_min", "credible_bl_per_min", "upright", "max_tilt_deg", "optimization_sim_steps",
                  "evaluation_sim_steps", "total_sim_steps", "wall_time_s", "chosen")
 
 
@@ -25,12 +27,14 @@ def table_row(stage: str, res: Result | None, gait: GaitSpec, start: str, target
               eval_steps: int, total: int, seconds: float, failure: str = "", motor_model: str = "") -> dict[str, Any]:
     """The row of one optimisation (``res`` None: skipped or failed, ``failure`` says which)."""
     ev = res.evaluation if res is not None else {}
+    speed = float(ev.get("speed_bl_per_min", float("nan")))
+    credible = float(ev.get("credible_bl_per_min", speed))    # an ensemble's slowest member, else the speed
     return {"stage": stage, "motor_model": motor_model, "n_cycle": gait.n_cycle, "n_keyframes": gait.n_keyframes,
             "horizon_cycles": gait.n_cycles, "start": start, "target_bl_per_min": round(target, 3),
             "iterations": len(res.history) if res is not None else 0,
             "status": res.status if res is not None else failure,
-            "speed_bl_per_min": float(ev.get("speed_bl_per_min", float("nan"))),
-            "upright": bool(ev.get("upright", False)), "max_tilt_deg": float(ev.get("max_tilt_deg", float("nan"))),
+            "speed_bl_per_min": speed, "credible_bl_per_min": credible,
+            "upright": bool(ev.get("upright", False)) and bool(np.isfinite(credible)), "max_tilt_deg": float(ev.get("max_tilt_deg", float("nan"))),
             "optimization_sim_steps": opt_steps, "evaluation_sim_steps": eval_steps, "total_sim_steps": total,
             "wall_time_s": round(seconds, 2), "chosen": False}
 
