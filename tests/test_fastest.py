@@ -179,7 +179,8 @@ def test_revisit_runs_the_shorter_cycles_from_the_fastest_coarse_gait():
 
     def run_of(n_cycle, n_kf, speed, upright=True, keyframes=None):
         kf = keyframes if keyframes is not None else np.zeros((2, n_kf))
-        return ({"n_cycle": n_cycle, "n_keyframes": n_kf, "speed_bl_per_min": speed, "upright": upright},
+        return ({"n_cycle": n_cycle, "n_keyframes": n_kf, "speed_bl_per_min": speed,
+                 "credible_bl_per_min": speed, "upright": upright},
                 SimpleNamespace(settings={"keyframes": kf.tolist()}))
 
     class Search:

@@ -4,16 +4,18 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import secrets
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import pytest
 
 from trajopt import Result
-from trajopt.sweep import load_spec, read_status, run_sweep, write_summary
+from trajopt.sweep import load_spec, read_status, run_sweep
 from trajopt.sweep.runner import plan
 from trajopt.sweep.task import resumes
 
@@ -252,38 +254,86 @@ def test_rl_comparison_sweeps_are_the_same_runs_under_each_law_and_fair_budgets(
                 {k: v for k, v in ppo.items() if k not in ("timesteps", "checkpoint_every", "seed")}
 
 
-# ----------------------------------------------------------------------------- on Ray (2 CPUs)
-@pytest.fixture(scope="module")
-def local_ray():
-    ray = pytest.importorskip("ray")
+def _free_port() -> int:
+    import socket
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.fixture
+def local_ray(tmp_path, monkeypatch):
+    """The address of a local Ray cluster with 2 CPUs, run by ``ray start --head --block`` in a
+    process group of its own: never in the test process. A Ray driver takes over its process
+    (ray.init sets a SIGTERM handler that raises SystemExit, and the driver exits when it loses
+    its raylet): in a pytest-xdist worker that crashed the worker and hung the whole test run.
+    So the sweeps of these tests run as ``trajopt sweep --address`` subprocesses."""
+    pytest.importorskip("ray")
+    ray_bin = Path(sys.executable).with_name("ray")
+    if not ray_bin.is_file():
+        pytest.skip("the ray command is not installed beside this Python")
+    port = _free_port()
     # Ray starts its workers at nice 15: on a machine kept busy by other processes at normal
     # priority they would get ~1 % of a core and these tests would wait on the scheduler, not on
     # the sweep. Workers at the test's own priority make the waits independent of the load.
-    previous = os.environ.get("RAY_worker_niceness")
-    os.environ["RAY_worker_niceness"] = "0"
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="ERROR")
+    # the cluster's token (Ray's token authentication), which the sweeps' subprocesses inherit
+    monkeypatch.setenv("RAY_AUTH_MODE", "token")
+    monkeypatch.setenv("RAY_AUTH_TOKEN", secrets.token_hex(16))
+    env = dict(os.environ, RAY_worker_niceness="0", RAY_USAGE_STATS_ENABLED="0")
+    log = tmp_path / "ray_head.log"
+    with open(log, "w") as fh:
+        head = subprocess.Popen([str(ray_bin), "start", "--head", "--block", f"--port={port}", "--num-cpus=2",
+                                 "--include-dashboard=false", "--disable-usage-stats",
+                                 f"--temp-dir={tempfile.mkdtemp(prefix='ray', dir='/tmp')}"],
+                                env=env, stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
     try:
-        yield ray
+        address = f"127.0.0.1:{port}"
+        _wait_for(lambda: "Ray runtime started" in log.read_text(), 120, "the Ray head", head, log)
+        yield address
     finally:
-        ray.shutdown()
-        if previous is None:
-            os.environ.pop("RAY_worker_niceness", None)
-        else:
-            os.environ["RAY_worker_niceness"] = previous
+        for sig, wait in ((signal.SIGTERM, 20), (signal.SIGKILL, 10)):
+            try:
+                os.killpg(head.pid, sig)
+            except ProcessLookupError:
+                break
+            try:
+                head.wait(timeout=wait)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+        try:
+            os.killpg(head.pid, signal.SIGKILL)           # what the head started and left behind
+        except ProcessLookupError:
+            pass
+
+
+def sweep_cli(spec_path: Path, out: Path, address: str, *extra: str) -> subprocess.CompletedProcess:
+    """``trajopt sweep SPEC --out OUT --address ADDRESS`` in a subprocess (its output returned)."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    return subprocess.run([sys.executable, "-m", "trajopt.cli", "sweep", str(spec_path), "--out", str(out),
+                           "--address", address, *extra], cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=load_scaled(900))
+
+
+def statuses(spec, out: Path) -> dict[str, dict]:
+    """Every run's status file, by name."""
+    return {run.name: read_status(out / run.name) or {} for run in spec.runs}
 
 
 def test_four_tiny_optimisations_write_results_and_summary(local_ray, tmp_path):
-    spec = load_spec(write(tmp_path, tiny_block("{robot}_v{speed:g}", 'robot = ["tripod"]\nspeed = [3.0, 4.0, 5.0, 6.0]')
-                           .replace('robot = "tripod"\n', "")), tmp_path / "out")
-    outcome = run_sweep(spec, tmp_path / "out")
-    assert not outcome.interrupted and outcome.count("done") == 4
+    spec_path = write(tmp_path, tiny_block("{robot}_v{speed:g}", 'robot = ["tripod"]\nspeed = [3.0, 4.0, 5.0, 6.0]')
+                      .replace('robot = "tripod"\n', ""))
+    out = tmp_path / "out"
+    proc = sweep_cli(spec_path, out, local_ray)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "4 done, 0 failed, 0 interrupted of 4 runs" in proc.stdout
+    spec = load_spec(spec_path, out)
     for run, v in zip(spec.runs, (3.0, 4.0, 5.0, 6.0)):
-        res = Result.load(tmp_path / "out" / run.name / f"{run.name}.npz")
+        res = Result.load(out / run.name / f"{run.name}.npz")
         assert res.settings["speed_bl_per_min"] == v and res.settings["n_cycle"] == 12
-        assert read_status(tmp_path / "out" / run.name)["metrics"]["speed_bl_per_min"] == res.evaluation["speed_bl_per_min"]
-    written = write_summary(spec, outcome.statuses, tmp_path / "out")
-    assert [p.name for p in written] == ["summary.csv", "summary.md", "summary.png"]
-    csv_lines = (tmp_path / "out" / "summary.csv").read_text().splitlines()
+        assert read_status(out / run.name)["metrics"]["speed_bl_per_min"] == res.evaluation["speed_bl_per_min"]
+    assert sorted(p.name for p in out.glob("summary.*")) == ["summary.csv", "summary.md", "summary.png"]
+    csv_lines = (out / "summary.csv").read_text().splitlines()
     assert len(csv_lines) == 5 and all(",done," in ln for ln in csv_lines[1:])
 
 
@@ -291,30 +341,36 @@ def test_failed_run_is_reported_and_rerun_skips_finished_runs(local_ray, tmp_pat
     text = (tiny_block("ok{speed:g}", "speed = [3.0, 4.0, 5.0]") + tiny_block("broken", "_x = [0]", robot="no_such_robot.toml")
             + '[[runs]]\nkind = "evaluate"\nname = "eval3"\n[runs.args]\nresult = "{out}/ok3/ok3.npz"\ncycles = 1\n')
     out = tmp_path / "out"
-    spec = load_spec(write(tmp_path, text), out)
-    outcome = run_sweep(spec, out)
-    assert outcome.count("done") == 4 and outcome.count("failed") == 1
+    spec_path = write(tmp_path, text)
+    proc = sweep_cli(spec_path, out, local_ray, "--no-plot")
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    spec = load_spec(spec_path, out)
+    status = statuses(spec, out)
+    assert sorted(n for n, st in status.items() if st.get("status") == "done") == ["eval3", "ok3", "ok4", "ok5"]
+    assert status["broken"]["status"] == "failed"
     # evaluations start after the optimisations they read
     ev = json.loads((out / "eval3" / "evaluation.json").read_text())
-    assert outcome.statuses["eval3"]["started"] >= outcome.statuses["ok3"]["finished"]
-    optimised = outcome.statuses["ok3"]["metrics"]          # `trajopt evaluate` prints 3 decimals
+    assert status["eval3"]["started"] >= status["ok3"]["finished"]
+    optimised = status["ok3"]["metrics"]          # `trajopt evaluate` prints 3 decimals
     assert ev["speed_bl_per_min"] == pytest.approx(optimised["speed_bl_per_min"], abs=6e-4)
     assert ev["upright"] == optimised["upright"]
-    reason = outcome.statuses["broken"]["reason"]
+    reason = status["broken"]["reason"]
     assert "no_such_robot.toml" in reason and "not found" in reason
-    write_summary(spec, outcome.statuses, out, plot=False)
+    assert f"failed: broken: {reason}" in proc.stdout
     assert "no_such_robot.toml" in (out / "summary.md").read_text()
     before = {name: digest(out / name) for name in ("ok3", "ok4", "ok5")}
 
-    again = run_sweep(load_spec(spec.path, out), out)
-    assert sorted(again.skipped) == ["eval3", "ok3", "ok4", "ok5"]
-    assert again.statuses["broken"]["status"] == "failed"           # retried, fails again
+    todo, finished = plan(load_spec(spec_path, out), out)
+    assert sorted(finished) == ["eval3", "ok3", "ok4", "ok5"] and [r.name for r in todo] == ["broken"]
+    again = sweep_cli(spec_path, out, local_ray, "--no-plot")
+    assert again.returncode == 1 and "(4 skipped as done)" in again.stdout, again.stdout + again.stderr
+    assert read_status(out / "broken")["status"] == "failed"        # retried, fails again
     assert {name: digest(out / name) for name in before} == before   # finished runs untouched
     # a run directory made with other arguments is never overwritten
     changed = write(tmp_path, text.replace("speed = [3.0, 4.0, 5.0]", "speed = [3.0]").replace("seeds = 1", "seeds = 2"),
                     "changed.toml")
     with pytest.raises(ValueError, match="made with other arguments"):
-        run_sweep(load_spec(changed, out), out)
+        plan(load_spec(changed, out), out)
 
 
 def load_scaled(seconds: float) -> float:
@@ -351,7 +407,7 @@ def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path
             + tiny_block("long{speed:g}", "speed = [5.0, 6.0]", robot="puppy").replace(TINY, long_args))
     out = tmp_path / "out"
     spec_path = write(tmp_path, text)
-    address = local_ray.get_runtime_context().gcs_address
+    address = local_ray
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
     log = tmp_path / "sweep.log"                     # a file, not a pipe: readable while it runs
     with open(log, "w") as log_fh:

@@ -46,7 +46,7 @@ class OptimizeRun:
     on a slope), contact law (None: the task's, else the robot file's), physics ``substeps`` per
     control step (None: the contact law's default), the ``ensemble`` of other physics the gait is
     optimised on as well (physics steps per control step, :mod:`trajopt.optim.ensemble`; an empty
-    list: :data:`~trajopt.optim.ensemble.DEFAULT_ENSEMBLE`; None or ``()``: none), symmetry (None: the
+    list: :data:`~trajopt.optim.ensemble.DEFAULT_ENSEMBLE`; None: none), symmetry (None: the
     task's), warm start result, the motors' law the controls obey (``motor_model``:
     ``"torque-speed"``, ``"speed"`` or ``"ideal"``, :mod:`soft_envs.sim.motors`; ``no_motor_limit``
     is ``"ideal"``, kept for scripts of before the model), Gauss-Newton iterations, keyframes and their ``interpolation`` (None: the task's; :data:`trajopt.optim.gait.INTERPOLATIONS`), cycle
@@ -63,7 +63,7 @@ class OptimizeRun:
     angle: float = 20.0
     contact: str | None = None
     substeps: int | None = None
-    ensemble: tuple[int, ...] | list[int] | None = ()
+    ensemble: tuple[int, ...] | list[int] | None = None
     symmetry: bool | None = None
     warm_start: Path | None = None
     no_motor_limit: bool = False

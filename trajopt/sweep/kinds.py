@@ -115,7 +115,7 @@ _SEED = Option(integer(0, 2**32 - 1))           # what NumPy's legacy seeding ac
 _OPTIMIZE = {
     "task": Option(_task), "speed": Option(speed), "heading": Option(number()),
     "turn": Option(_choice("right", "left")), "angle": Option(slope_deg), "contact": Option(contact_law),
-    "substeps": Option(positive_int), "symmetry": _BOOL, "warm_start": Option(), "no_motor_limit": _BOOL,
+    "substeps": Option(positive_int), "ensemble": Option(positive_int, repeatable=True), "symmetry": _BOOL, "warm_start": Option(), "no_motor_limit": _BOOL,
     "motor_model": Option(_choice(*MOTOR_MODELS)), "iterations": Option(integer(0, 100_000)),
     "keyframes": Option(steps), "interpolation": Option(_choice(*INTERPOLATIONS)), "cycle_steps": Option(steps), "prep_steps": Option(integer(0, 100_000)),
     "seeds": Option(integer(0, 10_000)), "cycles": Option(cycles), "max_sim_steps": Option(positive_int),
@@ -137,7 +137,8 @@ KINDS: Mapping[str, RunKind] = MappingProxyType({
                         frozenset({"out", "name", "no_progress", "overwrite", "verbose"}),
                         positional_option=Option(_choice(*sorted(ROBOTS)))),
     "rl-evaluate": RunKind("rl-evaluate", ("rl", "evaluate"), "model", MappingProxyType({
-        "cycles": Option(cycles), "seed": _SEED, "reset_noise": Option(nonnegative_float), "json": _BOOL}),
+        "cycles": Option(cycles), "seed": _SEED, "reset_noise": Option(nonnegative_float), "json": _BOOL,
+        "fidelity": _BOOL}),
         frozenset({"json"}), phase=1),
     "evaluate": RunKind("evaluate", ("evaluate",), "result", MappingProxyType({
         "cycles": Option(cycles), "ignore_robot_mismatch": _BOOL, "json": _BOOL, "fidelity": _BOOL}),

@@ -187,13 +187,23 @@ def _call(run: Run, out: Path, run_dir: Path, robot_file: Path | None = None) ->
             raise KeyboardInterrupt
     elif run.kind == "rl-evaluate":
         from ..rl.evaluate import evaluate_policy_metric, load_policy
-        ev = evaluate_policy_metric(load_policy(args["model"]), n_cycles=args.get("cycles", DEFAULT_EVAL_CYCLES),
-                                    seed=args.get("seed", 0), reset_noise_scale=args.get("reset_noise", 0.0))
+        policy = load_policy(args["model"])
+        n_cycles, seed = args.get("cycles", DEFAULT_EVAL_CYCLES), args.get("seed", 0)
+        ev = evaluate_policy_metric(policy, n_cycles=n_cycles, seed=seed,
+                                    reset_noise_scale=args.get("reset_noise", 0.0))
+        if args.get("fidelity", False):
+            from ..rl.evaluate import policy_fidelity
+            ev["fidelity"] = policy_fidelity(policy, n_cycles=n_cycles, seed=seed,
+                                             reference=None if args.get("reset_noise", 0.0) else ev)
         _write_evaluation(run_dir, ev)
     else:
         from ..evaluation import evaluate_result
-        ev = evaluate_result(Result.load(args["result"]), args.get("cycles"),
-                             ignore_robot_mismatch=args.get("ignore_robot_mismatch", False))
+        res = Result.load(args["result"])
+        ignore = args.get("ignore_robot_mismatch", False)
+        ev = evaluate_result(res, args.get("cycles"), ignore_robot_mismatch=ignore)
+        if args.get("fidelity", False):
+            from ..fidelity import fidelity
+            ev["fidelity"] = fidelity(res, n_cycles=args.get("cycles"), reference=ev, ignore_robot_mismatch=ignore)
         _write_evaluation(run_dir, ev)
 
 
