@@ -6,7 +6,7 @@ file runs unchanged): ``examples/rl_seeds_coulomb.toml`` (``--contact coulomb``,
 law) or ``examples/rl_seeds.toml`` (``--contact paper``). For each robot (Tripod, Puppy):
 
 * **trajopt** ``trajopt optimize ROBOT --speed max`` (the fastest gait within the motors'
-  speed limit; cycle length and keyframes searched) with a budget of one PPO seed's simulation
+  limits; cycle length and keyframes searched) with a budget of one PPO seed's simulation
   steps. Its gait is also stepped through the Gymnasium environment with the motor limit on, and
   the limit is checked independently of the optimiser (the controls rebuilt from the keyframes
   and the robot file, every step over 10 cycles, rest and wrap-around included).
@@ -14,7 +14,11 @@ law) or ``examples/rl_seeds.toml`` (``--contact paper``). For each robot (Tripod
   three seeds each, every checkpoint scored with the shared metric.
 * **PPO with 5x the budget**, one seed per robot: does RL keep improving?
 
-Same physics (robot files, contact law, motor limit) and the same evaluation on both sides:
+Both sides are also replayed, the same way, at 2x, 4x and 8x finer physics steps (RL's policy
+closed loop through the environment, ``substeps``): the credible speed of a gait or a policy is
+the slowest of the four (:mod:`trajopt.fidelity`, :func:`trajopt.rl.evaluate.policy_fidelity`).
+
+Same physics (robot files, contact law, motors) and the same evaluation on both sides:
 trajopt's ``evaluate_controls``, mean COM speed along +x in body lengths per minute over 432
 steps after 24 prep steps from the exact rest state, upright throughout (trajopt's keyframes
 repeated to fill the window; RL's deterministic policy closed loop in the environment).
@@ -53,7 +57,8 @@ from trajopt.evaluation import evaluate_controls
 from trajopt.optim.gait import GaitSpec
 from trajopt.replay import env_for_result, result_parameterization
 from trajopt.rl.envs import GAIT, env_id
-from trajopt.rl.evaluate import play_controls_in_env, run_metric
+from trajopt.fidelity import fidelity
+from trajopt.rl.evaluate import play_controls_in_env, policy_fidelity, run_metric
 from trajopt.sweep import load_spec, quick_requested, read_status, run_sweep, write_summary
 
 HERE = Path(__file__).resolve().parent
@@ -94,7 +99,8 @@ def trajopt_row(run_dir: Path, name: str) -> dict:
     in_env = run_metric(env, rec["u"], rec["x"], gait=gait)["speed_bl_per_min"]
     env.close()
     search = s["search"]
-    return {"method": "trajopt `--speed max`", "kind": "trajopt", "n_cycle": int(s["n_cycle"]),
+    fid = fidelity(res, n_cycles=n_cycles)              # the same window at 2x, 4x and 8x finer physics steps
+    return {"method": "trajopt `--speed max`", "kind": "trajopt", "fidelity": [_fine_speeds(fid)], "n_cycle": int(s["n_cycle"]),
             "n_keyframes": int(s["n_keyframes"]), "speeds": [float(window["speed_bl_per_min"])],
             "upright": [bool(window["upright"]) and bool(ev["upright"])],
             "speed_10_cycles": float(ev["speed_bl_per_min"]), "eval_cycles": int(s["eval_cycles"]),
@@ -104,6 +110,11 @@ def trajopt_row(run_dir: Path, name: str) -> dict:
             "limit_excess_m": independent_limit_check(res, res.robot),
             "periods": [dominant_period(u[s["n_prep"]:])],
             "curves": [[(int(ev["search_sim_steps"]), float(window["speed_bl_per_min"]))]]}
+
+
+def _fine_speeds(fid: dict) -> dict:
+    """``{physics steps per control step: BL/min (NaN when it fell)}`` of a fidelity table."""
+    return {int(r["substeps"]): (float(r["speed_bl_per_min"]) if r["upright"] else float("nan")) for r in fid["rows"]}
 
 
 def rl_group(rows: list[tuple[Path, dict]], kind: str, method: str) -> dict:
@@ -125,6 +136,7 @@ def rl_group(rows: list[tuple[Path, dict]], kind: str, method: str) -> dict:
         curve[int(m["sim_steps"])] = float(m["speed_bl_per_min"])         # the final model
         out["curves"].append(sorted(curve.items()))
         out["hyperparams"] = cfg["hyperparams"]
+        out.setdefault("fidelity", []).append(_fine_speeds(policy_fidelity(run_dir / "model.zip")))
         out["n_envs"] = cfg["n_envs"]
     return out
 
@@ -188,6 +200,10 @@ def main() -> None:
     meta = {"date": time.strftime("%Y-%m-%d"), "quick": quick, "spec": f"examples/{spec_path.name}",
             "sweep_dir": str(sweep_dir), "contact": args.contact, "law": LAW_NAMES[args.contact],
             "window": EVAL_STEPS, "n_prep": N_PREP,
+            "physics": ("4 physics steps of 8.25 ms per 0.033 s control step (`-v2`)" if args.contact == "coulomb"
+                        else "one physics step per 0.033 s control step"),
+            "motors": ("the torque-speed line and the gearbox limit, `[[motors]]`" if args.contact == "coulomb"
+                       else "the speed limit, `[[motors]] max_speed_rpm`"),
             "machine": f"{os.cpu_count()} CPU cores ({platform.processor() or platform.machine()}), Python "
                        f"{platform.python_version()}, stable-baselines3 {stable_baselines3.__version__}, "
                        f"torch {torch.__version__}"}

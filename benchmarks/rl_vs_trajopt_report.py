@@ -6,7 +6,9 @@ A row is a dict with ``kind`` ("trajopt", "ppo", "sac" or "ppo5x"), ``method``, 
 ``periods`` and ``curves`` (per seed, ``(simulation steps, BL/min)`` at each checkpoint); a
 trajopt row also has ``speed_10_cycles``, ``n_cycle``, ``n_keyframes``, ``budget``,
 ``optimisations``, ``in_env`` (the gait replayed in the environment, limit on) and
-``limit_excess_m`` (the independent check of the motor limit).
+``limit_excess_m`` (the independent check of the motor limit). ``fidelity`` (per seed): the
+speed at each number of physics steps per control step (its own and 2x, 4x, 8x finer); the
+credible speed is the slowest of them (:func:`credible`).
 """
 from __future__ import annotations
 
@@ -26,6 +28,17 @@ def mean_spread(values: list[float]) -> str:
     return f"{v.mean():.2f} ± {v.std(ddof=1):.2f} ({' / '.join(f'{x:.1f}' for x in v)})"
 
 
+def credible(r: dict) -> list[float]:
+    """Per seed, the slowest speed over its own and the finer physics (NaN: it fell on one)."""
+    return [min(f.values()) if f and np.isfinite(list(f.values())).all() else float("nan")
+            for f in r.get("fidelity", [{}] * len(r["speeds"]))]
+
+
+def _fine_note(r: dict) -> str:
+    return "; ".join(", ".join(f"{v:.1f}" for _, v in sorted(f.items())) + f" at {'/'.join(map(str, sorted(f)))} steps"
+                     for f in r.get("fidelity", []))
+
+
 def _by_kind(rows: list[dict]) -> dict[str, dict]:
     return {r["kind"]: r for r in rows}
 
@@ -41,8 +54,9 @@ def _trajopt_note(r: dict) -> str:
 
 def table(rows: list[dict]) -> str:
     """One line per method: runs, simulation steps, wall time, speed, upright, notes."""
-    lines = ["| method | runs | simulation steps | wall time [s] | speed [BL/min] | upright | notes |",
-             "|---|---:|---:|---:|---|---|---|"]
+    lines = ["| method | runs | simulation steps | wall time [s] | speed [BL/min] | credible [BL/min] | upright | "
+             "at finer physics [BL/min] | notes |",
+             "|---|---:|---:|---:|---|---|---|---|---|"]
     for r in rows:
         if r["kind"] == "trajopt":
             note = _trajopt_note(r)
@@ -51,8 +65,8 @@ def table(rows: list[dict]) -> str:
                     f"max COM difference {max(r['replay_err']):.1e} m; control period "
                     f"{', '.join(f'{p:.0f}' for p in r['periods'])} steps")
         lines.append(f"| {r['method']} | {len(r['speeds'])} | {int(np.mean(r['sim_steps'])):,} | "
-                     f"{np.mean(r['wall_time_s']):.0f} | {mean_spread(r['speeds'])} | "
-                     f"{sum(r['upright'])}/{len(r['upright'])} | {note} |")
+                     f"{np.mean(r['wall_time_s']):.0f} | {mean_spread(r['speeds'])} | {mean_spread(credible(r))} | "
+                     f"{sum(r['upright'])}/{len(r['upright'])} | {_fine_note(r)} | {note} |")
     return "\n".join(lines)
 
 
@@ -77,14 +91,20 @@ def findings(rows: list[dict]) -> list[str]:
            f"{tj['sim_steps'][0]:,} simulation "
            f"steps against one PPO seed's {int(np.mean(k['ppo']['sim_steps'])) if 'ppo' in k else 0:,}, "
            f"{tj['wall_time_s'][0]:.0f} s."]
+    c_tj = credible(tj)[0]
+    out.append(f"credible speeds (the slowest at its own and 2x, 4x, 8x finer physics steps): trajopt {c_tj:.2f} "
+               f"BL/min; " + "; ".join(f"{k[kind]['method']} best seed {np.nanmax(credible(k[kind])):.2f}"
+                                      for kind in ("ppo", "sac") if kind in k and np.isfinite(credible(k[kind])).any()))
     for kind in ("ppo", "sac"):
         if kind not in k:
             continue
         r = k[kind]
         v = np.asarray(r["speeds"])
+        c = np.asarray(credible(r))
         out.append(f"{r['method']}: {v.mean():.2f} BL/min on average over {len(v)} seeds (best {v.max():.2f}), "
                    f"{sum(r['upright'])}/{len(v)} upright, {int(np.mean(r['sim_steps'])):,} steps; "
-                   f"{int((v > v_tj).sum())} of {len(v)} seeds faster than trajopt.")
+                   f"{int((v > v_tj).sum())} of {len(v)} seeds faster than trajopt; credibly (the slowest over the "
+                   f"physics), {int((c > c_tj).sum())} of {len(v)}.")
     if "ppo5x" in k and "ppo" in k:
         long, base = k["ppo5x"], int(np.mean(k["ppo"]["sim_steps"]))
         first = overtakes(long, v_tj, base)
@@ -144,14 +164,14 @@ def readme_table(results: dict[str, list[dict]], law: str) -> str:
         cells = []
         if "trajopt" in k:
             t = k["trajopt"]
-            cells.append(f"{t['speeds'][0]:.2f} BL/min ({t['n_cycle']}-step cycle, {t['n_keyframes']} keyframes), "
-                         f"{t['sim_steps'][0]:,} steps, {t['wall_time_s'][0]:.0f} s")
+            cells.append(f"{t['speeds'][0]:.2f} BL/min, credible {credible(t)[0]:.2f} ({t['n_cycle']}-step cycle, "
+                         f"{t['n_keyframes']} keyframes), {t['sim_steps'][0]:,} steps, {t['wall_time_s'][0]:.0f} s")
         else:
             cells.append("not run")
         for kind in ("ppo", "sac"):
             r = k.get(kind)
-            cells.append(f"{mean_spread(r['speeds'])} BL/min, {int(np.mean(r['sim_steps'])):,} steps, "
-                         f"{np.mean(r['wall_time_s']):.0f} s" if r else "not run")
+            cells.append(f"{mean_spread(r['speeds'])} BL/min, credible {mean_spread(credible(r))}, "
+                         f"{int(np.mean(r['sim_steps'])):,} steps, {np.mean(r['wall_time_s']):.0f} s" if r else "not run")
         r = k.get("ppo5x")
         cells.append(f"{r['speeds'][0]:.2f} BL/min, {r['sim_steps'][0]:,} steps, {r['wall_time_s'][0]:.0f} s"
                      if r else "not run")
@@ -169,9 +189,11 @@ def write_report(results: dict[str, list[dict]], meta: dict, md_path: Path, miss
           f"Generated by `python benchmarks/bench_rl_vs_trajopt.py --contact {meta['contact']}` on {meta['date']} "
           f"from the sweep `{meta['spec']}` (runs in `{meta['sweep_dir']}`, not kept): {meta['machine']}. Every run "
           "of both sides in that one sweep, two runs at a time on the machine (wall times comparable, not quiet).", "",
-          "Same physics, same limit, same evaluation on both sides. Physics: the robot files, "
-          f"{meta['law']} contact law; the gearmotors' speed limit (`[[motors]] max_speed_rpm`, 1.728 mm of cable "
-          "per 0.033 s step) on in trajopt's constraints and in the environment RL trains and is scored in. "
+          "Same physics, same motors, same evaluation on both sides. Physics: the robot files, "
+          f"{meta['law']} contact law, {meta.get('physics', 'the environments')}; the gearmotors "
+          f"({meta.get('motors', 'their limits')}) in trajopt's constraints and in the environment RL trains and is "
+          "scored in. Credible speed: the slowest of the speeds at the run's own physics and at 2x, 4x and 8x finer "
+          "physics steps (RL closed loop through the environment). "
           f"Speed: trajopt's metric (`evaluate_controls`), mean COM speed along +x in body lengths per minute over "
           f"{meta['window']} steps after {meta['n_prep']} prep steps from the exact rest state; RL's deterministic "
           "policy closed loop in the environment; trajopt's keyframes repeated to fill the same window; upright = "

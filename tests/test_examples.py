@@ -52,6 +52,12 @@ EXPECTED = {
                         r"simulation steps of the whole search: [\d,]+",
                         r"saved results/tripod_fastest_example_quick\.npz and results/tripod_fastest_example_quick"
                         r"\.search\.csv"],
+    "credible_gait.py": [r"default physics alone: [+-]?\d+\.\d+ BL/min at the default physics",
+                         r"ensemble of 2, 4, 8 steps: [+-]?\d+\.\d+ BL/min at the default physics; members "
+                         r"[+-]?\d+\.\d+ at 4 steps, [+-]?\d+\.\d+ at 2 steps, [+-]?\d+\.\d+ at 8 steps; "
+                         r"credible [+-]?\d+\.\d+ BL/min",
+                         r"replayed: [+-]?\d+\.\d+ at 8\.25 ms, [+-]?\d+\.\d+ at 4\.12 ms; spread \d+\.\d %",
+                         r"saved results/tripod_credible_example_quick\.npz"],
     "codesign_tripod.py": [r"shipped design, fastest gait: \d+\.\d+ BL/min \(\d+-step cycle\)",
                            r"co-designed robot and gait: +\d+\.\d+ BL/min \(\d+\.\d+x\), \d+ Gauss-Newton iterations",
                            r"its gait re-optimised from scratch: \d+\.\d+ BL/min",
@@ -77,6 +83,7 @@ WRITES = {
                            "results/robustness_example_quick/robustness.png"],
     "rl_baseline.py": ["results/tripod_ppo_example_quick.npz"],
     "motor_line.py": ["results/motor_line_example_quick.png"],
+    "credible_gait.py": ["results/tripod_credible_example_quick.npz", "results/tripod_credible_example_quick.json"],
     "fastest_gait.py": ["results/tripod_fastest_example_quick.npz", "results/tripod_fastest_example_quick.search.csv",
                         "results/tripod_fastest_example_quick.search.md"],
     "puppy_turn.py": ["results/puppy_turn_example_quick.npz", "results/puppy_turn_example_quick.json"],

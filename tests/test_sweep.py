@@ -495,7 +495,8 @@ def test_rl_runs_call_the_library_and_write_their_files(tmp_path):
     hp = '["n_steps=32", "batch_size=32", "n_epochs=1", "policy_kwargs=dict(net_arch=[8])"]'
     text = ('[[runs]]\nkind = "rl-train"\nname = "ppo"\n[runs.args]\nrobot = "tripod"\ntimesteps = 64\n'
             f'n_envs = 1\nhp = {hp}\n'
-            '[[runs]]\nkind = "rl-evaluate"\nname = "ppo_eval"\n[runs.args]\nmodel = "{out}/ppo"\ncycles = 1\n')
+            '[[runs]]\nkind = "rl-evaluate"\nname = "ppo_eval"\n[runs.args]\nmodel = "{out}/ppo"\ncycles = 1\n'
+            'fidelity = true\n')
     out = tmp_path / "out"
     outcome = run_sweep(load_spec(write(tmp_path, text), out), out, serial=True)
     assert outcome.count("done") == 2, outcome.statuses
@@ -504,3 +505,7 @@ def test_rl_runs_call_the_library_and_write_their_files(tmp_path):
     assert trained["command"][:4] == ["trajopt", "rl", "train", "tripod"]
     ev = json.loads((out / "ppo_eval" / "evaluation.json").read_text())
     assert ev["cycles"] == 1 and ev["speed_bl_per_min"] == outcome.statuses["ppo_eval"]["metrics"]["speed_bl_per_min"]
+    # fidelity = true: the policy also at 2x, 4x and 8x finer physics, its own row the evaluation's
+    rows = ev["fidelity"]["rows"]
+    assert [r["factor"] for r in rows] == [1, 2, 4, 8] and rows[0]["speed_bl_per_min"] == ev["speed_bl_per_min"]
+    assert [r["substeps"] for r in rows] == [ev["substeps"] * f for f in (1, 2, 4, 8)]
