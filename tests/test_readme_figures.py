@@ -19,7 +19,7 @@ FIGURE = re.compile(r"(?<![\w.])[-+]?\d+\.\d+(?![\w.])")
 
 def results_tables(text: str) -> list[tuple[list[str], list[str]]]:
     """``[(files linked before the table, the table's rows)]`` of the README's Results section."""
-    section = text.split("\n## Results", 1)[1].split("\n## ", 1)[0]
+    section = ("\n" + text).split("\n## Results", 1)[1].split("\n## ", 1)[0]
     out, links, rows = [], [], []
     for line in section.splitlines():
         if line.startswith("|"):
