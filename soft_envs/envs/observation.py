@@ -1,0 +1,71 @@
+"""The observation of :class:`~soft_envs.envs.base.SoftRobotEnv`: its parts, its space, and the
+vector built from a state.
+
+The parts, in order (``observation_structure``): the COM relative to the COM at reset (its
+height absolute), the COM velocity over the last physics step, the body's forward and up
+vectors (the first two columns of the best-fit rotation), each tendon's cable deformation
+divided by its motor's range, each motor's applied contraction scaled like the actions, the gait
+phase (sin, cos) and, with ``observe_nodes``, the node positions relative to the COM.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from gymnasium import spaces
+
+from ..sim import Robot
+
+__all__ = ["Observation"]
+
+
+class Observation:
+    """The observation of one environment: ``structure`` (part -> size, in order), ``size``, the
+    observation ``space`` (a Box) and :meth:`build`. ``motor_range`` (M,) [m] is each motor's ``u_max - u_min``: a tendon's
+    cable deformation is divided by its motor's range (a passive tendon's by the mean range)."""
+
+    def __init__(self, robot: Robot, motor_range: np.ndarray, observe_nodes: bool, gait_period: float):
+        self.structure = {
+            "com_position": 3, "com_velocity": 3, "forward_vector": 3, "up_vector": 3,
+            "cable_deformation": len(robot.tendons), "contraction": robot.n_motors, "gait_phase": 2,
+            "nodes": 3 * robot.mesh.n_nodes if observe_nodes else 0}
+        self.size = sum(self.structure.values())
+        self.observe_nodes = bool(observe_nodes)
+        self.gait_period = float(gait_period)
+        tm = robot.tendon_motor
+        self.gamma_scale = 1.0 / np.where(tm >= 0, motor_range[np.maximum(tm, 0)], motor_range.mean())
+        self.space = spaces.Box(-np.inf, np.inf, shape=(self.size,), dtype=np.float64)
+
+    def slices(self) -> dict[str, slice]:
+        """Where each part lies in the observation vector."""
+        out, i = {}, 0
+        for name, n in self.structure.items():
+            out[name] = slice(i, i + n)
+            i += n
+        return out
+
+    def build(self, *, com: np.ndarray, com_start: np.ndarray, com_prev: np.ndarray, physics_dt: float,
+              rotation: np.ndarray, gamma: np.ndarray, contraction: np.ndarray, n_sub: int, timestep: float,
+              x: np.ndarray) -> np.ndarray:
+        """The observation of a state: COM now ``com`` (3,), at reset ``com_start`` and one
+        physics step (``physics_dt`` seconds) ago ``com_prev`` [m]; the best-fit ``rotation``
+        (3, 3); the cable deformations ``gamma`` (T,) [m]; the applied ``contraction`` as an
+        action (M,); ``n_sub`` control steps of ``timestep`` seconds since reset; node positions
+        ``x`` (n, 3) [m]."""
+        s = self.structure
+        obs = np.empty(self.size)
+        obs[0:3] = com - com_start
+        obs[1] = com[1]
+        obs[3:6] = (com - com_prev) / physics_dt
+        obs[6:9] = rotation[:, 0]
+        obs[9:12] = rotation[:, 1]
+        i = 12 + s["cable_deformation"]
+        obs[12:i] = gamma * self.gamma_scale
+        j = i + s["contraction"]
+        obs[i:j] = contraction
+        phase = 2.0 * math.pi * n_sub * timestep / self.gait_period
+        obs[j] = math.sin(phase)
+        obs[j + 1] = math.cos(phase)
+        if self.observe_nodes:
+            obs[j + 2:] = (x - com).ravel()
+        return obs
