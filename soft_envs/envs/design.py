@@ -1,4 +1,4 @@
-"""Co-design through the environments (issue #29): the design parameters a robot declares, the
+"""Co-design through the environments: the design parameters a robot declares, the
 rollouts' sensitivities to them, and writing a designed robot.
 
 Re-exports for ``trajopt`` (which never imports :mod:`soft_envs.sim`):
