@@ -7,7 +7,8 @@ specification (spaces, rewards, arguments) is in the docstrings of
 :class:`~soft_envs.envs.tripod.SoftTripodEnv` and :class:`~soft_envs.envs.puppy.SoftPuppyEnv`.
 The gradient hooks of :class:`~soft_envs.envs.protocol.GradientEnv` are implemented in
 :mod:`.hooks` (:class:`~.hooks.GradientHooksMixin`), rendering in :mod:`.viewer`, the motors in
-:mod:`.actuation`, the reward and termination in :mod:`.task`.
+:mod:`.actuation`, the observation (its parts, space and construction) in :mod:`.observation`,
+the reward and termination in :mod:`.task`.
 
 Determinism: the simulator's Newton solver may reuse the Cholesky factorisation of an earlier
 step (chord iterations), which makes a step's result depend, at the level of the Newton
@@ -18,7 +19,6 @@ replays bit for bit, and a pickled copy steps exactly like the original.
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 from collections import deque
 from collections.abc import Mapping
@@ -37,6 +37,7 @@ from .actuation import MOTOR_SPEED_FROM_ROBOT, Actuation
 from .arguments import RENDER_MODES, check_env_arguments
 from .domain import draw_standing_robot, parse_domain_randomization, randomized_robot
 from .measure import BodyFrame, tilt_deg_of, wrap_angle, yaw_of
+from .observation import Observation
 from .task import LocomotionTask
 from .threads import limit_threads_in_worker
 from .hooks import GradientHooksMixin
@@ -133,23 +134,18 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         self._init_spaces()
 
     def _init_actuation(self, motor_speed_rpm: float | str | None, motor_model: str) -> None:
-        """The motors, and the cable-deformation scale of the observation (each tendon's Gamma
-        divided by its motor's range)."""
+        """The motors (:mod:`.actuation`)."""
         self._actuation = Actuation(self._base_robot, motor_speed_rpm, self.timestep, motor_model)
         self.motor_speed = self._actuation.speed                          # (M,) [m/s]
-        rng = self._actuation.range
-        tm = self._base_robot.tendon_motor
-        self._gamma_scale = 1.0 / np.where(tm >= 0, rng[np.maximum(tm, 0)], rng.mean())
 
     def _init_spaces(self) -> None:
+        """The action space, and the observation (:class:`~.observation.Observation`: its parts
+        as ``observation_structure``, its space)."""
         r = self._base_robot
-        self.observation_structure = {
-            "com_position": 3, "com_velocity": 3, "forward_vector": 3, "up_vector": 3,
-            "cable_deformation": len(r.tendons), "contraction": r.n_motors, "gait_phase": 2,
-            "nodes": 3 * r.mesh.n_nodes if self._observe_nodes else 0}
-        self._obs_size = sum(self.observation_structure.values())
+        self._observation = Observation(r, self._actuation.range, self._observe_nodes, self._gait_period)
+        self.observation_structure = self._observation.structure
         self.action_space = spaces.Box(-1.0, 1.0, shape=(r.n_motors,), dtype=np.float32)
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(self._obs_size,), dtype=np.float64)
+        self.observation_space = self._observation.space
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
 
     def _init_physics(self, timestep: float) -> None:
@@ -372,23 +368,11 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         return self._healthy
 
     def _get_obs(self) -> np.ndarray:
-        s = self.observation_structure
-        obs = np.empty(self._obs_size)
-        obs[0:3] = self._com - self._com_start
-        obs[1] = self._com[1]
-        obs[3:6] = (self._com - self._frame.com(self._x_prev)) / self._sim.physics_dt
-        obs[6:9] = self._rot[:, 0]
-        obs[9:12] = self._rot[:, 1]
-        i = 12 + s["cable_deformation"]
-        obs[12:i] = self._sim.cable_deformation(self._x, self._u) * self._gamma_scale
-        j = i + s["contraction"]
-        obs[i:j] = self._actuation.to_action(self._u)
-        phase = 2.0 * math.pi * self._n_sub * self.timestep / self._gait_period
-        obs[j] = math.sin(phase)
-        obs[j + 1] = math.cos(phase)
-        if self._observe_nodes:
-            obs[j + 2:] = (self._x - self._com).ravel()
-        return obs
+        """The observation of the current state (:meth:`.observation.Observation.build`)."""
+        return self._observation.build(
+            com=self._com, com_start=self._com_start, com_prev=self._frame.com(self._x_prev),
+            physics_dt=self._sim.physics_dt, rotation=self._rot, gamma=self._sim.cable_deformation(self._x, self._u),
+            contraction=self._actuation.to_action(self._u), n_sub=self._n_sub, timestep=self.timestep, x=self._x)
 
     def _motor_torque(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """(M,) each motor's load torque [N m] at positions ``x`` with contractions ``u``."""

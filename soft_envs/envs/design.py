@@ -1,4 +1,4 @@
-"""Co-design through the environments (issue #29): the design parameters a robot declares, the
+"""Co-design through the environments: the design parameters a robot declares, the
 rollouts' sensitivities to them, and writing a designed robot.
 
 Re-exports for ``trajopt`` (which never imports :mod:`soft_envs.sim`):
@@ -14,6 +14,7 @@ import numpy as np
 
 from ..sim import Trajectory
 from ..sim.design import KINDS, MAX_MASS_LOSS, MIN_CLEARANCE, DesignParameters, load_design, write_designed_robot
+from .rest_rollout import rest_start_rollout
 
 __all__ = ["KINDS", "MAX_MASS_LOSS", "MIN_CLEARANCE", "DesignParameters", "load_design", "write_designed_robot",
            "design_rollout"]
@@ -25,11 +26,6 @@ def design_rollout(env, u: np.ndarray, design: DesignParameters, dudz: np.ndarra
     and differentiate the whole rollout, rest state included: ``traj.dcomdtheta`` (K+1, 3,
     len(design)) with respect to the design, and with ``dudz`` (K, n_motors, nz) ``traj.dcomdz``
     too (the controls' parameters; the rest state does not depend on them). ValueError when the
-    environment is not at rest or simulates another robot."""
-    sim = env.simulator
-    x0, h0, dx0, dh0 = sim.rest_sensitivity(design, u=env.robot.u_rest)
-    x_reset, xm1_reset = env.reset_state()
-    if not (np.array_equal(x_reset, x0) and np.array_equal(xm1_reset, x0)):
-        raise ValueError("design_rollout needs an environment reset at rest without noise "
-                         "(reset_noise_scale=0, as make_gradient_env makes it)")
-    return sim.rollout(u, x0=x0, history0=h0, dudz=dudz, params=design, dx0dtheta=dx0, dhistory0dtheta=dh0)
+    environment is not at rest or simulates another robot
+    (:func:`~soft_envs.envs.rest_rollout.rest_start_rollout`)."""
+    return rest_start_rollout(env, u, design, dudz=dudz, caller="design_rollout")

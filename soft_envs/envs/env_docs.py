@@ -138,12 +138,27 @@ def _observation_section(r: RobotDoc) -> str:
     ]
     table = markdown_table(("Num", "Observation", "Min", "Max", "Type (Unit)"), rows)
     return f"""## Observation Space
-A `Box(-Inf, Inf, ({r.n_observations},), float64)`; `env.unwrapped.observation_structure` gives the
-size of each part, in this order. The orientation is the mass-weighted best-fit rotation *R* of
-the rest shape onto the current shape (Kabsch); its first two columns are the body's forward and
-up vectors (a continuous 6-D representation of the rotation; at rest (1, 0, 0) and (0, 1, 0)).
+A `Box(low, high, ({r.n_observations},), float64)` with the bounds of the Min and Max columns;
+`env.unwrapped.observation_structure` gives the size of each part, in this order. The orientation
+is the mass-weighted best-fit rotation *R* of the rest shape onto the current shape (Kabsch); its
+first two columns are the body's forward and up vectors (a continuous 6-D representation of the
+rotation; at rest (1, 0, 0) and (0, 1, 0)).
 
 {table}
+
+The unit vectors, the applied contraction and the gait phase lie in [-1, 1] by construction
+(clipped there against rounding; `soft_envs.envs.observation.BOUNDED_PARTS`). The other parts
+have no bound the environment can promise, so their bounds are -Inf and Inf:
+
+- COM x and z: the environment never truncates (`gym.make`'s `TimeLimit` does), so a robot may
+  walk on without limit.
+- COM height: the ground keeps it above 0 in practice, but contact is a penalty (the feet sink in
+  a little), not a hard floor, and nothing bounds it from above.
+- COM velocity: the reset noise alone gives up to `reset_noise_scale` / the physics step (any
+  value, with the keyword), and no part of the model caps the speed of a fall.
+- cable deformation: it grows with the body's stretch, which the neo-Hookean material does not
+  cap; below, the only bound (a cable's length is not negative) is never approached.
+- node positions: the body's deformation is not capped either.
 
 `info` holds `com`, `x_position`, `z_position`, `displacement` (COM minus the COM at
 reset), `yaw` (rad, from +x towards +z: clockwise seen from above), `tilt_deg`, `time`, `u`,
@@ -329,6 +344,9 @@ def _version_section(r: RobotDoc) -> str:
   speed limit alone; `info` gained `motor_torque` and `motor_limited` on every id.
 * v2 also puts the motors on their torque-speed line (`motor_model="torque-speed"`, the class's
   default: the winding speed falls with the load torque, which stops at `max_torque`).
+* Without a new id, on every id: the observation space bounds the unit vectors, the applied
+  contraction and the gait phase by -1 and 1 (it was -Inf, Inf throughout); the observations
+  are the same, clipped into [-1, 1] against rounding.
 """
 
 

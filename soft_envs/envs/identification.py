@@ -17,6 +17,7 @@ from ..sim import Trajectory
 from ..sim.markers import Marker, MarkerSet
 from ..sim.parameters import PARAMETERS as PHYSICAL_PARAMETERS
 from ..sim.parameters import check_parameters, parameter_values, scale_parameters, with_parameters
+from .rest_rollout import rest_start_rollout
 
 __all__ = ["PHYSICAL_PARAMETERS", "parameter_values", "with_parameters", "scale_parameters", "check_parameters",
            "Marker", "MarkerSet", "parameter_rollout"]
@@ -29,11 +30,6 @@ def parameter_rollout(env, u: np.ndarray, parameters: Sequence[str]) -> Trajecto
     physical ``parameters``: ``traj.dxdtheta`` (K+1, 3n, ntheta), ``traj.dcomdtheta``. The rest
     state and the friction law's stick anchors are those of
     :meth:`~soft_envs.sim.Simulator.rest_sensitivity`. ValueError for an unknown or inapplicable
-    parameter, or an environment whose reset state is not its rest state."""
-    sim = env.simulator
-    x0, h0, dx0, dh0 = sim.rest_sensitivity(parameters, u=env.robot.u_rest)
-    x_reset, xm1_reset = env.reset_state()
-    if not (np.array_equal(x_reset, x0) and np.array_equal(xm1_reset, x0)):
-        raise ValueError("rollout_parameters needs an environment reset at rest without noise "
-                         "(reset_noise_scale=0, as make_gradient_env makes it)")
-    return sim.rollout(u, x0=x0, history0=h0, params=parameters, dx0dtheta=dx0, dhistory0dtheta=dh0)
+    parameter, or an environment whose reset state is not its rest state
+    (:func:`~soft_envs.envs.rest_rollout.rest_start_rollout`)."""
+    return rest_start_rollout(env, u, parameters, caller="rollout_parameters")

@@ -1,4 +1,4 @@
-r"""The motors' law: a DC gearmotor's torque-speed line and its gearbox's torque limit (issue #38).
+r"""The motors' law: a DC gearmotor's torque-speed line and its gearbox's torque limit.
 
 The one home of the law; the environments (:mod:`soft_envs.envs.actuation`) step with it and
 ``trajopt``'s optimiser constrains gaits by it (re-exported by :mod:`soft_envs.envs`).
@@ -26,7 +26,8 @@ The **normalised line excess** of a point (v, tau) of a winding motor is
 
 Motor models (:data:`MOTOR_MODELS`), chosen by the environments' ``motor_model`` keyword and
 ``trajopt optimize --motor-model``: ``"torque-speed"`` (this law, the default), ``"speed"`` (the
-speed limit ``|du/dt| <= v_0`` alone: the law before issue #38), ``"ideal"`` (no limit).
+speed limit ``|du/dt| <= v_0`` alone: the motors before the torque-speed line, which the
+``-v0`` and ``-v1`` environments keep), ``"ideal"`` (no limit).
 """
 from __future__ import annotations
 

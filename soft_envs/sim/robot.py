@@ -2,7 +2,9 @@
 
 A robot lives in the simulation frame: metres, +y up, facing +x at rest, ground at y = 0.
 Build one in Python with :meth:`Robot.from_mesh`, or load a shipped/own description with
-:func:`soft_envs.sim.load_robot` (``assets/<name>/robot.toml``, see :mod:`.robot_file`).
+:func:`soft_envs.sim.load_robot` (``assets/<name>/robot.toml``, see :mod:`.robot_file`). The
+tendons and motors, their checks and the cables' binding to the mesh are in :mod:`.drive`
+(re-exported here).
 """
 from __future__ import annotations
 
@@ -16,6 +18,8 @@ import meshio
 import numpy as np
 
 from .contact import CONTACT_LAWS, ContactParams
+from .drive import (DEFAULT_MAX_SPEED_RPM, DEFAULT_MAX_TORQUE, DEFAULT_STALL_TORQUE, MOTOR_DEFAULTS, CableData, Motor,
+                    Tendon, bind_tendons, cable_data, check_drive)
 from .markers import Marker, MarkerSet
 from .materials import lame_parameters
 from .mesh import TetMesh, load_mesh
@@ -23,86 +27,50 @@ from .mesh import TetMesh, load_mesh
 __all__ = ["Robot", "Tendon", "Motor", "ContactParams", "CableData", "Marker", "CONTACT_MODELS",
            "DEFAULT_MAX_SPEED_RPM", "DEFAULT_STALL_TORQUE", "DEFAULT_MAX_TORQUE", "MOTOR_DEFAULTS"]
 
-#: [rpm] a motor's no-load output speed when its ``[[motors]]`` entry gives none: the Pololu 298:1
-#: micro metal gearmotor, HP (high-power) motor at 6 V (docs/robots.md: figures and sources)
-DEFAULT_MAX_SPEED_RPM = 100.0
-#: [N m] a motor's stall torque when its ``[[motors]]`` entry gives none: the 298:1 HP at 6 V,
-#: about 4 kg cm (docs/robots.md)
-DEFAULT_STALL_TORQUE = 0.39
-#: [N m] the torque a motor's gearbox must not exceed when its ``[[motors]]`` entry gives none:
-#: Pololu's recommended limit for the micro metal gearboxes up to 298:1, 2 kg cm
-DEFAULT_MAX_TORQUE = 0.196
-#: each optional number of a ``[[motors]]`` entry that describes the motor itself, with its default
-MOTOR_DEFAULTS = {"max_speed_rpm": DEFAULT_MAX_SPEED_RPM, "stall_torque": DEFAULT_STALL_TORQUE,
-                  "max_torque": DEFAULT_MAX_TORQUE}
-
 #: The built-in contact laws' names; every law, those registered later included, is a key of
 #: :data:`soft_envs.sim.contact.CONTACT_LAWS`.
 CONTACT_MODELS = tuple(CONTACT_LAWS)
 
 
 @dataclass(frozen=True, eq=False)
-class Tendon:
-    """A cable: polyline through ``points`` (P, 3) given in the rest frame, each bound to the tet
-    that contains it. ``stiffness`` [N/m]; ``rest_length`` = assembly length alpha0 [m]
-    (default: the polyline's rest length, i.e. just taut at assembly)."""
-
-    name: str
-    points: np.ndarray
-    stiffness: float = 1e5
-    rest_length: float | None = None
-
-
-def _is_positive_number(value: Any) -> bool:
-    """A finite number > 0 (not a bool, not a string)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        return False
-    return bool(np.isfinite(value) and value > 0)
-
-
-@dataclass(frozen=True)
-class Motor:
-    """A motor winding all its ``tendons`` by the same contraction u [m] (a tendon pair).
-
-    ``mirror`` names the motor on the other side (bilateral symmetry), ``u_min``/``u_max`` bound
-    the contraction [m], ``spool_radius`` [m] converts u to motor angle (u = r theta),
-    ``max_speed_rpm`` is the output shaft's no-load speed [rpm] (default
-    :data:`DEFAULT_MAX_SPEED_RPM`): the contraction moves at most ``max_contraction_speed``;
-    ``stall_torque`` [N m] is where the motor's speed falls to zero along its torque-speed line,
-    ``max_torque`` [N m] the torque its gearbox must not exceed (defaults
-    :data:`DEFAULT_STALL_TORQUE`, :data:`DEFAULT_MAX_TORQUE`; the law: :mod:`.motors`)."""
-
-    name: str
-    tendons: tuple[str, ...]
-    mirror: str | None = None
-    u_min: float = 0.0
-    u_max: float = 0.01
-    spool_radius: float = 0.005
-    max_speed_rpm: float = DEFAULT_MAX_SPEED_RPM
-    stall_torque: float = DEFAULT_STALL_TORQUE
-    max_torque: float = DEFAULT_MAX_TORQUE
-
-    @property
-    def max_contraction_speed(self) -> float:
-        """Largest speed of the contraction [m/s]: ``max_speed_rpm * 2 pi / 60 * spool_radius``."""
-        return self.max_speed_rpm * 2.0 * np.pi / 60.0 * self.spool_radius
-
-
-@dataclass(frozen=True, eq=False)
-class CableData:
-    """Flat tendon arrays for the kernels (see :mod:`soft_envs.sim.cables`)."""
-
-    pt_nodes: np.ndarray
-    pt_w: np.ndarray
-    ptr: np.ndarray
-    rest_length: np.ndarray
-    stiffness: np.ndarray
-    tendon_motor: np.ndarray
-
-
-@dataclass(frozen=True, eq=False)
 class Robot:
-    """Static description of a robot. Use :meth:`from_mesh` to build one."""
+    """Static description of a robot: frozen, its arrays read-only. Use :meth:`from_mesh` to
+    build one; :meth:`replace` gives a changed copy. n is the number of nodes, T of tendons, M of
+    motors; indices are into ``mesh.points``. Quantities derived from the fields (masses, the
+    contraction ranges, the cable arrays) are properties below.
+
+    Attributes:
+        name (str): the robot's name (the folder name of a shipped robot).
+        mesh (TetMesh): the tetrahedral mesh in the rest frame: ``mesh.points`` (n, 3) [m],
+            ``mesh.tets`` (n_tets, 4) node indices.
+        youngs_modulus (float): Young's modulus E of the neo-Hookean material [Pa] (per tet times
+            ``modulus_scale``).
+        poisson_ratio (float): Poisson's ratio nu [-], in (-1, 0.5).
+        density (float): mass density of the body [kg/m^3], > 0.
+        tendons (tuple[Tendon, ...]): the T cables (:class:`~soft_envs.sim.drive.Tendon`: points
+            (P_t, 3) [m] in the rest frame, stiffness [N/m], rest length [m]).
+        motors (tuple[Motor, ...]): the M motors (:class:`~soft_envs.sim.drive.Motor`:
+            contraction range [m], spool radius [m], speed [rpm], torques [N m]); the order of
+            the controls ``u`` (M,).
+        payload_mass (float): mass carried by the body [kg], >= 0 (the motor assembly), spread
+            evenly over ``payload_nodes``.
+        payload_nodes (np.ndarray): (P,) int64, sorted unique node indices carrying the payload.
+        fixed_nodes (np.ndarray): (F,) int64, sorted unique node indices held at their rest
+            positions (none for a walking robot; a robot with some is not set on the ground).
+        contact (ContactParams): the ground contact law's name and parameters
+            (:class:`~soft_envs.sim.contact.ContactParams`).
+        body_length (float): the robot's length [m] (speeds are in body lengths per unit time);
+            by default the extent of the mesh along x.
+        cable_blend (float): width [m] of the C2 blend of the cables' one-sided quadratic energy,
+            >= 0 (0: half-quadratic).
+        source (str): where the robot came from (a robot.toml path, ``"<python>"``), the prefix of
+            its error messages.
+        markers (tuple[Marker, ...]): tracked points (:class:`~soft_envs.sim.markers.Marker`: a
+            name and a point (3,) [m] in the rest frame), bound to the mesh as :attr:`marker_set`.
+        modulus_scale (np.ndarray | None): (n_tets,) positive per-tet factor [-] on
+            ``youngs_modulus``, or None for a uniform material; the regional moduli of a design
+            (:mod:`soft_envs.sim.design`) set it.
+    """
 
     name: str
     mesh: TetMesh
@@ -119,8 +87,6 @@ class Robot:
     cable_blend: float = 2e-4
     source: str = "<python>"
     markers: tuple[Marker, ...] = ()
-    #: per-tet factor on ``youngs_modulus`` (None: uniform); the regional moduli of a design
-    #: (:mod:`soft_envs.sim.design`) set it
     modulus_scale: np.ndarray | None = None
 
     def __post_init__(self):
@@ -163,7 +129,8 @@ class Robot:
         markers = tuple(m if isinstance(m, Marker) else Marker(str(m["name"]), np.asarray(m["point"], float))
                         for m in self.markers)
         object.__setattr__(self, "markers", markers)
-        self._check_cables()
+        check_drive(self)
+        _ = self._binding         # binds the tendons' points now, so errors surface at construction
         _ = self.marker_set       # binds the markers now, so errors surface at construction
 
     # ------------------------------------------------------------------ construction
@@ -196,67 +163,11 @@ class Robot:
         """A copy with some fields changed (e.g. ``youngs_modulus`` for domain randomisation)."""
         return dataclasses.replace(self, **changes)
 
-    def _check_cables(self) -> None:
-        names = [t.name for t in self.tendons]
-        if len(set(names)) != len(names):
-            raise ValueError(f"{self.source}: duplicate tendon names {sorted(names)}")
-        mnames = [m.name for m in self.motors]
-        if len(set(mnames)) != len(mnames):
-            raise ValueError(f"{self.source}: duplicate motor names {sorted(mnames)}")
-        for i, m in enumerate(self.motors):
-            where = f"{self.source}: motors[{i}] ({m.name!r})"
-            if not m.tendons:
-                raise ValueError(f"{where}.tendons is empty")
-            for t in m.tendons:
-                if t not in names:
-                    raise ValueError(f"{where}.tendons names unknown tendon {t!r} (known: {names})")
-            if not (np.isfinite(m.u_min) and np.isfinite(m.u_max) and m.u_min < m.u_max):
-                raise ValueError(f"{where}: need finite u_min < u_max, got {m.u_min}, {m.u_max}")
-            if not (np.isfinite(m.spool_radius) and m.spool_radius > 0):
-                raise ValueError(f"{where}.spool_radius must be a finite positive number, got {m.spool_radius}")
-            for key, unit in (("max_speed_rpm", "rpm"), ("stall_torque", "N m"), ("max_torque", "N m")):
-                value = getattr(m, key)
-                if not _is_positive_number(value):
-                    raise ValueError(f"{where}.{key} must be a finite positive number [{unit}], got {value!r}")
-            if m.mirror is not None:
-                if m.mirror not in mnames:
-                    raise ValueError(f"{where}.mirror names unknown motor {m.mirror!r}")
-                back = self.motors[mnames.index(m.mirror)].mirror
-                if back != m.name:
-                    raise ValueError(f"{where}.mirror: the mirror map is not an involution: "
-                                     f"{m.name!r} -> {m.mirror!r} -> {back!r}")
-        used = [t for m in self.motors for t in m.tendons]
-        dup = {t for t in used if used.count(t) > 1}
-        if dup:
-            raise ValueError(f"{self.source}: tendons driven by more than one motor: {sorted(dup)}")
-        _ = self._binding   # binds the points now, so errors surface at construction
-
     @cached_property
     def _binding(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        out = []
-        for i, t in enumerate(self.tendons):
-            pts = np.asarray(t.points, dtype=np.float64)
-            if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2:
-                raise ValueError(f"{self.source}: tendons[{i}] ({t.name!r}).points must be a list of at "
-                                 f"least two 3-D points, got shape {pts.shape}")
-            if not (np.isfinite(t.stiffness) and t.stiffness > 0):
-                raise ValueError(f"{self.source}: tendons[{i}] ({t.name!r}).stiffness must be positive")
-            tets, ws = [], []
-            scale = 1e-6 * self.body_length
-            for j, p in enumerate(pts):
-                hit = self.mesh.locate(p, tol=1e-6)
-                if hit is None:
-                    raise ValueError(f"{self.source}: tendons[{i}] ({t.name!r}).points[{j}] = {p.tolist()} "
-                                     "lies outside the body")
-                e, w = hit
-                w = np.clip(w, 0.0, None)
-                tets.append(e)
-                ws.append(w / w.sum())
-            seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-            if (seg <= scale).any():
-                raise ValueError(f"{self.source}: tendons[{i}] ({t.name!r}) has coincident consecutive points")
-            out.append((np.array(tets), np.array(ws)))
-        return out
+        """Per tendon, ``(tets (P_t,), weights (P_t, 4))``: where its points sit in the mesh
+        (:func:`~soft_envs.sim.drive.bind_tendons`)."""
+        return bind_tendons(self)
 
     # ------------------------------------------------------------------ derived data
     @property
@@ -369,23 +280,9 @@ class Robot:
         return np.ones(self.mesh.n_tets) if self.modulus_scale is None else np.array(self.modulus_scale)
 
     @cached_property
-    def cable_data(self) -> "CableData":
-        bind = self._binding
-        nodes = [self.mesh.tets[tets] for tets, _ in bind]
-        ws = [w for _, w in bind]
-        ptr = np.cumsum([0] + [len(n) for n in nodes]).astype(np.int64)
-        rest = []
-        for t in self.tendons:
-            pts = np.asarray(t.points, dtype=np.float64)
-            rest.append(t.rest_length if t.rest_length is not None
-                        else float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()))
-        cd = CableData(
-            pt_nodes=np.ascontiguousarray(np.concatenate(nodes) if nodes else np.zeros((0, 4), np.int64)),
-            pt_w=np.ascontiguousarray(np.concatenate(ws) if ws else np.zeros((0, 4))),
-            ptr=ptr, rest_length=np.array(rest, dtype=np.float64),
-            stiffness=np.array([t.stiffness for t in self.tendons], dtype=np.float64),
-            tendon_motor=self.tendon_motor)
-        return cd
+    def cable_data(self) -> CableData:
+        """The tendons as flat arrays for the cable kernels (:func:`~soft_envs.sim.drive.cable_data`)."""
+        return cable_data(self, self._binding)
 
     @cached_property
     def marker_set(self) -> MarkerSet:

@@ -1,4 +1,4 @@
-"""Design parameters of a robot (issue #29): regional Young's moduli, tendon routing and leg
+"""Design parameters of a robot: regional Young's moduli, tendon routing and leg
 lengths, declared in robot.toml's ``[design]``, with their derivatives for the sensitivity
 recurrence. See docs/codesign.md."""
 from .block import MAX_MASS_LOSS, DesignParameters

@@ -1,5 +1,5 @@
 r"""A robot's design parameters as one vector theta, and as the parameter block of the
-sensitivity recurrence (issue #29 items 1-2).
+sensitivity recurrence.
 
 :class:`DesignParameters` strings the kinds together (:class:`~.regions.RegionalModuli`,
 :class:`~.routing.TendonRouting`, :class:`~.morph.LegMorph`): ``theta`` is their values side by side, :meth:`robot_at`

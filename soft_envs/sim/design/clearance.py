@@ -1,6 +1,6 @@
 r"""Clearance of a point in the body: its signed distance to the boundary surface of the rest
-mesh (positive inside), with the gradient, for the routing constraint "each via point at least
-2 mm inside the body" (issue #29).
+mesh (positive inside), with the gradient, for the routing constraint that keeps each via point at
+least 2 mm inside the body.
 
 ``d(q) = s(q) min_f |q - c_f(q)|`` with ``c_f`` the closest point of boundary triangle f and
 ``s = +1`` inside the body (:meth:`~soft_envs.sim.mesh.TetMesh.locate`), -1 outside. Where the

@@ -1,4 +1,4 @@
-"""The ``[design]`` table of a robot.toml: which design parameters co-design may vary (issue #29).
+"""The ``[design]`` table of a robot.toml: which design parameters co-design may vary.
 
 .. code-block:: toml
 

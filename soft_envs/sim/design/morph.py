@@ -1,5 +1,5 @@
 r"""Leg lengths as design parameters: a smooth morph of the rest shape along the up axis
-(issue #29, geometry).
+(a change of the robot's geometry).
 
 A leg is a connected set of tets below the hip height ``y_h`` (:func:`legs_below`). Lengthening
 leg l by ``s_l`` [m] moves the rest nodes

@@ -1,4 +1,4 @@
-r"""Material distribution as design parameters: Young's modulus per named region (issue #29).
+r"""Material distribution as design parameters: Young's modulus per named region.
 
 A region is a set of tets: those whose centroid lies in one of its boxes, or those carrying a
 cell tag of the mesh. Regions are disjoint; tets in no region keep the robot's fitted modulus.

@@ -1,5 +1,5 @@
 r"""Derivatives with respect to the rest shape: moving the rest node positions ``X`` by ``dX``
-(n, 3) and the tendons' rest points ``q`` by ``dq`` (issue #29, the geometry morphs).
+(n, 3) and the tendons' rest points ``q`` by ``dq`` (what the geometry morphs do: :mod:`.morph`).
 
 Per tet, with ``Dm = [X_1 - X_0, X_2 - X_0, X_3 - X_0]``, ``B = Dm^{-1}`` (the rows of which are
 the shape-function gradients ``N_1..N_3``, ``N_0 = -sum``), ``V = det(Dm)/6`` and ``F = Ds B``:

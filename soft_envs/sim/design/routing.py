@@ -1,4 +1,4 @@
-r"""Tendon routing as design parameters: the rest positions of the tendons' via points (issue #29).
+r"""Tendon routing as design parameters: the rest positions of the tendons' via points.
 
 Embedding. A cable point with rest position ``q`` lies in tet ``e`` with barycentric
 coordinates ``w_a(q)``, affine in ``q`` inside the tet with ``dw_a/dq = N_a`` (the tet's

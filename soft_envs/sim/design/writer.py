@@ -1,4 +1,4 @@
-"""Writing a designed robot as a robot folder that every command loads unchanged (issue #29).
+"""Writing a designed robot as a robot folder that every command loads unchanged.
 
 :func:`write_designed_robot` copies the source robot.toml (comments and layout kept, through
 tomlkit) into a new folder and sets what the design changed, in the file's own frame and
