@@ -35,10 +35,39 @@ def train_with_options(robot: str, *, algo: str = "ppo", timesteps: int = 30_000
         env_kwargs["target_heading_deg"] = heading
     if contact:
         env_kwargs["contact"] = contact
-    return train(robot, algo, timesteps, seed, out, name=name, n_envs=n_envs, vec_env=vec_env, frame_skip=frame_skip,
-                 max_episode_steps=episode_steps, env_kwargs=env_kwargs, hyperparams=parse_overrides(list(hp)),
-                 checkpoint_every=checkpoint_every, progress_bar=not no_progress and sys.stderr.isatty(),
-                 log_stdout=verbose, overwrite=overwrite)
+    bar = not no_progress and sys.stderr.isatty()
+    heartbeat = None if no_progress or bar else _Heartbeat(timesteps, algo, robot)
+    try:
+        return train(robot, algo, timesteps, seed, out, name=name, n_envs=n_envs, vec_env=vec_env,
+                     frame_skip=frame_skip, max_episode_steps=episode_steps, env_kwargs=env_kwargs,
+                     hyperparams=parse_overrides(list(hp)), checkpoint_every=checkpoint_every, progress_bar=bar,
+                     log_stdout=verbose, overwrite=overwrite,
+                     callback=None if heartbeat is None else heartbeat.callback())
+    finally:
+        if heartbeat is not None:
+            heartbeat.progress.close()
+
+
+class _Heartbeat:
+    """Off a terminal (no bar), a plain line on stderr after 30 s without one, with the
+    environment steps done (:class:`trajopt.progress.Progress`)."""
+
+    def __init__(self, timesteps: int, algo: str, robot: str):
+        from ..progress import Progress
+        self.progress = Progress(int(timesteps), "rl train", "step", tty=False, per_item=False,
+                                 first_line=f"rl train: {algo.upper()} on {robot}, {int(timesteps):,} environment "
+                                            "steps (a line at least every 30 s)")
+
+    def callback(self):
+        from stable_baselines3.common.callbacks import BaseCallback
+        progress = self.progress
+
+        class _Count(BaseCallback):
+            def _on_step(self) -> bool:
+                progress.n = int(self.num_timesteps)
+                return True
+
+        return _Count()
 
 
 #: the options of ``trajopt rl train`` and of a sweep's ``rl-train`` runs (the keywords above)
