@@ -22,7 +22,7 @@ from soft_envs.envs import compile_ahead, make_gradient_env
 
 from .fidelity import fidelity_record
 from .hardware.signals import Terminated, signal_label
-from .results.files import RESULTS_DIR
+from .results.files import RESULTS_DIR, robot_file_name
 from .optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
 from .optim.motor_limit import IDEAL, MOTOR_MODELS, TORQUE_SPEED
@@ -105,10 +105,11 @@ class OptimizeRun:
         return tuple(self.ensemble) if len(self.ensemble) else DEFAULT_ENSEMBLE
 
     def result_file(self) -> Path:
-        """``OUT/NAME.npz`` (NAME default ``ROBOT_TASK``; a dot in NAME is kept)."""
-        robot = str(self.robot)
-        name = self.name or f"{Path(robot).stem if robot.endswith('.toml') else robot}_{self.task}"
+        """``OUT/NAME.npz`` (NAME default ``ROBOT_TASK``, ROBOT a robot file's ``[robot] name``;
+        a dot in NAME is kept)."""
+        name = self.name or f"{robot_file_name(str(self.robot))}_{self.task}"
         return result_path(Path(self.out) / name)
+
 
 
 #: the options an optimisation run takes (a sweep file's ``optimize`` arguments)
