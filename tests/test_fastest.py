@@ -342,3 +342,14 @@ def test_speed_max_off_a_terminal_prints_plain_lines_and_a_heartbeat(monkeypatch
     assert [line.split(",")[0] for line in lines if "still working" not in line] == [
         "--speed max: 1/3 runs", "--speed max: 2/3 runs", "--speed max: 3/3 runs"]
     assert "--speed max: 0/3 runs, still working" in err and "best 12.00 BL/min" in err
+
+
+def test_the_search_table_says_its_target_is_tracked_not_enforced(tmp_path):
+    """The Markdown search table explains its target column (#41): the speed of the COM path an
+    optimisation tracked, not a speed it enforced."""
+    from trajopt.search.table import TABLE_COLUMNS, write_search_table
+    row = {c: 1 for c in TABLE_COLUMNS}
+    csv_path, md_path = write_search_table([row], tmp_path / "g.npz")
+    text = md_path.read_text()
+    assert "target_bl_per_min: the speed of the target COM path" in text and "does not enforce its speed" in text
+    assert csv_path.read_text().splitlines()[0] == ",".join(TABLE_COLUMNS)       # the CSV stays a table

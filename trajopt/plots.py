@@ -47,7 +47,8 @@ def plot_com_topdown(com: np.ndarray, target: np.ndarray | None, path: str | Pat
         ax.scatter(100 * pts[:, 0], 100 * pts[:, 2], s=4, color="gold", label="robot at start")
     if target is not None and len(target):
         t = np.asarray(target)
-        ax.plot(100 * t[:, 0], 100 * t[:, 1], "--", color="0.3", lw=1.2, zorder=4, label="target")
+        ax.plot(100 * t[:, 0], 100 * t[:, 1], "--", color="0.3", lw=1.2, zorder=4,
+                label="target COM path (tracked, not enforced)")
     k = int(prep_steps or 0)
     if k > 0:
         ax.plot(100 * com[:k + 1, 0], 100 * com[:k + 1, 2], color="0.6", lw=2, label="prep phase")
@@ -170,14 +171,15 @@ def plot_convergence(history: Sequence[Mapping], path: str | Path, *, subject: s
 
 def plot_speed_per_cycle(speeds: np.ndarray, path: str | Path, *, reference: float | None = None,
                          target: float | None = None, subject: str | None = None) -> Path:
-    """Speed of every repeated cycle [BL/min]; the ``target`` speed the gait was optimised for and
-    a ``reference`` (e.g. the paper's) as lines."""
+    """Speed of every repeated cycle [BL/min]; the ``target`` speed (of the target COM path the
+    optimiser tracked: not a speed it enforced) and a ``reference`` (e.g. the paper's) as lines."""
     s = np.asarray(speeds, dtype=np.float64)
     fig = Figure(figsize=(5, 3.5))
     ax = fig.add_subplot()
     ax.bar(np.arange(1, len(s) + 1), s, color="tab:green")
     if target is not None:
-        ax.axhline(target, color="tab:red", ls="-", lw=1.2, label=f"target: {target:g} BL/min")
+        ax.axhline(target, color="tab:red", ls="-", lw=1.2,
+                   label=f"tracking target: {target:g} BL/min (the target COM path's speed; not enforced)")
     if reference is not None:
         ax.axhline(reference, color="k", ls="--", label=f"paper: {reference:g} BL/min")
     if target is not None or reference is not None:
