@@ -190,6 +190,28 @@ def plot_speed_per_cycle(speeds: np.ndarray, path: str | Path, *, reference: flo
     return _save(fig, path)
 
 
+def plot_turn(t: np.ndarray, heading_deg: np.ndarray, path_speeds: Sequence[float], path: str | Path, *,
+              prep_time: float = 0.0, subject: str | None = None) -> Path:
+    """A turn: its heading [deg, from the start; + turns right] at every step over time [s], and
+    its speed along the COM path [BL/min] in every cycle (the chord from cycle to cycle, which
+    leaves out the sway within a stride), where a walk plots its speed along +x."""
+    fig = Figure(figsize=(5, 5))
+    top, bottom = fig.subplots(2, 1)
+    top.plot(np.asarray(t), np.asarray(heading_deg), color="tab:purple")
+    if prep_time > 0:
+        top.axvspan(0.0, prep_time, color="0.9", label="prep phase")
+        top.legend(loc="best", fontsize=8)
+    top.set_xlabel("time [s]")
+    top.set_ylabel("heading change [deg]")
+    s = np.asarray(path_speeds, dtype=np.float64)
+    bottom.bar(np.arange(1, len(s) + 1), s, color="tab:green")
+    bottom.set_xlabel("cycle")
+    bottom.set_ylabel("speed along the path\n[body lengths / min]")
+    top.set_title(_title("turn: heading over time and speed along the COM path", subject), fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def plot_speed_vs_steps(curves: Mapping[str, tuple[np.ndarray, np.ndarray]], path: str | Path) -> Path:
     """Speed [BL/min] against simulation steps spent, one curve per method (log x axis)."""
     fig = Figure(figsize=(6, 4))
