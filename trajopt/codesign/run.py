@@ -433,7 +433,8 @@ def _summary(run, env, baseline, result, reopt, state, changes, checks, wall) ->
 def _report(run, shipped, designed, summary, changes, checks, settings) -> Path:
     from .report import plot_robots_side_by_side, write_codesign_report
     picture = run.out / "codesign.png"
-    plot_robots_side_by_side(shipped, designed, picture)
+    plot_robots_side_by_side(shipped, designed, picture,
+                             speeds=(summary["before_bl_per_min"], summary["after_bl_per_min"]))
     before = {"speed_bl_per_min": summary["before_bl_per_min"], "n_cycle": summary["n_cycle"],
               "n_keyframes": summary["n_keyframes"]}
     after = {"speed_bl_per_min": summary["after_bl_per_min"], "n_cycle": summary["n_cycle"],

@@ -166,7 +166,11 @@ def plot_robustness(report: dict, samples: list[dict], path: Path) -> Path:
     axes.flat[1].legend(fontsize=7)
     for ax in axes.flat[1 + len(names):]:
         ax.axis("off")
-    fig.tight_layout()
+    gait, n = Path(str(report.get("result", "the gait"))).name, report.get("cycles")
+    cycles = "" if n is None else f" of {n} cycle{'s' * (n != 1)}"
+    fig.suptitle(f"robustness of the gait {gait}: its speed over {len(samples)} perturbed replays{cycles}",
+                 fontsize=12)
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
     return atomic_write_png(fig, path, dpi=90)
 
 
