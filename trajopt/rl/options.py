@@ -45,29 +45,45 @@ def train_with_options(robot: str, *, algo: str = "ppo", timesteps: int = 30_000
                      callback=None if heartbeat is None else heartbeat.callback())
     finally:
         if heartbeat is not None:
-            heartbeat.progress.close()
+            heartbeat.close()
 
 
 class _Heartbeat:
-    """Off a terminal (no bar), a plain line on stderr after 30 s without one, with the
-    environment steps done (:class:`trajopt.progress.Progress`)."""
+    """Off a terminal (no bar), a plain line on stderr when training starts and after 30 s
+    without one, with the environment steps done (:class:`trajopt.progress.Progress`); nothing
+    for a run refused before it trains."""
 
     def __init__(self, timesteps: int, algo: str, robot: str):
-        from ..progress import Progress
-        self.progress = Progress(int(timesteps), "rl train", "step", tty=False, per_item=False,
-                                 first_line=f"rl train: {algo.upper()} on {robot}, {int(timesteps):,} environment "
-                                            "steps (a line at least every 30 s)")
+        self.timesteps, self.algo, self.robot = int(timesteps), algo, robot
+        self.progress = None
 
     def callback(self):
+        from . import require_sb3
+        require_sb3()                # MissingRLDependencies, saying how to install, before the import
         from stable_baselines3.common.callbacks import BaseCallback
-        progress = self.progress
+        outer = self
 
         class _Count(BaseCallback):
+            def _on_training_start(self) -> None:
+                from ..progress import Progress
+                outer.progress = Progress(outer.timesteps, "rl train", "step", tty=False, per_item=False,
+                                          first_line=f"rl train: {outer.algo.upper()} on {outer.robot}, "
+                                                     f"{outer.timesteps:,} environment steps (a line at least "
+                                                     "every 30 s)")
+
             def _on_step(self) -> bool:
-                progress.n = int(self.num_timesteps)
+                if outer.progress is not None:
+                    outer.progress.n = int(self.num_timesteps)
                 return True
 
+            def _on_training_end(self) -> None:
+                outer.close()
+
         return _Count()
+
+    def close(self) -> None:
+        if self.progress is not None:
+            self.progress.close()
 
 
 #: the options of ``trajopt rl train`` and of a sweep's ``rl-train`` runs (the keywords above)
