@@ -201,7 +201,8 @@ def test_cli_train_off_a_terminal_beats_and_ends_with_the_speed(tmp_path, capsys
     assert err.startswith("rl train: PPO on tripod, 64 environment steps") and "\r" not in err
     assert "steps, still working" in err
     import re
-    assert re.search(r"^  speed: +-?\d+\.\d\d BL/min along the target over 6 cycles \((upright|fell over);", out, re.M), out
+    assert re.search(r"^  speed: +-?\d+\.\d\d BL/min along the target over 6 cycles \((upright|fell over);",
+                     out, re.M), out
 
 
 def test_hyperparameter_overrides_parse():

@@ -308,7 +308,8 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
         elif store.folder.exists():
             store.remove()
         store.start([row for row, _ in replay])
-    search = _Search(env, settings, heading_deg, robot_spec, _progress(len(candidates) + settings.n_fine, quiet, log is None),
+    bar = _progress(len(candidates) + settings.n_fine, quiet, per_item=log is None)
+    search = _Search(env, settings, heading_deg, robot_spec, bar,
                      log or (lambda text: None), replay, store, model)
     try:
         previous: Result | None = None          # the last candidate's result: the next one's warm start

@@ -22,14 +22,14 @@ from soft_envs.envs import compile_ahead, make_gradient_env
 
 from .fidelity import fidelity_record
 from .hardware.signals import Terminated, signal_label
-from .results.files import RESULTS_DIR, robot_file_name
+from .results.files import RESULTS_DIR
 from .optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
 from .optim.gauss_newton import GaussNewtonOptions
 from .optim.motor_limit import IDEAL, MOTOR_MODELS, TORQUE_SPEED
 from .optim.optimize import optimize_gait
 from .results.reservation import lock_path, reserve
 from .results.robot_match import robot_reference
-from .results.result import Result, partial_path, result_path
+from .results.result import Result, partial_path, result_path, robot_file_name
 from .tasks.registry import get_task
 
 __all__ = ["OptimizeRun", "run_optimization", "OPTIMIZE_OPTIONS"]

@@ -153,7 +153,8 @@ def _add_result_commands(sub) -> None:
     p.add_argument("--overwrite", action="store_true", help=_OVERWRITE_HELP)
     p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
     p.set_defaults(func=_cmd_export)
-    p = sub.add_parser("plot", help="COM path, controls, convergence, speed (a turn: heading and path speed) and motor plots")
+    p = sub.add_parser("plot", help="COM path, controls, convergence, speed (a turn: heading and path speed) "
+                                    "and motor plots")
     p.add_argument("result", type=Path)
     p.add_argument("--out", type=output_dir, default=RESULTS_DIR / "plots",
                    help=f"output directory (default {RESULTS_DIR}/plots/)")

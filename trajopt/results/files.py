@@ -23,7 +23,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["RESULTS_DIR", "robot_file_name", "atomic_output", "atomic_write_bytes", "clean_stale_temporaries", "temporary_name",
+__all__ = ["RESULTS_DIR", "atomic_output", "atomic_write_bytes", "clean_stale_temporaries", "temporary_name",
            "check_output_dir", "refuse_existing", "LEGACY_STALE_SECONDS"]
 
 #: Where the ``trajopt`` commands write by default: results (.npz/.json), GIFs, ``plots/``,
@@ -194,19 +194,3 @@ def decode_utf8(data: bytes, src: str | os.PathLike, *, hint: str = "save it as 
         at = bom + exc.start
         line = data.count(b"\n", 0, at) + 1
         raise ValueError(f"{src}: not UTF-8 text: byte {data[at]:#04x} at offset {at} (line {line}); {hint}") from None
-
-
-def robot_file_name(robot: str) -> str:
-    """A shipped robot's name, or a robot file's ``[robot] name`` (``quadruped`` for
-    ``results/my_robot/robot.toml``); the file's stem when it names none usable."""
-    if not robot.endswith(".toml"):
-        return robot
-    import tomllib
-    try:
-        with open(robot, "rb") as fh:
-            name = tomllib.load(fh).get("robot", {}).get("name")
-    except (OSError, tomllib.TOMLDecodeError, AttributeError):
-        name = None
-    ok = (isinstance(name, str) and name.strip() == name and name not in ("", ".", "..")
-          and not set(name) & set("/\\\0"))
-    return name if ok else Path(robot).stem
