@@ -121,6 +121,8 @@ def test_optimize_says_what_the_status_means_where_the_files_are_and_what_next(t
     assert "not a failure" in out
     assert f"trajopt render {path}" in out and f"trajopt plot {path}" in out
     assert "Gauss-Newton iteration 1/1: objective" in err and "\r" not in err       # plain lines in a log
+    # the target is the tracked COM path's speed, not enforced (#41)
+    assert "tracking target   8 BL/min: the speed of the target COM path the optimiser tracks, not enforced" in out
     assert not path.with_name("tripod_walk.partial.npz").exists()
 
 

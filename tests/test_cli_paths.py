@@ -215,3 +215,24 @@ def test_evaluate_says_a_gait_was_made_without_the_motor_limit(tmp_path, capsys)
     capsys.readouterr()
     assert main(["evaluate", str(tmp_path / "limited.npz"), "--cycles", "1"]) in (0, 1)
     assert "made without it" not in capsys.readouterr().out
+
+
+def test_an_own_robots_result_is_named_after_the_robot(robot_dir, tmp_path):
+    """``trajopt optimize results/my_robot/robot.toml --task walk`` writes ``quadruped_walk.npz``
+    (the file's ``[robot] name``, as the docs and examples/robot_from_surface.py say), not
+    ``robot_walk.npz`` (#41); a file without a usable name falls back to its stem, and shipped
+    robots keep theirs."""
+    import shutil
+
+    from trajopt.optimize_run import OptimizeRun
+    folder = tmp_path / "my_robot"
+    folder.mkdir()
+    shutil.copy(robot_dir / "tripod.vtu", folder / "tripod.vtu")
+    text = (robot_dir / "robot.toml").read_text()
+    (folder / "robot.toml").write_text(text.replace('name = "tripod"', 'name = "quadruped"', 1))
+    assert OptimizeRun(robot=str(folder / "robot.toml"), task="walk", out=tmp_path).result_file() == \
+        tmp_path / "quadruped_walk.npz"
+    (folder / "robot.toml").write_text(text.replace('name = "tripod"', 'name = "a/b"', 1))
+    assert OptimizeRun(robot=str(folder / "robot.toml"), task="walk", out=tmp_path).result_file().name == \
+        "robot_walk.npz"
+    assert OptimizeRun(robot="tripod", task="walk", out=tmp_path).result_file() == tmp_path / "tripod_walk.npz"

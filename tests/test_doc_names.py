@@ -93,3 +93,10 @@ def test_named_modules_and_files_exist(group):
     files = [f for f in scanned_files() if (f.suffix == ".md") == (group == "docs")]
     stale = stale_names(files)
     assert not stale, "names of things that do not exist (moved or removed?):\n" + "\n".join(stale)
+
+
+def test_the_rl_zoo_pillow_downgrade_is_documented_with_its_workaround():
+    """Installing rl_zoo3 downgrades Pillow (moviepy's pin, through sb3-team-hf-integration): the
+    docs say so where the RL sweeps are documented, with the command that keeps Pillow (#41)."""
+    text = (ROOT / "docs" / "scale.md").read_text()
+    assert "rl_zoo3" in text and "pillow<12" in text and 'pip install rl_zoo3 "pillow>=12"' in text

@@ -42,7 +42,9 @@ EXPECTED = {
                             r"aborted: motor 'front' .*: tracking error \d+ counts",
                             r"(?m)^motors confirmed stopped: front, back$"],
     "rl_baseline.py": [r"trained 64 steps in \d+ s", r"PPO     : +[+-]?\d+\.\d+ BL/min, upright: (True|False)",
-                       r"exported: "],
+                       r"compared against: nothing here \(pass a trajopt result .*\); the headline "
+                       r"\(benchmarks/results/rl_vs_trajopt_coulomb\.md\) compares PPO and SAC with the fastest gait "
+                       r".*`trajopt optimize tripod --speed max`", r"exported: "],
     "puppy_turn.py": [r"puppy walk, \d+ steps x 8 motors", r"puppy turn, \d+ steps x 8 motors, .* along its path",
                       r"heading over the optimised horizon: [+-]\d+\.\d deg \(target \+90\)",
                       r"heading per cycle \[deg\], 6 cycles:( [+-]\d+\.\d){6}",
@@ -141,3 +143,32 @@ def test_quick_runs_have_their_own_file_names():
     for script in EXAMPLES:
         if script.name in WRITES:
             assert re.search(r"quick", script.read_text().split('"""', 2)[-1]), script.name
+
+
+def test_the_rl_example_says_what_it_compares_against(tmp_path):
+    """examples/rl_baseline.py names the gait it compares the policy with and how it relates to
+    the headline (#41): the default walk tracks 8 BL/min on a 72-step cycle, not the fastest gait
+    (the headline's `--speed max`)."""
+    import importlib.util
+
+    import numpy as np
+
+    from trajopt import Result
+    spec = importlib.util.spec_from_file_location("rl_baseline_example", ROOT / "examples" / "rl_baseline.py")
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except ImportError as exc:                   # the example imports trajopt.rl
+        pytest.skip(f"needs the RL extra: {exc}")
+    K = 24 + 72
+    walk = Result(robot="tripod", task="walk", motor_names=["front", "back"], dt=0.033, z=np.zeros(2),
+                  u=np.zeros((K, 2)), u_post=np.zeros((K, 2)), target=np.zeros((K + 1, 2)), com=np.zeros((K + 1, 3)),
+                  settings={"speed_bl_per_min": 8.0, "n_cycle": 72, "n_prep": 24})
+    path = walk.save(tmp_path / "tripod_walk.npz")
+    text = module.comparison(str(path))
+    assert "tracks a 8 BL/min COM path on a 72-step cycle: it is not the fastest gait" in text
+    assert "`trajopt optimize tripod --speed max`" in text
+    walk.settings["search"] = {"runs": 12}
+    fastest = walk.save(tmp_path / "tripod_fastest.npz")
+    assert "a --speed max gait (the fastest within the motors' limits), as in the headline" in \
+        module.comparison(str(fastest))

@@ -309,3 +309,47 @@ def test_speed_max_returns_the_fastest_upright_gait_never_one_that_fell(monkeypa
     with pytest.raises(SimulationError, match="none of the 3 gaits tried stayed upright"):
         fastest.fastest_gait("tripod", settings=settings, quiet=True, motor_model="speed")
     assert all(stage == "coarse" for stage, _, _ in calls)            # nothing fell into the fine stage
+
+
+def test_speed_max_off_a_terminal_prints_plain_lines_and_a_heartbeat(monkeypatch, capsys):
+    """Off a terminal, ``--speed max`` prints a plain line per optimisation (no tqdm carriage
+    returns in a log) and a heartbeat when one takes longer than the heartbeat period (30 s,
+    shortened here) (#41)."""
+    import time
+    from types import SimpleNamespace
+
+    import trajopt.fastest as fastest
+    import trajopt.progress
+
+    monkeypatch.setattr(trajopt.progress, "HEARTBEAT_S", 0.05)
+    settings = SearchSettings(cycle_steps=(8, 12), keyframes=(4,), seeds=0, coarse_iterations=1, fine_iterations=1,
+                              n_fine=1, min_horizon_steps=16, n_prep=4, eval_cycles=2, revisit=False)
+
+    def fake_optimize(env, task, *, gait, z0=None, motor_model=None, **kw):
+        time.sleep(0.3)                                   # a slow optimisation
+        settings_ = {"n_prep": gait.n_prep, "n_cycle": gait.n_cycle, "n_cycles": gait.n_cycles,
+                     "n_keyframes": gait.n_keyframes, "eval_cycles": 2, "symmetry": gait.symmetry,
+                     "interpolation": gait.interpolation, "keyframes": np.zeros((2, gait.n_keyframes)).tolist()}
+        return SimpleNamespace(settings=settings_, history=[{}], status="max_iter", z=np.full(4, gait.n_cycle),
+                               evaluation={"speed_bl_per_min": float(gait.n_cycle), "upright": True,
+                                           "max_tilt_deg": 5.0, "optimization_sim_steps": 10})
+
+    monkeypatch.setattr(fastest, "optimize_gait", fake_optimize)
+    fastest.fastest_gait("tripod", settings=settings, quiet=False, motor_model="speed")
+    err = capsys.readouterr().err
+    assert "\r" not in err
+    lines = err.splitlines()
+    assert [line.split(",")[0] for line in lines if "still working" not in line] == [
+        "--speed max: 1/3 runs", "--speed max: 2/3 runs", "--speed max: 3/3 runs"]
+    assert "--speed max: 0/3 runs, still working" in err and "best 12.00 BL/min" in err
+
+
+def test_the_search_table_says_its_target_is_tracked_not_enforced(tmp_path):
+    """The Markdown search table explains its target column (#41): the speed of the COM path an
+    optimisation tracked, not a speed it enforced."""
+    from trajopt.search.table import TABLE_COLUMNS, write_search_table
+    row = {c: 1 for c in TABLE_COLUMNS}
+    csv_path, md_path = write_search_table([row], tmp_path / "g.npz")
+    text = md_path.read_text()
+    assert "target_bl_per_min: the speed of the target COM path" in text and "does not enforce its speed" in text
+    assert csv_path.read_text().splitlines()[0] == ",".join(TABLE_COLUMNS)       # the CSV stays a table

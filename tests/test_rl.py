@@ -187,6 +187,24 @@ def test_cli_train_small(tmp_path):
     assert code == 0 and (tmp_path / "cli" / "model.zip").is_file()
 
 
+def test_cli_train_off_a_terminal_beats_and_ends_with_the_speed(tmp_path, capsys, monkeypatch):
+    """Off a terminal (captured), ``rl train`` prints a plain line at least every heartbeat
+    period (shortened here from 30 s) while it trains, no carriage return, and ends with the
+    trained policy's speed in BL/min (#41)."""
+    import trajopt.progress
+    monkeypatch.setattr(trajopt.progress, "HEARTBEAT_S", 0.05)
+    code = main(["rl", "train", "tripod", "--algo", "ppo", "--timesteps", "64", "--n-envs", "1",
+                 "--out", str(tmp_path), "--name", "cli", "--hp", "n_steps=32", "--hp", "batch_size=32",
+                 "--hp", "n_epochs=1", "--hp", "policy_kwargs=dict(net_arch=[8])"])
+    out, err = capsys.readouterr()
+    assert code == 0
+    assert err.startswith("rl train: PPO on tripod, 64 environment steps") and "\r" not in err
+    assert "steps, still working" in err
+    import re
+    assert re.search(r"^  speed: +-?\d+\.\d\d BL/min along the target over 6 cycles \((upright|fell over);",
+                     out, re.M), out
+
+
 def test_hyperparameter_overrides_parse():
     from trajopt.rl.hyperparams import default_hyperparams, parse_overrides
     assert parse_overrides(["learning_rate=1e-3", "policy_kwargs=dict(net_arch=[32, 32])", "ent_coef=auto"]) == {

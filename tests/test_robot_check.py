@@ -32,6 +32,24 @@ def test_check_shipped_robot_prints_summary_and_draws(tmp_path, capsys):
     assert Image.open(png).size == (1200, 300 + 30 + 16)
 
 
+def test_check_prints_the_contact_law_in_use_and_its_parameters(tmp_path, capsys):
+    """The contact row names the law the robot is simulated with (the file's ``[contact] model``,
+    the default when it names none) and that law's parameters, not the paper law's friction
+    weight under a Coulomb robot (#41)."""
+    assert main(["check", "tripod", "--no-picture"]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if line.lstrip().startswith("contact"))
+    assert "coulomb law (the robot file's [contact] model" in row
+    assert "friction_coefficient 0.8" in row and "slip_distance 0.0003 m" in row and "1/m" not in row
+    folder = tmp_path / "paper"
+    shutil.copytree(Path(asset_path("tripod")).parent, folder)
+    text = (folder / "robot.toml").read_text()
+    (folder / "robot.toml").write_text(text.replace('model = "coulomb"\n', "", 1))
+    assert main(["check", str(folder / "robot.toml"), "--no-picture"]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if line.lstrip().startswith("contact"))
+    assert "paper law (the default: the robot file names none" in row and "friction 1000 1/m" in row
+    assert "friction_coefficient" not in row
+
+
 @pytest.mark.parametrize("edit, field", [
     (lambda s: s.replace("youngs_modulus = 1e+05", "youngs_modulus = \"soft\""), r"\[material\].youngs_modulus"),
     (lambda s: s.replace("[payload]", "[payload]\ncolour = 1"), r"\[payload\].colour"),

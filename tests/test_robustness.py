@@ -226,3 +226,42 @@ def test_a_line_cut_by_a_crash_is_repaired_and_its_sample_runs_again(tmp_path, c
     redone, first = json.loads(again[2]), json.loads(whole[2])
     assert redone["index"] == first["index"] and redone["speed_bl_per_min"] == first["speed_bl_per_min"]
     assert lines.read_text().endswith("\n")
+
+
+def test_robustness_off_a_terminal_beats_while_it_replays(tmp_path, capsys, monkeypatch):
+    """Off a terminal, no tqdm bar (no carriage return) but a plain line after any silence of
+    the heartbeat period (30 s, shortened here) while the replays run (#41)."""
+    import time
+
+    import trajopt.progress
+    import trajopt.robustness.report as report_module
+    monkeypatch.setattr(trajopt.progress, "HEARTBEAT_S", 0.05)
+    real = report_module.run_sample
+
+    def slow(job):
+        time.sleep(0.3)
+        return real(job)
+
+    monkeypatch.setattr(report_module, "run_sample", slow)
+    result = tiny_result(tmp_path)
+    assert main(["robustness", str(result), "--samples", "1", "--cycles", "1", "--out", str(tmp_path / "rob"),
+                 "--workers", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "robustness: 0/1 replays, still working" in err and "\r" not in err
+
+
+def test_the_robustness_plot_names_the_gait_it_studies(tmp_path, monkeypatch):
+    """robustness.png's title names the gait (its result file) and the replays (#41)."""
+    import trajopt.robustness.report as report_module
+    titles = []
+    real = report_module.atomic_write_png
+
+    def keep(fig, path, **kw):
+        titles.append(fig._suptitle.get_text())
+        return real(fig, path, **kw)
+
+    monkeypatch.setattr(report_module, "atomic_write_png", keep)
+    result = tiny_result(tmp_path)
+    assert main(["robustness", str(result), "--samples", "2", "--cycles", "1", "--out", str(tmp_path / "rob"),
+                 "--workers", "1"]) == 0
+    assert titles == [f"robustness of the gait {result.name}: its speed over 2 perturbed replays of 1 cycle"]

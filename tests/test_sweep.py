@@ -509,3 +509,19 @@ def test_rl_runs_call_the_library_and_write_their_files(tmp_path):
     rows = ev["fidelity"]["rows"]
     assert [r["factor"] for r in rows] == [1, 2, 4, 8] and rows[0]["speed_bl_per_min"] == ev["speed_bl_per_min"]
     assert [r["substeps"] for r in rows] == [ev["substeps"] * f for f in (1, 2, 4, 8)]
+
+
+def test_a_sweep_off_a_terminal_beats_while_a_run_is_running(tmp_path, monkeypatch):
+    """Off a terminal, a line per finished run (no carriage return), and a heartbeat line while
+    a run takes longer than the heartbeat period (30 s, shortened here) (#41)."""
+    import io
+
+    import trajopt.progress
+    monkeypatch.setattr(trajopt.progress, "HEARTBEAT_S", 0.05)
+    out, stream = tmp_path / "out", io.StringIO()
+    spec = load_spec(write(tmp_path, tiny_block("t{speed:g}", "speed = [5]")), out)
+    outcome = run_sweep(spec, out, serial=True, stream=stream)
+    assert outcome.statuses["t5"]["status"] == "done", outcome.statuses
+    text = stream.getvalue()
+    assert "\r" not in text and "sweep: 0/1 runs, still working" in text
+    assert text.splitlines()[-1].startswith("[1/1] done        t5 ")

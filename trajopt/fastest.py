@@ -127,11 +127,13 @@ def _evaluation_steps(res: Result) -> int:
 
 
 
-def _progress(total: int, quiet: bool):
+def _progress(total: int, quiet: bool, per_item: bool = True):
+    """A bar on a terminal; plain lines otherwise (one per run unless ``per_item`` is False, as
+    when a log prints each run already) and a heartbeat after 30 s without one."""
     if quiet:
         return None
-    from tqdm.auto import tqdm
-    return tqdm(total=total, desc="--speed max", unit="run", leave=True)
+    from .progress import Progress
+    return Progress(total, "--speed max", "run", per_item=per_item)
 
 
 
@@ -306,7 +308,8 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
         elif store.folder.exists():
             store.remove()
         store.start([row for row, _ in replay])
-    search = _Search(env, settings, heading_deg, robot_spec, _progress(len(candidates) + settings.n_fine, quiet),
+    bar = _progress(len(candidates) + settings.n_fine, quiet, per_item=log is None)
+    search = _Search(env, settings, heading_deg, robot_spec, bar,
                      log or (lambda text: None), replay, store, model)
     try:
         previous: Result | None = None          # the last candidate's result: the next one's warm start

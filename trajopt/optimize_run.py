@@ -29,7 +29,7 @@ from .optim.motor_limit import IDEAL, MOTOR_MODELS, TORQUE_SPEED
 from .optim.optimize import optimize_gait
 from .results.reservation import lock_path, reserve
 from .results.robot_match import robot_reference
-from .results.result import Result, partial_path, result_path
+from .results.result import Result, partial_path, result_path, robot_file_name
 from .tasks.registry import get_task
 
 __all__ = ["OptimizeRun", "run_optimization", "OPTIMIZE_OPTIONS"]
@@ -105,10 +105,11 @@ class OptimizeRun:
         return tuple(self.ensemble) if len(self.ensemble) else DEFAULT_ENSEMBLE
 
     def result_file(self) -> Path:
-        """``OUT/NAME.npz`` (NAME default ``ROBOT_TASK``; a dot in NAME is kept)."""
-        robot = str(self.robot)
-        name = self.name or f"{Path(robot).stem if robot.endswith('.toml') else robot}_{self.task}"
+        """``OUT/NAME.npz`` (NAME default ``ROBOT_TASK``, ROBOT a robot file's ``[robot] name``;
+        a dot in NAME is kept)."""
+        name = self.name or f"{robot_file_name(str(self.robot))}_{self.task}"
         return result_path(Path(self.out) / name)
+
 
 
 #: the options an optimisation run takes (a sweep file's ``optimize`` arguments)

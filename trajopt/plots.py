@@ -47,7 +47,8 @@ def plot_com_topdown(com: np.ndarray, target: np.ndarray | None, path: str | Pat
         ax.scatter(100 * pts[:, 0], 100 * pts[:, 2], s=4, color="gold", label="robot at start")
     if target is not None and len(target):
         t = np.asarray(target)
-        ax.plot(100 * t[:, 0], 100 * t[:, 1], "--", color="0.3", lw=1.2, zorder=4, label="target")
+        ax.plot(100 * t[:, 0], 100 * t[:, 1], "--", color="0.3", lw=1.2, zorder=4,
+                label="target COM path (tracked, not enforced)")
     k = int(prep_steps or 0)
     if k > 0:
         ax.plot(100 * com[:k + 1, 0], 100 * com[:k + 1, 2], color="0.6", lw=2, label="prep phase")
@@ -170,14 +171,15 @@ def plot_convergence(history: Sequence[Mapping], path: str | Path, *, subject: s
 
 def plot_speed_per_cycle(speeds: np.ndarray, path: str | Path, *, reference: float | None = None,
                          target: float | None = None, subject: str | None = None) -> Path:
-    """Speed of every repeated cycle [BL/min]; the ``target`` speed the gait was optimised for and
-    a ``reference`` (e.g. the paper's) as lines."""
+    """Speed of every repeated cycle [BL/min]; the ``target`` speed (of the target COM path the
+    optimiser tracked: not a speed it enforced) and a ``reference`` (e.g. the paper's) as lines."""
     s = np.asarray(speeds, dtype=np.float64)
     fig = Figure(figsize=(5, 3.5))
     ax = fig.add_subplot()
     ax.bar(np.arange(1, len(s) + 1), s, color="tab:green")
     if target is not None:
-        ax.axhline(target, color="tab:red", ls="-", lw=1.2, label=f"target: {target:g} BL/min")
+        ax.axhline(target, color="tab:red", ls="-", lw=1.2,
+                   label=f"tracking target: {target:g} BL/min (the target COM path's speed; not enforced)")
     if reference is not None:
         ax.axhline(reference, color="k", ls="--", label=f"paper: {reference:g} BL/min")
     if target is not None or reference is not None:
@@ -185,6 +187,28 @@ def plot_speed_per_cycle(speeds: np.ndarray, path: str | Path, *, reference: flo
     ax.set_xlabel("cycle")
     ax.set_ylabel("speed [body lengths / min]")
     ax.set_title(_title("speed over repeated cycles", subject), fontsize=10)
+    return _save(fig, path)
+
+
+def plot_turn(t: np.ndarray, heading_deg: np.ndarray, path_speeds: Sequence[float], path: str | Path, *,
+              prep_time: float = 0.0, subject: str | None = None) -> Path:
+    """A turn: its heading [deg, from the start; + turns right] at every step over time [s], and
+    its speed along the COM path [BL/min] in every cycle (the chord from cycle to cycle, which
+    leaves out the sway within a stride), where a walk plots its speed along +x."""
+    fig = Figure(figsize=(5, 5))
+    top, bottom = fig.subplots(2, 1)
+    top.plot(np.asarray(t), np.asarray(heading_deg), color="tab:purple")
+    if prep_time > 0:
+        top.axvspan(0.0, prep_time, color="0.9", label="prep phase")
+        top.legend(loc="best", fontsize=8)
+    top.set_xlabel("time [s]")
+    top.set_ylabel("heading change [deg]")
+    s = np.asarray(path_speeds, dtype=np.float64)
+    bottom.bar(np.arange(1, len(s) + 1), s, color="tab:green")
+    bottom.set_xlabel("cycle")
+    bottom.set_ylabel("speed along the path\n[body lengths / min]")
+    top.set_title(_title("turn: heading over time and speed along the COM path", subject), fontsize=10)
+    fig.tight_layout()
     return _save(fig, path)
 
 

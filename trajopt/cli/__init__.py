@@ -105,7 +105,8 @@ def _add_optimize(sub) -> None:
     p.add_argument("--max-sim-steps", type=positive_int, default=None,
                    help="--speed max: simulation steps the search may spend at most (default: no budget)")
     p.add_argument("--out", type=output_dir, default=RESULTS_DIR, help=f"output directory (default {RESULTS_DIR}/)")
-    p.add_argument("--name", type=file_name, default=None, help="result file name (default ROBOT_TASK)")
+    p.add_argument("--name", type=file_name, default=None,
+                   help="result file name (default ROBOT_TASK; ROBOT a robot file's [robot] name)")
     p.add_argument("--resume", action="store_true",
                    help="continue the interrupted run of this name (from its NAME.partial.npz checkpoint)")
     p.add_argument("--overwrite", action="store_true",
@@ -152,7 +153,8 @@ def _add_result_commands(sub) -> None:
     p.add_argument("--overwrite", action="store_true", help=_OVERWRITE_HELP)
     p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
     p.set_defaults(func=_cmd_export)
-    p = sub.add_parser("plot", help="COM path, controls, convergence, speed and motor (torque-speed line) plots")
+    p = sub.add_parser("plot", help="COM path, controls, convergence, speed (a turn: heading and path speed) "
+                                    "and motor plots")
     p.add_argument("result", type=Path)
     p.add_argument("--out", type=output_dir, default=RESULTS_DIR / "plots",
                    help=f"output directory (default {RESULTS_DIR}/plots/)")

@@ -97,7 +97,8 @@ def _report(res: Result, path: Path, seconds: float) -> None:
     rows = [("status", f"{res.status}: {STATUS_MEANING.get(res.status, '')}"),
             ("iterations", str(len(res.history))),
             ("objective", f"{ev['objective']:.5g}"),
-            ("target speed", f"{res.settings['speed_bl_per_min']:g} BL/min")]
+            ("tracking target", f"{res.settings['speed_bl_per_min']:g} BL/min: the speed of the target COM path the "
+                                "optimiser tracks, not enforced (the gait's speed is below)")]
     rows += evaluation_rows(ev, res.task)
     rows.append(("simulation steps", str(ev["optimization_sim_steps"])))
     if "search_sim_steps" in ev:          # --speed max: the whole search's

@@ -117,15 +117,41 @@ def _plot_motors(res: Result, env, path: Path, subject: str) -> Path:
                                  subject=subject)
 
 
+def _turn_series(res: Result, env) -> tuple:
+    """A turn replayed as it was evaluated: time [s], heading change [deg] at every step, speed
+    along the COM path in every cycle [BL/min] (:func:`trajopt.evaluation.measure_gait`'s)."""
+    from soft_envs.envs import BodyFrame, yaw_of
+
+    from ..evaluation import DEFAULT_EVAL_CYCLES, mps_to_bl_per_min
+    from ..replay import result_controls
+    cycles = int(res.settings.get("eval_cycles", DEFAULT_EVAL_CYCLES))
+    u, n_prep, n_cycle = result_controls(res, env.robot, cycles)
+    traj = env.rollout(u)
+    frame = BodyFrame(traj.x[0], env.robot.node_masses)
+    head = np.degrees(np.unwrap([yaw_of(frame.rotation(x)) for x in traj.x]))
+    marks = n_prep + n_cycle * np.arange((len(u) - n_prep) // n_cycle + 1)
+    chords = np.linalg.norm(np.diff(traj.com[marks][:, [0, 2]], axis=0), axis=1)
+    speeds = [mps_to_bl_per_min(c / (n_cycle * env.timestep), env.robot.body_length) for c in chords]
+    return np.arange(len(head)) * env.timestep, head - head[0], speeds, n_prep * env.timestep
+
+
+def _plot_turn(res: Result, env, path: Path, subject: str) -> Path:
+    from .. import plots
+    t, heading, speeds, prep_time = _turn_series(res, env)
+    return plots.plot_turn(t, heading, speeds, path, prep_time=prep_time, subject=subject)
+
+
 def run_plot(args) -> int:
     from .. import plots
     res = Result.load(args.result)
     out = Path(args.out)
     stem = Path(args.result).stem
     ext = args.format
-    names = {k: out / f"{stem}_{k}.{ext}" for k in ("com", "controls", "convergence", "speed", "motors")}
+    names = {k: out / f"{stem}_{k}.{ext}" for k in ("com", "controls", "convergence", "speed", "turn", "motors")}
     speeds = res.evaluation.get("speed_per_cycle_bl_per_min")
-    wanted = (["com", "controls"] + (["convergence"] if res.history else []) + (["speed"] if speeds else [])
+    turn = speed_along_path(res.task)          # a turn: heading and speed along its path, not +x speed
+    wanted = (["com", "controls"] + (["convergence"] if res.history else [])
+              + ((["turn"] if turn else ["speed"]) if speeds else [])
               + (["motors"] if motor_figures(res.robot_fingerprint) is not None else []))
     refuse_existing([names[k] for k in wanted], args.overwrite)
     env = env_for_result(res, ignore_robot_mismatch=args.ignore_robot_mismatch)
@@ -140,9 +166,9 @@ def run_plot(args) -> int:
                                                   mirror_map=env.robot.mirror_map, subject=subject),
         "convergence": lambda p: plots.plot_convergence(res.history, p, subject=subject),
         "speed": lambda p: plots.plot_speed_per_cycle(np.asarray(speeds), p, subject=subject,
-                                                      target=(None if speed_along_path(res.task)
-                                                              else s.get("speed_bl_per_min")),
+                                                      target=s.get("speed_bl_per_min"),
                                                       reference={"tripod": 6.1, "puppy": 8.6}.get(res.robot)),
+        "turn": lambda p: _plot_turn(res, env, p, subject),
         "motors": lambda p: _plot_motors(res, env, p, subject),
     }
     for key in wanted:

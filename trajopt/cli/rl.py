@@ -104,6 +104,11 @@ def _cmd_train(args) -> int:
         return _missing(exc)
     print(f"{run.status}: {run.timesteps} steps ({run.sim_steps} simulation steps) in "
           f"{run.wall_time_s:.1f} s; saved {run.model_path}")
+    if run.status == "done":
+        from ..rl.evaluate import evaluate_policy_metric      # the figure the user came for
+        ev = evaluate_policy_metric(run.run_dir, n_cycles=DEFAULT_EVAL_CYCLES)
+        print(f"  speed:       {ev['speed_bl_per_min']:.2f} BL/min along the target over {DEFAULT_EVAL_CYCLES} cycles "
+              f"({'upright' if ev['upright'] else 'fell over'}; trajopt's metric, as trajopt rl evaluate)")
     print(f"  evaluate:    trajopt rl evaluate {run.run_dir}")
     print(f"  TensorBoard: tensorboard --logdir {run.run_dir / 'logs'}")
     return 130 if run.status == "interrupted" else 0

@@ -178,7 +178,7 @@ def optimise_jointly(problem: CodesignProblem, state: JointState, settings: Join
         row = {"stage": state.stage + 1, "target_bl_per_min": target, "iterations": state.iteration,
                "status": status, "speed_bl_per_min": speed, "upright": upright, "gain": gain}
         state.stage_rows.append(row)
-        log(f"co-design stage {state.stage + 1}/{settings.stages}: target {target:.1f} BL/min, "
+        log(f"co-design stage {state.stage + 1}/{settings.stages}: tracking target {target:.1f} BL/min (not enforced), "
             f"{state.iteration} iterations ({status}): {speed:.2f} BL/min"
             f"{'' if upright else ' (fell over)'}, best so far {max(state.best_speed, speed if upright else 0):.2f}")
         improved = upright and np.isfinite(speed) and speed > state.best_speed

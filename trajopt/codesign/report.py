@@ -52,9 +52,11 @@ def _views(robot) -> dict[str, np.ndarray]:
 
 
 def plot_robots_side_by_side(old_robot, new_robot, path: str | os.PathLike,
-                             titles: Sequence[str] = ("shipped", "co-designed"), *, dpi: int = 120) -> Path:
+                             titles: Sequence[str] = ("shipped", "co-designed"), *, dpi: int = 120,
+                             speeds: tuple[float, float] | None = None) -> Path:
     """Draw ``old_robot`` and ``new_robot`` (Robots, names, robot.toml paths or folders) side by
-    side at rest (module docstring) into the PNG ``path`` (written atomically); returns the path."""
+    side at rest (module docstring) into the PNG ``path`` (written atomically); returns the path.
+    ``speeds``: (baseline, new) [BL/min], stated in the title with their ratio (the gain)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -120,7 +122,13 @@ def plot_robots_side_by_side(old_robot, new_robot, path: str | os.PathLike,
     if handles:
         fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=min(len(handles), 8),
                    fontsize=8, title="tendons by motor", title_fontsize=8)
-    fig.suptitle("rest shapes, tendons (circles: via points, squares: where they leave to the motor)", fontsize=10)
+    what = "rest shapes, tendons (circles: via points, squares: where they leave to the motor)"
+    if speeds is not None:
+        before, after = (float(v) for v in speeds)
+        ratio = f"x {after / before:.2f}" if before > 0 else "the baseline does not move"
+        what = (f"speed {before:.2f} -> {after:.2f} BL/min ({ratio}): {titles[0]} vs {titles[1]}, the gait "
+                f"optimised on each\n{what}")
+    fig.suptitle(what, fontsize=10)
     return atomic_write_png(fig, path, dpi=dpi)
 
 

@@ -372,13 +372,20 @@ def _screen(run: CodesignRun, problem: CodesignProblem, state: JointState, basel
         say(f"screening designs around the shipped one ({run.screen.rounds} rounds at most, "
             f"{run.n_workers()} worker{'s' if run.n_workers() > 1 else ''})")
 
+    from ..progress import Progress             # a heartbeat: a round's searches take minutes
+    beat = Progress(run.screen.rounds, "co-design screening", "round", tty=False, per_item=False,
+                    initial=progress.rounds_done if progress else 0, interval=None if run.quiet else "default")
+
     def round_done(p: ScreenProgress) -> None:
         state.screen_progress = asdict(p)
         state.sim_steps, state.wall_time_s = problem.sim_steps, wall0 + time.perf_counter() - t0
         checkpoint(state)
+        beat.update(1)
 
-    p = screen_designs(problem, theta0, np.asarray(baseline.z), base_speed, run.search.target(base_speed), run.screen,
-                       search=run.search, workers=run.n_workers(), resume=progress, log=say, round_done=round_done)
+    with beat:
+        p = screen_designs(problem, theta0, np.asarray(baseline.z), base_speed, run.search.target(base_speed),
+                           run.screen, search=run.search, workers=run.n_workers(), resume=progress, log=say,
+                           round_done=round_done)
     theta = np.asarray(p.theta)
     state.path = list(p.path)
     if not np.array_equal(theta, problem.anchor):
@@ -426,7 +433,8 @@ def _summary(run, env, baseline, result, reopt, state, changes, checks, wall) ->
 def _report(run, shipped, designed, summary, changes, checks, settings) -> Path:
     from .report import plot_robots_side_by_side, write_codesign_report
     picture = run.out / "codesign.png"
-    plot_robots_side_by_side(shipped, designed, picture)
+    plot_robots_side_by_side(shipped, designed, picture,
+                             speeds=(summary["before_bl_per_min"], summary["after_bl_per_min"]))
     before = {"speed_bl_per_min": summary["before_bl_per_min"], "n_cycle": summary["n_cycle"],
               "n_keyframes": summary["n_keyframes"]}
     after = {"speed_bl_per_min": summary["after_bl_per_min"], "n_cycle": summary["n_cycle"],

@@ -37,7 +37,8 @@ from ..optim.gait import GaitSpec
 from .checks import check_controls
 from ..tasks.registry import speed_along_path
 
-__all__ = ["Result", "ResultFileWarning", "atomic_write_bytes", "result_path", "partial_path", "FORMAT_VERSION"]
+__all__ = ["Result", "ResultFileWarning", "atomic_write_bytes", "result_path", "partial_path", "robot_file_name",
+           "FORMAT_VERSION"]
 
 #: 2: content_sha256 (in the .npz) and robot_fingerprint (in the metadata) are required; 1 and
 #: files without a version (0) predate them (see :func:`_check_format`)
@@ -359,3 +360,19 @@ def _json_default(o):
     if isinstance(o, (np.floating, np.integer, np.bool_)):
         return o.item()
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def robot_file_name(robot: str) -> str:
+    """A shipped robot's name, or a robot file's ``[robot] name`` (``quadruped`` for
+    ``results/my_robot/robot.toml``); the file's stem when it names none usable."""
+    if not robot.endswith(".toml"):
+        return robot
+    import tomllib
+    try:
+        with open(robot, "rb") as fh:
+            name = tomllib.load(fh).get("robot", {}).get("name")
+    except (OSError, tomllib.TOMLDecodeError, AttributeError):
+        name = None
+    ok = (isinstance(name, str) and name.strip() == name and name not in ("", ".", "..")
+          and not set(name) & set("/\\\0"))
+    return name if ok else Path(robot).stem

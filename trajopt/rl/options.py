@@ -35,10 +35,55 @@ def train_with_options(robot: str, *, algo: str = "ppo", timesteps: int = 30_000
         env_kwargs["target_heading_deg"] = heading
     if contact:
         env_kwargs["contact"] = contact
-    return train(robot, algo, timesteps, seed, out, name=name, n_envs=n_envs, vec_env=vec_env, frame_skip=frame_skip,
-                 max_episode_steps=episode_steps, env_kwargs=env_kwargs, hyperparams=parse_overrides(list(hp)),
-                 checkpoint_every=checkpoint_every, progress_bar=not no_progress and sys.stderr.isatty(),
-                 log_stdout=verbose, overwrite=overwrite)
+    bar = not no_progress and sys.stderr.isatty()
+    heartbeat = None if no_progress or bar else _Heartbeat(timesteps, algo, robot)
+    try:
+        return train(robot, algo, timesteps, seed, out, name=name, n_envs=n_envs, vec_env=vec_env,
+                     frame_skip=frame_skip, max_episode_steps=episode_steps, env_kwargs=env_kwargs,
+                     hyperparams=parse_overrides(list(hp)), checkpoint_every=checkpoint_every, progress_bar=bar,
+                     log_stdout=verbose, overwrite=overwrite,
+                     callback=None if heartbeat is None else heartbeat.callback())
+    finally:
+        if heartbeat is not None:
+            heartbeat.close()
+
+
+class _Heartbeat:
+    """Off a terminal (no bar), a plain line on stderr when training starts and after 30 s
+    without one, with the environment steps done (:class:`trajopt.progress.Progress`); nothing
+    for a run refused before it trains."""
+
+    def __init__(self, timesteps: int, algo: str, robot: str):
+        self.timesteps, self.algo, self.robot = int(timesteps), algo, robot
+        self.progress = None
+
+    def callback(self):
+        from . import require_sb3
+        require_sb3()                # MissingRLDependencies, saying how to install, before the import
+        from stable_baselines3.common.callbacks import BaseCallback
+        outer = self
+
+        class _Count(BaseCallback):
+            def _on_training_start(self) -> None:
+                from ..progress import Progress
+                outer.progress = Progress(outer.timesteps, "rl train", "step", tty=False, per_item=False,
+                                          first_line=f"rl train: {outer.algo.upper()} on {outer.robot}, "
+                                                     f"{outer.timesteps:,} environment steps (a line at least "
+                                                     "every 30 s)")
+
+            def _on_step(self) -> bool:
+                if outer.progress is not None:
+                    outer.progress.n = int(self.num_timesteps)
+                return True
+
+            def _on_training_end(self) -> None:
+                outer.close()
+
+        return _Count()
+
+    def close(self) -> None:
+        if self.progress is not None:
+            self.progress.close()
 
 
 #: the options of ``trajopt rl train`` and of a sweep's ``rl-train`` runs (the keywords above)

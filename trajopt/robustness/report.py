@@ -166,7 +166,11 @@ def plot_robustness(report: dict, samples: list[dict], path: Path) -> Path:
     axes.flat[1].legend(fontsize=7)
     for ax in axes.flat[1 + len(names):]:
         ax.axis("off")
-    fig.tight_layout()
+    gait, n = Path(str(report.get("result", "the gait"))).name, report.get("cycles")
+    cycles = "" if n is None else f" of {n} cycle{'s' * (n != 1)}"
+    fig.suptitle(f"robustness of the gait {gait}: its speed over {len(samples)} perturbed replays{cycles}",
+                 fontsize=12)
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
     return atomic_write_png(fig, path, dpi=90)
 
 
@@ -207,12 +211,13 @@ def _run_study(result: Path, out: Path, samples: int, cycles: int, seed: int, wo
     results, where = map_samples(todo, workers)
     print(f"{res.summary()}\n{len(jobs)} replays of {cycles} cycles ({len(jobs) - len(todo)} done before), "
           f"running {where}")
-    nominal = run_sample(nominal_job)
-    from tqdm import tqdm
-    for sample in tqdm(results, total=len(todo), desc="replays", unit="run", file=sys.stderr,
-                       disable=not sys.stderr.isatty()):
-        done[sample["index"]] = sample
-        _append(out / "samples.jsonl", sample)
+    from ..progress import Progress      # a bar on a terminal; off it, a line after 30 s of silence
+    with Progress(len(todo), "robustness", "replay", per_item=False) as progress:
+        nominal = run_sample(nominal_job)
+        for sample in results:
+            done[sample["index"]] = sample
+            _append(out / "samples.jsonl", sample)
+            progress.update(1)
     samples_done = [done[j.index] for j in jobs]
     report = summarize(nominal, samples_done)
     report.update(result=str(result), cycles=cycles, seed=seed, backend=where)

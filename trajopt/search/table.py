@@ -39,6 +39,11 @@ def table_row(stage: str, res: Result | None, gait: GaitSpec, start: str, target
             "wall_time_s": round(seconds, 2), "chosen": False}
 
 
+#: what the table's target column is (printed under the Markdown table)
+TARGET_NOTE = ("target_bl_per_min: the speed of the target COM path each optimisation tracked; the optimiser "
+               "tracks that path and does not enforce its speed (speed_bl_per_min is what the gait did).")
+
+
 def search_table_paths(result_file: str | Path) -> tuple[Path, Path]:
     """``(NAME.search.csv, NAME.search.md)`` beside the result ``NAME.npz``."""
     p = Path(result_file)
@@ -62,5 +67,6 @@ def write_search_table(rows: list[dict], result_file: str | Path) -> tuple[Path,
     atomic_write_bytes(csv_path, buf.getvalue().encode())
     lines = ["| " + " | ".join(TABLE_COLUMNS) + " |", "|" + "---|" * len(TABLE_COLUMNS)]
     lines += ["| " + " | ".join(_cell(r[c]) for c in TABLE_COLUMNS) + " |" for r in rows]
+    lines += ["", TARGET_NOTE]
     atomic_write_bytes(md_path, ("\n".join(lines) + "\n").encode())
     return csv_path, md_path

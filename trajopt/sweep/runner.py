@@ -12,12 +12,12 @@ summary and returns with ``interrupted = True``.
 from __future__ import annotations
 
 import os
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from ..progress import Progress
 from ..results.reservation import reserve
 from .spec import Run, SweepSpec
 from .task import SWEEP_LOCK, execute, read_status, recover_status, result_present, write_status
@@ -96,35 +96,33 @@ def start_ray(workers: int | None = None, address: str | None = None):
 
 
 class _Progress:
-    """A tqdm bar over runs on a terminal, plain lines otherwise."""
+    """A tqdm bar over runs on a terminal, plain lines otherwise (and a heartbeat line after 30 s
+    of silence, :class:`trajopt.progress.Progress`)."""
 
     def __init__(self, total: int, stream=None):
-        self.stream = stream or sys.stderr
-        self.total, self.n = total, 0
-        self.bar = None
-        if total and hasattr(self.stream, "isatty") and self.stream.isatty():
-            from tqdm import tqdm
-            self.bar = tqdm(total=total, desc="sweep", unit="run", file=self.stream)
+        self.total = total
+        self.p = Progress(total, "sweep", "run", stream=stream, tty=None if total else False,
+                          per_item=False, interval="default" if total else None)
+
+    @property
+    def n(self) -> int:
+        return self.p.n
 
     def line(self, text: str) -> None:
-        if self.bar is not None:
-            self.bar.write(text, file=self.stream)
-        else:
-            print(text, file=self.stream, flush=True)
+        self.p.line(text)
 
     def done(self, st: dict) -> None:
-        self.n += 1
         m = st.get("metrics") or {}
         fig = f", {m['speed_bl_per_min']:.2f} BL/min" if isinstance(m.get("speed_bl_per_min"), float) else ""
         why = f": {st.get('reason')}" if st.get("status") != "done" and st.get("reason") else ""
-        self.line(f"[{self.n}/{self.total}] {st.get('status', '?'):<11} {st.get('run')} "
-                  f"({st.get('wall_time_s', 0.0):.1f} s{fig}){why}")
-        if self.bar is not None:
-            self.bar.update(1)
+        text = (f"[{self.n + 1}/{self.total}] {st.get('status', '?'):<11} {st.get('run')} "
+                f"({st.get('wall_time_s', 0.0):.1f} s{fig}){why}")
+        if self.p.bar is not None:
+            self.p.line(text)
+        self.p.update(1, line=text)
 
     def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+        self.p.close()
 
 
 def _crashed(run: Run, out: Path, exc: BaseException, started: float, status: str = "failed") -> dict:
