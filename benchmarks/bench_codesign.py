@@ -1,4 +1,4 @@
-"""Co-design targets (issue #29): one ``trajopt codesign`` run per shipped robot, Coulomb law,
+"""Co-design targets: one ``trajopt codesign`` run per shipped robot, Coulomb law,
 motors' limits on.
 
 For each robot: the shipped design's fastest gait (``--speed max``, the baseline), the

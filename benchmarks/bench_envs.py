@@ -10,7 +10,7 @@ Targets from the issue: Tripod >= 1000 steps/s, Puppy >= 300 steps/s; env layer 
 Each figure is the best of ``REPEATS`` runs of ``STEPS`` steps from the same seeded reset
 (the machine may be shared; the overhead share is measured inside each run, so it is robust).
 
-Vector environments (issue #17), SoftTripod-v0 with 2 environments, measured alternately in one
+Vector environments, SoftTripod-v0 with 2 environments, measured alternately in one
 run (best of ``VEC_ROUNDS`` rounds): one environment in this process; ``gym.make_vec(...,
 vectorization_mode="async")``; SB3's ``SubprocVecEnv``; two plain processes each stepping one
 environment (the ceiling). Env steps/s of each, the ratio to one environment (target >= 1.7x

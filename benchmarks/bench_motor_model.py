@@ -1,4 +1,4 @@
-"""The motors' torque-speed line in the optimiser (issue #38): what it costs and what it changes.
+"""The motors' torque-speed line in the optimiser: what it costs and what it changes.
 
     python benchmarks/bench_motor_model.py                       # Tripod and Puppy, both contact laws
     python benchmarks/bench_motor_model.py tripod --contact coulomb --out benchmarks/results

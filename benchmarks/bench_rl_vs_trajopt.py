@@ -1,5 +1,5 @@
 """Fastest gaits under the motors' limit: trajectory optimisation against RL on the same
-physics (issue #28 item 4).
+physics.
 
 The runs are a sweep file (``trajopt sweep``, one Ray task per run; on a cluster the same
 file runs unchanged): ``examples/rl_seeds_coulomb.toml`` (``--contact coulomb``, the default

@@ -1,4 +1,4 @@
-"""Sweep benchmark (issue #17): eight short gait optimisations, on a local Ray with 2 workers
+"""Sweep benchmark: eight short gait optimisations, on a local Ray with 2 workers
 vs the same runs one after another in one process (``trajopt sweep --serial``).
 
 Both use the same sweep file and the same code per run (:func:`trajopt.sweep.task.execute`: the

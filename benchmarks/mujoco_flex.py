@@ -1,4 +1,4 @@
-"""A shipped robot's tet mesh as a MuJoCo 3-D flex, for side-by-side benchmarks (issue #15).
+"""A shipped robot's tet mesh as a MuJoCo 3-D flex, for side-by-side benchmarks.
 
 The flex has the same nodes and tets as ``robot.mesh``, the same Young's modulus and Poisson
 ratio (MuJoCo's 3-D flex elasticity is Saint Venant-Kirchhoff with the same Lame parameters,

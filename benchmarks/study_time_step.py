@@ -1,4 +1,4 @@
-"""Study: where the time-step error of the fast gaits comes from (issue #42 item 1).
+"""Study: where the time-step error of the fast gaits comes from.
 
     python benchmarks/study_time_step.py            # everything: 16 CPU-minutes (22 min on a loaded machine)
     python benchmarks/study_time_step.py --quick    # the two fastest gaits only: 5.5 CPU-minutes

@@ -1,5 +1,5 @@
 """Co-design the Tripod: where its tendons run, how stiff each part is and how long each leg is,
-optimised together with its gait through the same exact sensitivities (issue #29).
+optimised together with its gait through the same exact sensitivities.
 
 Run:  python examples/codesign_tripod.py      (about ten minutes on two cores)
 

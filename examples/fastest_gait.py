@@ -1,4 +1,4 @@
-"""The fastest walk the Tripod's motors allow: a search over cycle length and keyframes (issue #28).
+"""The fastest walk the Tripod's motors allow: a search over cycle length and keyframes.
 
 Run:  python examples/fastest_gait.py      (about three minutes on two cores)
 

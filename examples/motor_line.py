@@ -1,4 +1,4 @@
-"""The motors the robots really have: a torque-speed line, not a speed limit alone (issue #38).
+"""The motors the robots really have: a torque-speed line, not a speed limit alone.
 
 Run:  python examples/motor_line.py      (about two minutes on two cores)
 

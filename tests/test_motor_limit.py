@@ -138,7 +138,7 @@ from trajopt.cli import main  # noqa: E402
 from trajopt.optim.gauss_newton import GaussNewtonOptions, _constrained_direction, gauss_newton  # noqa: E402
 from trajopt.optim.motor_limit import played_steps, speed_limit_constraints, worst_step  # noqa: E402
 from trajopt.optim.parameterization import GaitParameterization  # noqa: E402
-from trajopt.optim.qp import FEASIBILITY_ATOL, LinearConstraints  # noqa: E402
+from trajopt.optim.qp import LinearConstraints  # noqa: E402
 from trajopt.results.result import Result  # noqa: E402
 
 STEP = 100 * 2 * math.pi / 60 * 0.005 * 0.033          # [m] the shipped motors' step limit

@@ -44,7 +44,6 @@ def test_rest_shape_derivatives_match_finite_differences(case):
     if system.control == "length":      # the same cable deformation Gamma as the case's
         u = u + (system.cables.alpha0 - sim.system.cables.alpha0) - (system.cables.lengths(x) - sim.system.cables.lengths(x))
     dX, dq = random_move(robot, 7)
-    history = system.initial_history(x_prev)
     systems = [EnergySystem(moved(robot, dX, dq, s), gravity=system.gravity, control=system.control)
                for s in (H, -H)]
 

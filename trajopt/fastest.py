@@ -1,4 +1,4 @@
-"""The fastest walk within the motors' limits: ``trajopt optimize ROBOT --speed max`` (issue #28 item 3).
+"""The fastest walk within the motors' limits: ``trajopt optimize ROBOT --speed max``.
 
 The paper fixes the cycle (72 steps, 2.4 s) by hand; the fastest gait under the motors' limits
 (the torque-speed line, :mod:`trajopt.optim.motor_torque`, by default; the speed limit alone,

@@ -1,4 +1,4 @@
-"""Worker processes that end with their parent, however the parent ends (issue #40).
+"""Worker processes that end with their parent, however the parent ends.
 
 A process pool's workers (``multiprocessing``'s spawn method) outlive a parent killed by a
 signal it does not handle, or by SIGKILL: re-parented to pid 1, they hold the parent's stdout

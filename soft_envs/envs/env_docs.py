@@ -11,7 +11,6 @@ written here, and the list of gradient hooks comes from
 from __future__ import annotations
 
 import inspect
-import math
 import textwrap
 from dataclasses import dataclass
 

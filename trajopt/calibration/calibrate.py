@@ -1,4 +1,4 @@
-r"""Identification of physical parameters from tracked markers (issue #19; the paper fits E and nu
+r"""Identification of physical parameters from tracked markers (the paper fits E and nu
 "through trial and error", II-A).
 
 Markers are points bound to the mesh (a robot.toml's ``[[markers]]``); their measured tracks

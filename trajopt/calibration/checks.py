@@ -1,4 +1,4 @@
-"""The checks ``trajopt calibrate`` makes before it writes a robot.toml (issue #26 item 3).
+"""The checks ``trajopt calibrate`` makes before it writes a robot.toml.
 
 Each failed check is one string ``"<check>: what failed; try: what to do"``; the command refuses
 to write anything when one fails, unless ``--force`` (then it writes and prints them as warnings).

@@ -25,11 +25,13 @@ is never replaced without --overwrite; a result is only used with the robot it w
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import signal
 import sys
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..argtypes import (contact_law, cycles, file_name, frame_size, integer, number, output_dir, output_file,
                        positive_float, positive_int, slope_deg, speed, steps)
@@ -113,7 +115,7 @@ def _add_optimize(sub) -> None:
                    help="replace a finished result (or an interrupted run's checkpoint) of this name "
                         "when the new run finishes")
     p.add_argument("--quiet", action="store_true", help="no progress output")
-    p.set_defaults(func=_cmd_optimize)
+    p.set_defaults(func=_lazy("commands", "run_optimize"))
 
 
 def _add_result_commands(sub) -> None:
@@ -125,7 +127,7 @@ def _add_result_commands(sub) -> None:
     p.add_argument("--fidelity", action="store_true",
                    help="also replay it with 2x, 4x and 8x finer physics steps and print each speed and the "
                         "spread (how much the speed is the robot's and not the time step's: docs/fidelity.md)")
-    p.set_defaults(func=_cmd_evaluate)
+    p.set_defaults(func=_lazy("commands", "run_evaluate"))
     n_cycles = GaitSpec().n_cycles
     p = sub.add_parser("render", help="animate a result (GIF through Pillow, MP4 with imageio-ffmpeg)",
                        description="Replay a result and draw it: grey cables are slack, coloured ones "
@@ -142,7 +144,7 @@ def _add_result_commands(sub) -> None:
     p.add_argument("--size", type=frame_size, default=(480, 360), help="frame size WIDTHxHEIGHT (default 480x360)")
     p.add_argument("--overwrite", action="store_true", help=_OVERWRITE_HELP)
     p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
-    p.set_defaults(func=_cmd_render)
+    p.set_defaults(func=_lazy("output_commands", "run_render"))
     p = sub.add_parser("export", help="ParaView time series (.vtu per step + .pvd)")
     p.add_argument("result", type=Path)
     p.add_argument("--vtu", type=output_dir, default=None,
@@ -152,7 +154,7 @@ def _add_result_commands(sub) -> None:
                         "their own controls)")
     p.add_argument("--overwrite", action="store_true", help=_OVERWRITE_HELP)
     p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
-    p.set_defaults(func=_cmd_export)
+    p.set_defaults(func=_lazy("output_commands", "run_export"))
     p = sub.add_parser("plot", help="COM path, controls, convergence, speed (a turn: heading and path speed) "
                                     "and motor plots")
     p.add_argument("result", type=Path)
@@ -161,7 +163,7 @@ def _add_result_commands(sub) -> None:
     p.add_argument("--format", choices=["png", "svg"], default="png")
     p.add_argument("--overwrite", action="store_true", help=_OVERWRITE_HELP)
     p.add_argument("--ignore-robot-mismatch", action="store_true", help=_IGNORE_HELP)
-    p.set_defaults(func=_cmd_plot)
+    p.set_defaults(func=_lazy("output_commands", "run_plot"))
 
 
 def _add_robot_commands(sub) -> None:
@@ -187,13 +189,13 @@ def _add_robot_commands(sub) -> None:
     p.add_argument("--youngs-modulus", type=positive_float, default=None, help="[Pa] (default 1e5)")
     p.add_argument("--payload-mass", type=number(0.0), default=None, help="[kg] (default 1.5 x body mass)")
     p.add_argument("--force", action="store_true", help="replace an existing robot.toml")
-    p.set_defaults(func=_cmd_mesh)
+    p.set_defaults(func=_lazy("robot_commands", "run_mesh"))
     p = sub.add_parser("check", help="validate a robot, print its summary and draw it")
     p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
     p.add_argument("--picture", type=output_file, default=None,
                    help="PNG to write (default: <robot name>.png beside the robot.toml, or here)")
     p.add_argument("--no-picture", action="store_true", help="do not draw")
-    p.set_defaults(func=_cmd_check)
+    p.set_defaults(func=_lazy("robot_commands", "run_check"))
 def _add_sweep(sub) -> None:
     from .sweep import add_sweep_parser     # imports Ray only when a sweep runs
     add_sweep_parser(sub)
@@ -230,7 +232,7 @@ def _add_identification_commands(sub) -> None:
     p.add_argument("--contact", type=contact_law, default=None, metavar="LAW",
                    help="ground contact law of the fit: coulomb or paper (default: the robot file's; the "
                         "shipped examples/data tracks were made under the paper's law); written to the new robot.toml")
-    p.set_defaults(func=_cmd_calibrate)
+    p.set_defaults(func=_lazy("calibrate_command", "run_calibrate"))
     p = sub.add_parser("robustness", help="replay a gait under perturbed physics and report its speed spread")
     p.add_argument("result", type=Path)
     p.add_argument("--samples", type=int, default=32, help="perturbed replays")
@@ -240,7 +242,7 @@ def _add_identification_commands(sub) -> None:
     p.add_argument("--workers", type=int, default=1, help="parallel workers (Ray, when installed with trajopt sweep)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace a robustness run with other settings in --out (its samples are discarded)")
-    p.set_defaults(func=_cmd_robustness)
+    p.set_defaults(func=_lazy("robustness_command", "run_robustness"))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -326,46 +328,14 @@ def main(argv: list[str] | None = None) -> int:
 
 
 # ---------------------------------------------------------------------- commands
-def _cmd_optimize(args) -> int:
-    from .commands import run_optimize
-    return run_optimize(args)
+if TYPE_CHECKING:       # the command modules, each imported only when its command runs (_lazy)
+    from . import calibrate_command, commands, output_commands, robot_commands, robustness_command  # noqa: F401
 
 
-def _cmd_evaluate(args) -> int:
-    from .commands import run_evaluate
-    return run_evaluate(args)
-
-
-def _cmd_render(args) -> int:
-    from .output_commands import run_render
-    return run_render(args)
-
-
-def _cmd_export(args) -> int:
-    from .output_commands import run_export
-    return run_export(args)
-
-
-def _cmd_plot(args) -> int:
-    from .output_commands import run_plot
-    return run_plot(args)
-
-
-def _cmd_mesh(args) -> int:
-    from .robot_commands import run_mesh
-    return run_mesh(args)
-
-
-def _cmd_check(args) -> int:
-    from .robot_commands import run_check
-    return run_check(args)
-
-
-def _cmd_calibrate(args) -> int:
-    from .calibrate_command import run_calibrate
-    return run_calibrate(args)
-
-
-def _cmd_robustness(args) -> int:
-    from .robustness_command import run_robustness
-    return run_robustness(args)
+def _lazy(module: str, function: str):
+    """The command ``function`` of ``trajopt.cli.<module>``, imported only when it runs (building
+    the parser, and ``--help``, import none of the commands' work)."""
+    def run(args) -> int:
+        return getattr(importlib.import_module(f"{__name__}.{module}"), function)(args)
+    run.__name__ = run.__qualname__ = function
+    return run

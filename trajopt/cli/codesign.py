@@ -1,5 +1,5 @@
 """``trajopt codesign ROBOT --vary routing,stiffness,legs --out DIR``: the command line of
-co-design (issue #29); what it does is :func:`trajopt.codesign.run.run_codesign`."""
+co-design; what it does is :func:`trajopt.codesign.run.run_codesign`."""
 from __future__ import annotations
 
 import sys

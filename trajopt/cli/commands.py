@@ -18,6 +18,7 @@ from ..optimize_run import OptimizeRun, run_optimization
 from ..progress import IterationProgress
 from ..results.result import Result
 from ..tasks.registry import speed_along_path
+from .table import print_table
 
 __all__ = ["run_optimize", "run_evaluate", "STATUS_MEANING", "evaluation_rows", "motor_limit_row"]
 
@@ -34,12 +35,6 @@ STATUS_MEANING = {
     "running": "a checkpoint of a run in progress (or killed): continue it with --resume",
     "interrupted": "a checkpoint of an interrupted run: continue it with --resume",
 }
-
-
-def _print_table(rows: list[tuple[str, str]]) -> None:
-    w = max(len(k) for k, _ in rows)
-    for k, v in rows:
-        print(f"  {k.ljust(w)}  {v}")
 
 
 def evaluation_rows(ev: dict, task: str = "walk") -> list[tuple[str, str]]:
@@ -106,7 +101,7 @@ def _report(res: Result, path: Path, seconds: float) -> None:
                                f"chosen of {res.settings['search']['runs']} optimisations; "
                                f"{ev['search_sim_steps']:,} simulation steps in total, "
                                f"{ev['search_wall_time_s']:.0f} s"))
-    _print_table(rows)
+    print_table(rows)
     print(f"\nnext:\n  trajopt render {path}      # animation: {RESULTS_DIR / (path.stem + '.gif')}\n"
           f"  trajopt plot {path}        # COM path, controls, convergence: {RESULTS_DIR / 'plots'}/\n"
           f"  trajopt evaluate {path} --cycles 10")
@@ -137,7 +132,7 @@ def run_evaluate(args) -> int:
                          | ({"fidelity": fid} if fid else {}), allow_nan=True))
     else:
         print(res.summary())
-        _print_table(evaluation_rows(ev, res.task) + ([limit] if limit else []))
+        print_table(evaluation_rows(ev, res.task) + ([limit] if limit else []))
         if fid is not None:
             print(fidelity_text(fid))
     return 0 if ev["upright"] else 1

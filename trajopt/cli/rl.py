@@ -22,6 +22,7 @@ from ..results.files import RESULTS_DIR, refuse_existing
 from ..rl.envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOTS, TRAIN_HORIZON
 from ..rl.hyperparams import ALGOS
 from ..rl.options import RUNS_DIR, TRAIN_OPTIONS
+from .table import print_table
 
 SEED = integer(0, 2**32 - 1)          # what NumPy's legacy seeding accepts
 
@@ -124,9 +125,7 @@ def _print_eval(ev: dict) -> None:
             ("upright", str(ev["upright"]))]
     if "sim_failure" in ev:
         rows.append(("simulation failure", ev["sim_failure"]))
-    w = max(len(k) for k, _ in rows)
-    for k, v in rows:
-        print(f"  {k.ljust(w)}  {v}")
+    print_table(rows)
 
 
 def _cmd_evaluate(args) -> int:

@@ -5,13 +5,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .table import print_table
+
 __all__ = ["run_mesh", "run_check"]
-
-
-def _print_table(rows: list[tuple[str, str]]) -> None:
-    w = max(len(k) for k, _ in rows)
-    for k, v in rows:
-        print(f"  {k.ljust(w)}  {v}")
 
 
 def _warn(messages: list[str]) -> None:
@@ -35,7 +31,7 @@ def run_mesh(args) -> int:
     _warn(result.warnings)
     s, ext = result.surface, result.points.max(axis=0) - result.points.min(axis=0)
     print(f"meshed {args.surface} with gmsh")
-    _print_table([
+    print_table([
         ("surface", f"{len(s.points)} points, {len(s.triangles)} triangles, closed, one body, "
                     f"volume {s.volume:.4e} m^3"),
         ("frame", f"forward {args.forward} -> +x, up {args.up} -> +y, scale {args.scale:g}; lowest point at y = 0"),
@@ -77,7 +73,7 @@ def run_check(args) -> int:
     check = check_robot(args.robot)           # ValueError naming file and field -> exit code 2
     robot = check.robot
     print(f"{robot.name}: valid")
-    _print_table([(k, contact_text(robot) if k == "contact" else v) for k, v in check.rows])
+    print_table([(k, contact_text(robot) if k == "contact" else v) for k, v in check.rows])
     _warn(check.warnings)
     if not args.no_picture:
         if args.picture is not None:

@@ -29,7 +29,7 @@ def add_sweep_parser(sub) -> argparse.ArgumentParser:
 
 
 def run_sweep_command(args) -> int:
-    from ..sweep.runner import plan, run_sweep
+    from ..sweep.runner import run_sweep
     from ..sweep.spec import load_spec, quick_requested
     from ..sweep.summary import write_summary
     if args.workers is not None and args.workers < 1:

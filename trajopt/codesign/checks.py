@@ -1,5 +1,5 @@
-"""The independent check of a co-designed robot folder (issue #29: "Every constraint must hold
-in the written files. Check this independently of the optimiser").
+"""The independent check of a co-designed robot folder: every constraint must hold
+in the written files, checked independently of the optimiser.
 
 :func:`check_designed_robot` reads the written files themselves (the robot.toml through
 :mod:`tomllib`, the mesh through :mod:`meshio`), not the optimiser's objects, and computes every

@@ -1,4 +1,4 @@
-"""Gauss-Newton on gait and design together, in stages with a rising target (issue #29 item 3).
+"""Gauss-Newton on gait and design together, in stages with a rising target.
 
 :func:`optimise_jointly` runs :func:`trajopt.optim.gauss_newton.gauss_newton` on a
 :class:`~trajopt.codesign.problem.CodesignProblem` in ``stages``: each stage tracks a straight

@@ -1,4 +1,4 @@
-"""The co-design report (issue #29 item 3): the old and the new robot side by side, and the
+"""The co-design report: the old and the new robot side by side, and the
 markdown report of speed before and after, every design change and the constraint checks.
 
 :func:`plot_robots_side_by_side` draws the shipped and the co-designed robot in a 2x2 figure

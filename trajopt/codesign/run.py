@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from soft_envs.envs import make_gradient_env, robot_fingerprint
+from soft_envs.envs import make_gradient_env
 from soft_envs.envs.design import KINDS, load_design, write_designed_robot
 
 from ..fastest import SearchSettings, fastest_gait, search_table_paths, write_search_table
@@ -43,10 +43,11 @@ from ..results.files import atomic_write_bytes
 from ..results.reservation import reserve
 from ..optim.gait import GaitSpec
 from ..optim.gauss_newton import GaussNewtonOptions
-from ..optim.motor_limit import SPEED, TORQUE_SPEED, max_step_of_env, motor_model_of
+from ..optim.motor_limit import SPEED, TORQUE_SPEED, max_step_of_env
 from ..optim.optimize import optimize_gait
 from ..results.result import Result
-from ..results.robot_match import describe_difference, robot_reference
+from ..results.robot_match import robot_reference
+from .inputs import check_baseline, check_design, read_summary
 from .joint import JointSettings, JointState, optimise_jointly, replay_path
 from .partial import check_partial_sizes, read_partial
 from .problem import CodesignProblem, CodesignWeights
@@ -131,18 +132,6 @@ LOCK = "codesign.lock"
 SUMMARY = "codesign.json"
 
 
-def _read_summary(path: Path) -> dict:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as err:
-        raise ValueError(f"{path}: not a readable co-design summary ({err}); start afresh with --overwrite, or "
-                         "choose another --out") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: not a co-design summary (a {type(data).__name__}); start afresh with "
-                         "--overwrite, or choose another --out")
-    return data
-
-
 def _check_out(run: CodesignRun, name: str) -> CodesignOutcome | None:
     """What ``--out`` holds decides (inside the folder's reservation): an interrupted run is
     continued only with ``resume`` (or replaced with ``overwrite``), a finished one is replaced
@@ -164,7 +153,7 @@ def _check_out(run: CodesignRun, name: str) -> CodesignOutcome | None:
         if not summary.is_file():
             raise ValueError(f"{out}: holds a robot.toml but no {SUMMARY}: not a co-design to resume; choose "
                              "another --out, or replace it with --overwrite (without --resume)")
-        done = _read_summary(summary)
+        done = read_summary(summary)
         vary = done.get("vary")
         if isinstance(vary, list) and list(vary) != list(run.vary):
             raise ValueError(f"{summary}: the finished co-design in {out} varied {','.join(map(str, vary))}, not "
@@ -175,35 +164,6 @@ def _check_out(run: CodesignRun, name: str) -> CodesignOutcome | None:
         raise ValueError(f"{robot_file} exists: a finished co-design is never replaced without "
                          "--overwrite (or choose another --out)")
     return None
-
-
-def check_baseline(path: Path, env, robot: str, motor_model: str) -> Result:
-    """The given baseline (``--baseline``), checked: a ``--speed max`` result (the shipped
-    design's fastest gait within the motors' limit) of the same robot, contact law, physics steps
-    and motor model."""
-    res = Result.load(path)
-    changed = describe_difference(res.robot_fingerprint, robot_fingerprint(env.robot)) \
-        if res.robot_fingerprint else "it records no robot"
-    if changed:
-        raise ValueError(f"{path}: the baseline was not made on {robot} ({changed})")
-    if res.settings.get("contact") != env.contact_model:
-        raise ValueError(f"{path}: the baseline was made under the {res.settings.get('contact')!r} contact law, "
-                         f"the co-design runs under {env.contact_model!r} (--contact)")
-    if not res.settings.get("motor_limit"):
-        raise ValueError(f"{path}: the baseline was made without the motors' speed limit")
-    if motor_model_of(res.settings) != motor_model:
-        raise ValueError(f"{path}: the baseline was made under the {motor_model_of(res.settings)!r} motor model, "
-                         f"the co-design runs under {motor_model!r} (--motor-model)")
-    if int(res.settings.get("substeps", 1)) != int(env.substeps):
-        raise ValueError(f"{path}: the baseline was made with {res.settings.get('substeps', 1)} physics steps per "
-                         f"control step, the co-design runs with {env.substeps}")
-    if res.task != "walk" or "search" not in res.settings:
-        raise ValueError(f"{path}: not a --speed max result (a {res.task} of {res.settings.get('n_cycle')} steps a "
-                         f"cycle at a target of {res.settings.get('speed_bl_per_min')} BL/min): the co-design's ratio "
-                         "is against the shipped design's fastest gait within the motors' limit; make it with "
-                         f"trajopt optimize {robot} --speed max{' --contact ' + env.contact_model if env.contact_model else ''}"
-                         ", or leave --baseline out (the co-design then runs that search first)")
-    return res
 
 
 def _baseline(run: CodesignRun, env, given: Result | None, say) -> Result:
@@ -225,16 +185,6 @@ def _baseline(run: CodesignRun, env, given: Result | None, say) -> Result:
     return res
 
 
-def _check_design(design, vary, source: str) -> None:
-    """Refuse a design with nothing to vary (every parameter's bounds equal)."""
-    if not len(design):
-        raise ValueError(f"{source}: [design] declares no parameter of the kinds {', '.join(vary)}")
-    bounds = np.asarray(design.bounds, dtype=np.float64)
-    if not (bounds[:, 1] > bounds[:, 0]).any():
-        raise ValueError(f"{source}: [design] leaves nothing to vary: every parameter of {', '.join(vary)} has "
-                         "equal bounds")
-
-
 def _write_json(path: Path, data: dict) -> None:
     atomic_write_bytes(path, (json.dumps(data, indent=1, default=float) + "\n").encode())
 
@@ -249,7 +199,7 @@ def run_codesign(run: CodesignRun) -> CodesignOutcome:
     env = make_gradient_env(run.robot, contact=run.contact, motor_model=run.motor_model)
     shipped = env.robot
     design = load_design(shipped, run.vary)
-    _check_design(design, run.vary, shipped.source)
+    check_design(design, run.vary, shipped.source)
     given = check_baseline(Path(run.baseline), env, run.robot, run.motor_model) if run.baseline is not None else None
     with reserve(run.out / LOCK, f"co-design folder {run.out}"):
         done = _check_out(run, run.name or f"{shipped.name}_walk")

@@ -1,4 +1,4 @@
-"""Design screening: the coarse stage of co-design, before joint Gauss-Newton (issue #29 item 3).
+"""Design screening: the coarse stage of co-design, before joint Gauss-Newton.
 
 Gauss-Newton is local, and a walking gait under the Coulomb law is a rugged function of the
 design: feet that stick or slip one step earlier change the stride, and a gait tuned to one

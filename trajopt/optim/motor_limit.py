@@ -1,4 +1,4 @@
-"""The motors' speed limit on a gait's controls (issue #28 item 2).
+"""The motors' speed limit on a gait's controls.
 
 A motor's contraction moves at most ``v_max h`` in a simulation step of h seconds, ``v_max =
 max_speed_rpm * 2 pi / 60 * spool_radius`` (:attr:`soft_envs.sim.Robot.max_contraction_speed`).

@@ -1,4 +1,4 @@
-r"""The motors' torque-speed line on a gait's controls (issue #38): inequalities on z, linearised at
+r"""The motors' torque-speed line on a gait's controls: inequalities on z, linearised at
 every iterate through the tensions' exact sensitivities.
 
 The law (:mod:`soft_envs.sim.motors`, reached through :mod:`soft_envs.envs`): a motor winding

@@ -1,4 +1,4 @@
-"""A result's motors under load, as ``trajopt play --dry-run`` reports them (issue #38), without the
+"""A result's motors under load, as ``trajopt play --dry-run`` reports them, without the
 simulator: numpy only, so playback (:mod:`trajopt.hardware`) stays free of ``soft_envs``.
 
 The load torque of every state of the optimised horizon is recorded when a result is made

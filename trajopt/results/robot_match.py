@@ -24,7 +24,7 @@ __all__ = ["RobotMismatchError", "IGNORE_FLAG", "fingerprint_of", "describe_diff
 IGNORE_FLAG = "--ignore-robot-mismatch"
 #: robot.toml fields a result records itself and replays with, whatever the file says now: the
 #: contact law (``settings["contact"]``; a result without it was made under the paper's law). The
-#: shipped robot files changed ``[contact] model`` from "paper" to "coulomb" (issue #31): a
+#: shipped robot files changed ``[contact] model`` from "paper" to "coulomb": a
 #: result made before is still a result of the same robot.
 RESULT_OWNED_FIELDS = frozenset({"[contact].model"})
 
@@ -48,7 +48,7 @@ def robot_reference(robot: Any) -> str:
 
 def locate_robot(res: Any) -> str:
     """The robot a result names, as it can be found now: its ``robot`` (a shipped name, or a
-    robot.toml path: absolute since issue #40, relative to where it was made before), else, when
+    robot.toml path: absolute in results of release 0.2, relative to where it was made before), else, when
     that path is not found, the file of that name beside the result, or the path taken relative
     to the result's folder (a result folder copied or moved with its robot, e.g. a co-design's).
     Whether the robot found is the one the result was made for is :func:`check_robot`'s to say."""

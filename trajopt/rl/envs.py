@@ -32,7 +32,7 @@ from gymnasium import spaces
 
 from ..optim.gait import DEFAULT_EVAL_CYCLES, GaitSpec
 
-__all__ = ["ROBOTS", "ROBOT_IDS", "COULOMB_IDS", "GAIT", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES",
+__all__ = ["ROBOTS", "ROBOT_IDS", "COULOMB_IDS", "GAIT", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES",  # noqa: F822 (module __getattr__)
            "DropHorizontalPosition", "make_env", "robot_name", "env_id", "run_contact", "run_substeps"]
 
 #: robots of the RL baseline: the shipped robots (their Gymnasium ids: ``soft_envs.ENV_IDS_BY_ROBOT``)

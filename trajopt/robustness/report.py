@@ -191,7 +191,7 @@ def run_robustness_study(result: str | os.PathLike, out: str | os.PathLike, *, s
     ``cycles`` cycles and write the study to ``out`` (see the module docstring): ``(report,
     files written)``. Resumes the samples of a study with the same settings there (``overwrite``:
     discard them); a second study into the same ``out`` is refused while this one runs."""
-    from ..results.reservation import reserve       # a second study into the same --out is refused (issue #26 item 2)
+    from ..results.reservation import reserve       # a second study into the same --out is refused
     with reserve(Path(out) / "robustness.lock", f"robustness folder {out}"):
         return _run_study(Path(result), Path(out), samples, cycles, seed, workers, overwrite)
 

@@ -1,4 +1,4 @@
-"""Gait robustness: replay a gait under perturbed physics, motors and ground (issue #19).
+"""Gait robustness: replay a gait under perturbed physics, motors and ground.
 
 ``trajopt robustness RESULT --samples N --cycles C --out DIR`` plays the gait of RESULT (its prep
 phase and C cycles) N times, each under perturbations drawn from :data:`PERTURBATIONS`, and
