@@ -21,6 +21,8 @@ edge on a hand-sized body would mesh for hours.
 """
 from __future__ import annotations
 
+import signal
+
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -261,6 +263,7 @@ def tetrahedralize(surface: Surface, edge_length: float, remesh: bool = True) ->
     if not (np.isfinite(edge_length) and edge_length > 0):
         raise ValueError(f"edge_length must be positive, got {edge_length!r}")
     gmsh = _gmsh()
+    sigpipe = signal.getsignal(signal.SIGPIPE) if hasattr(signal, "SIGPIPE") else None
     gmsh.initialize(interruptible=False)
     try:
         gmsh.option.setNumber("General.Terminal", 0)
@@ -293,6 +296,11 @@ def tetrahedralize(surface: Surface, edge_length: float, remesh: bool = True) ->
     finally:
         gmsh.logger.stop()
         gmsh.finalize()
+        if sigpipe is not None:
+            # gmsh's initialize() sets SIGPIPE to its default action, behind Python's back: a
+            # later write to a closed pipe (a process pool's queue to a terminated worker, `| head`)
+            # would end this process instead of raising BrokenPipeError. Python's disposition back.
+            signal.signal(signal.SIGPIPE, sigpipe)
     if len(tet_nodes) == 0:
         raise SurfaceError(f"{surface.source}: gmsh made no tetrahedra (is the surface self-intersecting?)")
     lookup = np.zeros(int(node_tags.max()) + 1, dtype=np.int64)

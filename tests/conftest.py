@@ -71,3 +71,32 @@ def robot_dir(tmp_path) -> Path:
     shutil.copy(src / "tripod.vtu", tmp_path / "tripod.vtu")
     shutil.copy(src / "robot.toml", tmp_path / "robot.toml")
     return tmp_path
+
+
+
+def _sigpipe_ignored() -> bool | None:
+    """Whether this process ignores SIGPIPE, as the kernel sees it (``/proc/self/status``: a
+    library may change it in C, behind Python's back), or None where that cannot be read."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("SigIgn:"):
+                return bool(int(line.split()[1], 16) >> (int(signal.SIGPIPE) - 1) & 1)
+    except (OSError, ValueError, AttributeError):
+        pass
+    return None
+
+
+@pytest.fixture(autouse=True)
+def _sigpipe_stays_ignored(request):
+    """Python ignores SIGPIPE from the start (a write to a closed pipe raises BrokenPipeError). A
+    test, or a library it loads, that leaves SIGPIPE at its default action kills the test process
+    at the next such write, as a process pool's queue makes when its workers are terminated: in a
+    pytest-xdist worker that crashed the worker and hung the run. The disposition is put back
+    after every test, and the test that changed it fails."""
+    before = _sigpipe_ignored()
+    yield
+    after = _sigpipe_ignored()
+    if before and not after:
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+        pytest.fail(f"{request.node.nodeid} left SIGPIPE at its default action (process-ending); put back "
+                    "to ignored")

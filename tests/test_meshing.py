@@ -1,6 +1,7 @@
 """Surface -> tet mesh (soft_envs.meshing) and the robot.toml skeleton (soft_envs.skeleton)."""
 from __future__ import annotations
 
+import subprocess
 import sys
 from pathlib import Path
 
@@ -84,6 +85,30 @@ def test_mesh_box_in_the_robot_frame(tmp_path):
     assert 0.1 < q.min_radius_ratio <= q.median_radius_ratio <= 1
     edges = np.linalg.norm(r.points[r.tets[:, 1]] - r.points[r.tets[:, 0]], axis=1)
     assert 0.004 < np.median(edges) < 0.013              # the target edge length is followed
+
+
+SIGPIPE_AFTER_MESHING = """
+import signal, sys
+from pathlib import Path
+sys.path.insert(0, sys.argv[2])
+from test_meshing import box, write_surface
+from soft_envs.meshing import mesh_surface
+mesh_surface(write_surface(Path(sys.argv[1]) / "box.stl", *box()), scale=1e-3, edge_length=0.01)
+line = next(ln for ln in Path("/proc/self/status").read_text().splitlines() if ln.startswith("SigIgn:"))
+print(bool(int(line.split()[1], 16) >> (signal.SIGPIPE - 1) & 1), signal.getsignal(signal.SIGPIPE) == signal.SIG_IGN)
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="reads the signal masks from /proc")
+def test_meshing_leaves_sigpipe_ignored(tmp_path):
+    """gmsh's first initialize() in a process sets SIGPIPE to its default action in C; meshing
+    puts Python's disposition (ignored) back, as the kernel sees it: a later write to a closed
+    pipe raises BrokenPipeError instead of ending the process (checked in a fresh process)."""
+    pytest.importorskip("gmsh")
+    proc = subprocess.run([sys.executable, "-c", SIGPIPE_AFTER_MESHING, str(tmp_path), str(Path(__file__).parent)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["True", "True"], proc.stdout + proc.stderr
 
 
 def test_inward_surface_is_flipped_with_a_warning(tmp_path):

@@ -291,7 +291,7 @@ def local_ray(tmp_path, monkeypatch):
         _wait_for(lambda: "Ray runtime started" in log.read_text(), 120, "the Ray head", head, log)
         yield address
     finally:
-        for sig, wait in ((signal.SIGTERM, 20), (signal.SIGKILL, 10)):
+        for sig, wait in ((signal.SIGTERM, 5), (signal.SIGKILL, 10)):
             try:
                 os.killpg(head.pid, sig)
             except ProcessLookupError:
