@@ -30,10 +30,10 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-__all__ = ["optimize_gait", "Result", "GaitSpec", "GaitParameterization", "ObjectiveWeights",
+__all__ = ["optimize_gait", "OptimizeSettings", "Result", "GaitSpec", "GaitParameterization", "ObjectiveWeights",
            "GaussNewtonOptions", "measure_gait", "evaluate_controls", "evaluate_result"]
 
-_LAZY = {"optimize_gait": ".optim.optimize", "Result": ".results", "GaitSpec": ".optim.gait",
+_LAZY = {"optimize_gait": ".optim.optimize", "OptimizeSettings": ".optim.optimize_settings", "Result": ".results", "GaitSpec": ".optim.gait",
          "GaitParameterization": ".optim.parameterization", "ObjectiveWeights": ".optim.objectives",
          "GaussNewtonOptions": ".optim.gauss_newton", "measure_gait": ".evaluation",
          "evaluate_controls": ".evaluation", "evaluate_result": ".evaluation"}

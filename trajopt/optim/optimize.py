@@ -27,14 +27,15 @@ import numpy as np
 
 from soft_envs.envs import GradientEnv, MotorLaw, RolloutStopped, SimulationError, as_gradient_env
 
-from ..evaluation import DEFAULT_EVAL_CYCLES, evaluate_controls, zero_slack_controls
+from ..evaluation import evaluate_controls, zero_slack_controls
 from .ensemble import EnsembleProblem, credible_speed, ensemble_substeps, member_env
 from .gait import GaitSpec
-from .gauss_newton import GaussNewtonOptions, GaussNewtonResult, gauss_newton
+from .gauss_newton import GaussNewtonResult, gauss_newton
 from .heading import HeadingMeasure
 from .motor_limit import (IDEAL, SPEED, TORQUE_SPEED, choose_motor_model, describe_projection, max_step_of_env,
                           settings_entry, speed_limit_constraints)
 from .motor_torque import LINE_TOLERANCE, MotorLine, line_settings_entry, motor_load_entry
+from .optimize_settings import OptimizeSettings, settings_with
 from .objectives import HeadingTarget, ObjectiveWeights, gait_residuals, objective_stop
 from .parameterization import GaitParameterization
 from ..results.result import Result
@@ -43,7 +44,7 @@ from ..tasks.targets import bl_per_min_to_mps, from_array
 from ..tasks.registry import TASKS, Task, get_task
 from .start import RESUME_KEYS, Start, check_resume, choose_start   # noqa: F401  (re-exported)
 
-__all__ = ["optimize_gait", "GaitProblem", "Start", "Recorder", "build_problem", "choose_start", "check_resume",
+__all__ = ["optimize_gait", "OptimizeSettings", "GaitProblem", "Start", "Recorder", "build_problem", "choose_start", "check_resume",
            "finish", "DEFAULT_SPEED", "TASKS", "TASK_CONTACT"]
 
 #: the contact law a task runs on when none is chosen (absent: the robot file's):
@@ -245,49 +246,39 @@ def finish(recorder: Recorder, gn: GaussNewtonResult, eval_cycles: int, heading_
     return result
 
 
-def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
-                  speed_bl_per_min: float | None = None, heading_deg: float = 0.0, turn: str = "right",
-                  target: np.ndarray | None = None, weights: ObjectiveWeights | None = None,
-                  options: GaussNewtonOptions = GaussNewtonOptions(), warm_start: Result | None = None,
-                  z0: np.ndarray | None = None, n_seeds: int = 8, eval_cycles: int = DEFAULT_EVAL_CYCLES,
-                  robot_spec: str | None = None,
-                  callback: Callable[[dict, Result], bool | None] | None = None,
-                  resume: Result | None = None, motor_model: str | None = None, motor_limit: bool = True,
-                  ensemble: tuple[int, ...] = ()) -> Result:
-    """Optimise a gait and return a :class:`Result` (evaluated over ``eval_cycles`` cycles).
+def optimize_gait(env: Any, task: str = "walk", settings: OptimizeSettings | None = None, *,
+                  warm_start: Result | None = None, z0: np.ndarray | None = None, resume: Result | None = None,
+                  callback: Callable[[dict, Result], bool | None] | None = None, robot_spec: str | None = None,
+                  **fields: Any) -> Result:
+    """Optimise a gait and return a :class:`Result` (evaluated over ``settings.eval_cycles`` cycles).
 
     ``env``: a Gymnasium env offering :class:`~soft_envs.envs.GradientEnv` (its contact law is
     used), or a robot / name / robot.toml path (:func:`~soft_envs.envs.make_gradient_env`, with
     the task's contact law :attr:`trajopt.tasks.Task.contact`: Coulomb for the turn, else the robot file's).
-    ``gait``: the control trajectory's shape; default ``GaitSpec.for_task(task)``, the paper's
-    24 + 2 x 72 steps and 4 keyframes, symmetric except for the turn (paper IV-B), which has 12
-    keyframes (:data:`~trajopt.tasks.TURN_KEYFRAMES`). ``weights``: default
-    ``ObjectiveWeights.for_task(task)`` (the turn also tracks the body's heading).
+    ``settings``: what to optimise for and under which limits
+    (:class:`~trajopt.optim.optimize_settings.OptimizeSettings`: the gait's shape, the target's
+    speed, heading and side, the weights, the Gauss-Newton options, the seeds, the evaluation's
+    cycles, the motors' model, the ensemble); ``**fields`` replace its fields
+    (``optimize_gait(env, "walk", speed_bl_per_min=10)``).
+
     ``warm_start``: another result whose keyframes are a starting candidate (e.g. turn from walk;
     symmetric and asymmetric parameterisations are converted, and 4 keyframes repeated to 12). The
-    start is the best objective
-    among the warm start and ``param.seeds(n_seeds)`` (cheap rollouts without sensitivities);
-    ``n_seeds=0`` with a warm start starts from the warm start alone. ``resume``: continue an
-    interrupted result (same settings; its z, history and damping are picked up).
-    ``callback(entry, partial_result)`` runs after each Gauss-Newton iteration (checkpointing,
-    progress); returning True stops the optimisation. ``motor_model``: the motors' law the
-    controls obey at every step they play (:mod:`soft_envs.sim.motors`): ``"torque-speed"`` (the
-    torque-speed line at the tensions' load torque and the gearbox's torque limit,
-    :mod:`trajopt.optim.motor_torque`, within :data:`~trajopt.optim.motor_torque.LINE_TOLERANCE`),
-    ``"speed"`` (the speed limit alone, :mod:`trajopt.optim.motor_limit`: the results of before
-    the line, bit for bit) or ``"ideal"`` (none: the results of before the limit); None: the
-    environment's ``motor_model`` (a robot or name: ``"torque-speed"``). The no-load speed is the
-    environment's ``motor_speed`` (the robot's ``max_speed_rpm`` unless overridden). A start
-    outside the limits (a warm start made without them) is first moved into them, and the
-    projection printed and recorded in ``settings["start_projection"]``; the model is recorded in
-    ``settings["motor_model"]``, the speed limit in ``settings["motor_limit"]``, the line in
-    ``settings["motor_line"]``. ``motor_limit=False`` is ``motor_model="ideal"`` (kept for
-    scripts of before the line). ``ensemble``: physics steps per control step of other physics
-    the gait is optimised on as well (e.g. ``(2, 8)`` besides the default 4;
-    :mod:`trajopt.optim.ensemble`: the residuals stack; the result
-    records each member's speed in ``evaluation["ensemble"]`` and the slowest,
-    ``evaluation["credible_bl_per_min"]``; ``settings["ensemble"]`` the members' physics steps).
+    start is the best objective among the warm start and ``param.seeds(n_seeds)``. ``z0``: a
+    given start. ``resume``: continue an interrupted result (same settings; its z, history and
+    damping are picked up). ``callback(entry, partial_result)`` runs after each Gauss-Newton
+    iteration (checkpointing, progress); returning True stops the optimisation. ``robot_spec``:
+    how the result names its robot (default the robot's name).
+
+    A start outside the motors' limits (a warm start made without them) is first moved into
+    them, and the projection printed and recorded in ``settings["start_projection"]``; the
+    result records the motors' model in ``settings["motor_model"]``, the speed limit in
+    ``settings["motor_limit"]``, the line in ``settings["motor_line"]``; an ensemble's result each
+    member's speed in ``evaluation["ensemble"]`` and the slowest,
+    ``evaluation["credible_bl_per_min"]`` (``settings["ensemble"]``: the members' physics steps).
     """
+    s = settings_with(settings, fields)
+    gait, weights, target, turn, heading_deg = s.gait, s.weights, s.target, s.turn, s.heading_deg
+    eval_cycles, options, speed_bl_per_min = s.eval_cycles, s.options, s.speed_bl_per_min
     the_task = get_task(task)
     if the_task.needs_target and target is None:
         raise ValueError(f"task={task!r} needs a target array")
@@ -298,33 +289,33 @@ def optimize_gait(env: Any, task: str = "walk", *, gait: GaitSpec | None = None,
     gait = GaitSpec.for_task(task) if gait is None else gait
     weights = ObjectiveWeights.for_task(task) if weights is None else weights
     speed = float(speed_bl_per_min if speed_bl_per_min is not None else DEFAULT_SPEED.get(robot.name, 8.0))
-    settings = {**gait.to_settings(), "speed_bl_per_min": speed, "heading_deg": heading_deg, "turn": turn,
+    recorded = {**gait.to_settings(), "speed_bl_per_min": speed, "heading_deg": heading_deg, "turn": turn,
                 "incline_deg": float(env.incline_deg), "weights": weights.to_dict(),
                 "gauss_newton": asdict(options), "eval_cycles": eval_cycles,
                 "warm_start": warm_start.settings.get("source") if warm_start is not None else None,
                 "control": "length", "contact": env.contact_model, "substeps": int(env.substeps)}
-    model = choose_motor_model(env, motor_model, motor_limit)
+    model = choose_motor_model(env, s.motor_model, s.motor_limit)
     max_step = max_step_of_env(env) if model != IDEAL else None
-    settings["motor_limit"] = settings_entry(robot, max_step, env.timestep)
-    settings["motor_model"] = model
-    settings["motor_line"] = line_settings_entry(MotorLaw.of_robot(robot, max_step / env.timestep), env.timestep) \
+    recorded["motor_limit"] = settings_entry(robot, max_step, env.timestep)
+    recorded["motor_model"] = model
+    recorded["motor_line"] = line_settings_entry(MotorLaw.of_robot(robot, max_step / env.timestep), env.timestep) \
         if model == TORQUE_SPEED else None
-    members = ensemble_substeps(env, ensemble)
+    members = ensemble_substeps(env, s.ensemble)
     if len(members) > 1:
-        settings["ensemble"] = members
+        recorded["ensemble"] = members
     if resume is not None:
-        check_resume(resume, task, settings, fingerprint_of(robot))
+        check_resume(resume, task, recorded, fingerprint_of(robot))
     problem = build_problem(env, task, gait, speed_bl_per_min=speed, heading_deg=heading_deg, turn=turn,
                             target=target, weights=weights, max_step=max_step, motor_model=model)
     if len(members) > 1:
         problem = EnsembleProblem([problem] + [
             build_problem(member_env(env, n), task, gait, speed_bl_per_min=speed, heading_deg=heading_deg, turn=turn,
                           target=target, weights=weights, max_step=max_step, motor_model=model) for n in members[1:]])
-    start = choose_start(problem, resume=resume, z0=z0, warm_start=warm_start, n_seeds=n_seeds)
+    start = choose_start(problem, resume=resume, z0=z0, warm_start=warm_start, n_seeds=s.n_seeds)
     if start.projection is not None:
-        settings["start_projection"] = start.projection
-        print(describe_projection(start.projection, settings.get("warm_start") or "the start", max_step))
-    recorder = Recorder(problem, robot_spec or robot.name, task, settings, start.history, callback)
+        recorded["start_projection"] = start.projection
+        print(describe_projection(start.projection, recorded.get("warm_start") or "the start", max_step))
+    recorder = Recorder(problem, robot_spec or robot.name, task, recorded, start.history, callback)
     gn = gauss_newton(problem, start.z, *problem.param.bounds(), options, callback=recorder.on_iteration,
                       lam=start.lam, first_iteration=start.first_iteration, rejections=start.rejections,
                       constraints=problem.constraints)
