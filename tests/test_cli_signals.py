@@ -28,20 +28,25 @@ TINY = ["--prep-steps", "4", "--cycle-steps", "12", "--keyframes", "4", "--seeds
 #: runs ``trajopt`` with the optimiser held (sleeping) after its first checkpoint (plain
 #: optimize) or before its second optimisation (--speed max): the signal finds it there
 HELD = """
-import sys, time
+import os, sys, time
 import trajopt.optimize_run as run, trajopt.fastest as fastest
 real_run, real_fastest = run.optimize_gait, fastest.optimize_gait
+def park():
+    # tell the test the process is parked in the sleep, where a signal always interrupts it (sent
+    # any earlier, it may land in a finaliser run by the garbage collector, which swallows it)
+    open(os.environ["HELD_MARKER"], "w").close()
+    time.sleep(600)
 def held_run(*a, callback, **kw):
     def cb(entry, partial):
         out = callback(entry, partial)
-        time.sleep(600)
+        park()
         return out
     return real_run(*a, callback=cb, **kw)
 calls = []
 def held_fastest(*a, **kw):
     calls.append(1)
     if len(calls) == 2:
-        time.sleep(600)
+        park()
     return real_fastest(*a, **kw)
 run.optimize_gait, fastest.optimize_gait = held_run, held_fastest
 from trajopt.cli import main
@@ -54,8 +59,11 @@ def _default_dispositions() -> None:       # in the child: as from a shell, what
         signal.signal(s, signal.SIG_DFL)
 
 
-def start(args: list[str], code: str = HELD, **env) -> subprocess.Popen:
+def start(args: list[str], code: str = HELD, *, held: Path | None = None, **env) -> subprocess.Popen:
+    """``trajopt ARGS`` run by ``code``; ``held``: the file the HELD code creates once parked."""
     env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}", **env}
+    if held is not None:
+        env["HELD_MARKER"] = str(held)
     return subprocess.Popen([sys.executable, "-c", code, *args], env=env, preexec_fn=_default_dispositions,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
@@ -83,9 +91,11 @@ def rows_saved(state: Path) -> int:
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
 def test_optimize_ends_on_sigterm_and_sighup_as_on_ctrl_c(tmp_path, signum):
-    proc = start(["optimize", "tripod", *TINY, "--iterations", "50", "--out", str(tmp_path), "--name", "w"])
+    proc = start(["optimize", "tripod", *TINY, "--iterations", "50", "--out", str(tmp_path), "--name", "w"],
+                 held=tmp_path / "held")
     partial = tmp_path / "w.partial.npz"
     wait_for_file(partial, proc)
+    wait_for_file(tmp_path / "held", proc)
     proc.send_signal(signum)
     out, err = proc.communicate(timeout=DEADLINE)
     assert proc.returncode == 128 + signum, err
@@ -101,9 +111,10 @@ def test_speed_max_checkpoints_its_search_and_resumes_it(tmp_path, signum, monke
     """Ctrl-C or SIGTERM during --speed max: the finished runs of the search are kept
     (NAME.search.partial/), and --resume continues after them instead of starting afresh."""
     args = ["optimize", "tripod", "--speed", "max", "--out", str(tmp_path), "--name", "m", "--quiet"]
-    proc = start(args, SOFT_ENVS_QUICK="1")
+    proc = start(args, held=tmp_path / "held", SOFT_ENVS_QUICK="1")
     state = tmp_path / "m.search.partial" / "state.json"
     wait_until(lambda: rows_saved(state) == 1, proc, "the first finished optimisation saved")
+    wait_for_file(tmp_path / "held", proc)
     proc.send_signal(signum)
     out, err = proc.communicate(timeout=DEADLINE)
     assert proc.returncode == 128 + signum, err
