@@ -7,6 +7,7 @@ and draws the tendons (one colour per motor) and payload nodes on top, with a le
 """
 from __future__ import annotations
 
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,6 +42,22 @@ class RobotCheck:
     warnings: list[str] = field(default_factory=list)
 
 
+def contact_row(robot: Robot) -> str:
+    """The contact law in use (the robot file's ``[contact] model``, or the default when it names
+    none) and the parameters that law reads, with their units (not the other laws')."""
+    c = robot.contact
+    named = False
+    try:
+        with open(robot.source, "rb") as fh:
+            named = "model" in tomllib.load(fh).get("contact", {})
+    except (OSError, TypeError, ValueError, AttributeError):
+        pass
+    figures = ", ".join(f"{p.name} {getattr(c, p.name):g}{' ' + p.unit if p.unit else ''}"
+                        for p in c.law.contact_parameters)
+    where = "the robot file's [contact] model" if named else "the default: the robot file names none"
+    return f"{c.model} law ({where}; the commands' --contact switches it): {figures}"
+
+
 def check_robot(name_or_path: str | Path) -> RobotCheck:
     """Load and summarise a robot (a shipped name or a robot.toml); raises ``ValueError`` naming
     the file and the field for a description that cannot be simulated."""
@@ -57,8 +74,7 @@ def check_robot(name_or_path: str | Path) -> RobotCheck:
                      f"{len(robot.payload_nodes)} top nodes = {1e3 * robot.total_mass:.1f} g"),
             ("material", f"E {robot.youngs_modulus:.4g} Pa, nu {robot.poisson_ratio:g}, "
                          f"density {robot.density:.4g} kg/m^3"),
-            ("contact", f"stiffness {robot.contact.stiffness:g} N/m, friction {robot.contact.friction:g} 1/m, "
-                        f"blend {robot.contact.blend:g} m"),
+            ("contact", contact_row(robot)),
             ("fixed nodes", str(len(robot.fixed_nodes))),
             *q.rows()]
     rest = dict(zip(robot.tendon_names, robot.cable_data.rest_length))

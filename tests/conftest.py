@@ -74,6 +74,24 @@ def robot_dir(tmp_path) -> Path:
 
 
 
+
+@pytest.fixture
+def png_titles(monkeypatch):
+    """``png_titles(module)``: the list, filled as the test runs, of the suptitles of the figures
+    ``module`` writes through its ``atomic_write_png`` (which still writes them)."""
+    titles: list[str] = []
+
+    def watch(module) -> list[str]:
+        real = module.atomic_write_png
+
+        def keep(fig, path, **kw):
+            titles.append(fig._suptitle.get_text())
+            return real(fig, path, **kw)
+
+        monkeypatch.setattr(module, "atomic_write_png", keep)
+        return titles
+    return watch
+
 def _sigpipe_ignored() -> bool | None:
     """Whether this process ignores SIGPIPE, as the kernel sees it (``/proc/self/status``: a
     library may change it in C, behind Python's back), or None where that cannot be read."""

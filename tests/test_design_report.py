@@ -81,17 +81,10 @@ def test_the_report_without_a_reoptimised_gait_and_with_a_failed_check(tmp_path)
     assert np.isfinite(12.0)
 
 
-def test_the_picture_states_the_speed_gain_in_its_title(tmp_path, monkeypatch):
+def test_the_picture_states_the_speed_gain_in_its_title(tmp_path, png_titles):
     """codesign.png's title says what the co-design gained (#41): baseline and new speed in BL/min
     and their ratio."""
     import trajopt.codesign.report as report_module
-    titles = []
-    real = report_module.atomic_write_png
-
-    def keep(fig, path, **kw):
-        titles.append(fig._suptitle.get_text())
-        return real(fig, path, **kw)
-
-    monkeypatch.setattr(report_module, "atomic_write_png", keep)
+    titles = png_titles(report_module)
     plot_robots_side_by_side("tripod", asset_path("tripod"), tmp_path / "gain.png", speeds=(20.0, 26.0))
     assert titles[0].startswith("speed 20.00 -> 26.00 BL/min (x 1.30): shipped vs co-designed")

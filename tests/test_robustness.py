@@ -250,17 +250,10 @@ def test_robustness_off_a_terminal_beats_while_it_replays(tmp_path, capsys, monk
     assert "robustness: 0/1 replays, still working" in err and "\r" not in err
 
 
-def test_the_robustness_plot_names_the_gait_it_studies(tmp_path, monkeypatch):
+def test_the_robustness_plot_names_the_gait_it_studies(tmp_path, png_titles):
     """robustness.png's title names the gait (its result file) and the replays (#41)."""
     import trajopt.robustness.report as report_module
-    titles = []
-    real = report_module.atomic_write_png
-
-    def keep(fig, path, **kw):
-        titles.append(fig._suptitle.get_text())
-        return real(fig, path, **kw)
-
-    monkeypatch.setattr(report_module, "atomic_write_png", keep)
+    titles = png_titles(report_module)
     result = tiny_result(tmp_path)
     assert main(["robustness", str(result), "--samples", "2", "--cycles", "1", "--out", str(tmp_path / "rob"),
                  "--workers", "1"]) == 0

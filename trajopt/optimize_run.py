@@ -111,7 +111,6 @@ class OptimizeRun:
         return result_path(Path(self.out) / name)
 
 
-
 #: the options an optimisation run takes (a sweep file's ``optimize`` arguments)
 OPTIMIZE_OPTIONS = tuple(f.name for f in dataclasses.fields(OptimizeRun))
 

@@ -77,13 +77,13 @@ class Progress:
         return "".join(f", {k} {v}" for k, v in self.postfix.items())
 
     def update(self, n: int = 1, line: str | None = None) -> None:
+        """Count ``n`` more items; ``line`` is printed (above the bar on a terminal)."""
         self.n += int(n)
-        if self.bar is not None:
-            self.bar.update(n)
-            return
         if line is not None:
             self.line(line)
-        elif self.per_item:
+        if self.bar is not None:
+            self.bar.update(n)
+        elif line is None and self.per_item:
             self.line(f"{self.count()}{self._figures()}, {self.clock() - self.t0:.0f} s")
 
     def set_postfix(self, **figures) -> None:

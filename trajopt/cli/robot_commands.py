@@ -50,30 +50,13 @@ def _print_estimate(n: int, edge_length: float) -> None:
     print(f"meshing at edge length {edge_length:.4g} m: about {n} tets expected", flush=True)
 
 
-def contact_text(robot) -> str:
-    """The contact law in use (the robot file's ``[contact] model``, or the default when it names
-    none) and the parameters that law reads, with their units (not the other laws')."""
-    c = robot.contact
-    named = False
-    try:
-        import tomllib
-        with open(robot.source, "rb") as fh:
-            named = "model" in tomllib.load(fh).get("contact", {})
-    except (OSError, TypeError, ValueError, AttributeError):
-        pass
-    figures = ", ".join(f"{p.name} {getattr(c, p.name):g}{' ' + p.unit if p.unit else ''}"
-                        for p in c.law.contact_parameters)
-    where = "the robot file's [contact] model" if named else "the default: the robot file names none"
-    return f"{c.model} law ({where}; the commands' --contact switches it): {figures}"
-
-
 def run_check(args) -> int:
     from soft_envs.robot_check import check_robot, draw_robot
 
     check = check_robot(args.robot)           # ValueError naming file and field -> exit code 2
     robot = check.robot
     print(f"{robot.name}: valid")
-    print_table([(k, contact_text(robot) if k == "contact" else v) for k, v in check.rows])
+    print_table(check.rows)
     _warn(check.warnings)
     if not args.no_picture:
         if args.picture is not None:

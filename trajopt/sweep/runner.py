@@ -117,8 +117,6 @@ class _Progress:
         why = f": {st.get('reason')}" if st.get("status") != "done" and st.get("reason") else ""
         text = (f"[{self.n + 1}/{self.total}] {st.get('status', '?'):<11} {st.get('run')} "
                 f"({st.get('wall_time_s', 0.0):.1f} s{fig}){why}")
-        if self.p.bar is not None:
-            self.p.line(text)
         self.p.update(1, line=text)
 
     def close(self) -> None:
