@@ -60,6 +60,7 @@ from trajopt.rl.envs import GAIT, env_id
 from trajopt.fidelity import fidelity
 from trajopt.rl.evaluate import play_controls_in_env, policy_fidelity, run_metric
 from trajopt.sweep import load_spec, quick_requested, read_status, run_sweep, write_summary
+from trajopt.sweep.summary import statuses_on_disk
 
 HERE = Path(__file__).resolve().parent
 SPECS = {"coulomb": HERE.parent / "examples" / "rl_seeds_coulomb.toml",
@@ -182,6 +183,9 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=None, help="local Ray CPUs (default: all)")
     ap.add_argument("--address", default=None, help="an existing Ray cluster (auto, HOST:PORT, ray://HOST:PORT)")
     ap.add_argument("--serial", action="store_true", help="no Ray: the runs one after another")
+    ap.add_argument("--only", action="append", metavar="PATTERN", default=None,
+                    help="run only the sweep's runs whose name matches (repeatable, e.g. '*_seed?'); "
+                         "the report lists the others as not run")
     ap.add_argument("--report-only", action="store_true", help="no runs: the report from the sweep directory")
     args = ap.parse_args()
     quick = quick_requested(args.quick)
@@ -190,8 +194,9 @@ def main() -> None:
     spec = load_spec(spec_path, sweep_dir, quick=quick)
     t0 = time.perf_counter()
     if not args.report_only:
-        outcome = run_sweep(spec, sweep_dir, workers=args.workers, address=args.address, serial=args.serial)
-        write_summary(spec, outcome.statuses, sweep_dir)
+        outcome = run_sweep(spec.only(args.only), sweep_dir, workers=args.workers, address=args.address,
+                            serial=args.serial)
+        write_summary(spec, statuses_on_disk(spec, sweep_dir, outcome.statuses), sweep_dir)
         if outcome.interrupted:
             raise SystemExit(130)
     import stable_baselines3

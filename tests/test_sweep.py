@@ -188,6 +188,22 @@ def test_dry_run_refuses_what_the_run_would_refuse(tmp_path, capsys):
     assert lines[-1] == "0 done, 1 to run, 2 refused" and not out.exists()
 
 
+def test_only_runs_the_matching_runs_and_the_summary_keeps_the_whole_sweep(tmp_path, capsys):
+    from trajopt.cli import main
+    path = write(tmp_path, tiny_block("a_{_x}", "_x = [0]") + tiny_block("b_{_x}", "_x = [0]"))
+    out = tmp_path / "out"
+    assert main(["sweep", str(path), "--out", str(out), "--serial", "--only", "c_*"]) == 2
+    assert "sweep.toml: --only 'c_*' matches no run; the runs are a_0, b_0" in capsys.readouterr().err
+    assert not out.exists()
+    assert main(["sweep", str(path), "--out", str(out), "--serial", "--no-plot", "--only", "a_*"]) == 0
+    assert "1 runs" in capsys.readouterr().out and not (out / "b_0").exists()
+    rows = (out / "summary.csv").read_text().splitlines()
+    assert [r.split(",")[:3] for r in rows[1:]] == [["a_0", "optimize", "done"], ["b_0", "optimize", "not started"]]
+    assert main(["sweep", str(path), "--out", str(out), "--serial", "--no-plot", "--only", "b_?"]) == 0
+    rows = (out / "summary.csv").read_text().splitlines()
+    assert [r.split(",")[:3] for r in rows[1:]] == [["a_0", "optimize", "done"], ["b_0", "optimize", "done"]]
+
+
 def test_fractional_speed_run_and_status_files_that_lie(tmp_path):
     """A run named with a fractional target speed (``v5.5``) finishes as done (its result was
     once saved as ``v5.npz``); a "done" status whose result was deleted is run again; a

@@ -22,6 +22,8 @@ def add_sweep_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true",
                    help="the sweep file's [runs.quick] arguments (tiny runs; also SOFT_ENVS_QUICK=1)")
     p.add_argument("--serial", action="store_true", help="no Ray: the runs one after another in this process")
+    p.add_argument("--only", action="append", metavar="PATTERN", default=None,
+                   help="only the runs whose name matches this shell pattern (repeatable), e.g. 'tripod_*'")
     p.add_argument("--dry-run", action="store_true", help="list the runs and what is done; run nothing")
     p.add_argument("--no-plot", action="store_true", help="no summary.png")
     p.set_defaults(func=run_sweep_command)
@@ -31,18 +33,20 @@ def add_sweep_parser(sub) -> argparse.ArgumentParser:
 def run_sweep_command(args) -> int:
     from ..sweep.runner import run_sweep
     from ..sweep.spec import load_spec, quick_requested
-    from ..sweep.summary import write_summary
+    from ..sweep.summary import statuses_on_disk, write_summary
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be >= 1, got {args.workers}")
     if args.workers is not None and args.address:
         raise ValueError("--workers sizes a local Ray; with --address the cluster decides")
-    spec = load_spec(args.spec, args.out, quick=quick_requested(args.quick))
+    full = load_spec(args.spec, args.out, quick=quick_requested(args.quick))
+    spec = full.only(args.only)
     if args.dry_run:
         return _dry_run(spec, args.out.resolve())
     n = len(spec.runs)
-    print(f"sweep {args.spec}: {n} runs -> {args.out}" + (" (quick)" if quick_requested(args.quick) else ""))
+    print(f"sweep {args.spec}: {n} runs -> {args.out}" + (" (quick)" if quick_requested(args.quick) else "")
+          + (f" (--only: {n} of {len(full.runs)})" if n != len(full.runs) else ""))
     outcome = run_sweep(spec, args.out, workers=args.workers, address=args.address, serial=args.serial)
-    written = write_summary(spec, outcome.statuses, args.out, plot=not args.no_plot)
+    written = write_summary(full, statuses_on_disk(full, args.out, outcome.statuses), args.out, plot=not args.no_plot)
     print(f"{outcome.count('done')} done, {outcome.count('failed')} failed, "
           f"{outcome.count('interrupted')} interrupted of {n} runs ({len(outcome.skipped)} skipped as done) "
           f"in {outcome.wall_time_s:.1f} s; wrote {', '.join(str(w) for w in written)}")

@@ -38,12 +38,13 @@ not UTF-8: the byte offset).
 """
 from __future__ import annotations
 
+import fnmatch
 import itertools
 import os
 import re
 import string
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -124,6 +125,19 @@ class SweepSpec:
 
     def names(self) -> list[str]:
         return [r.name for r in self.runs]
+
+    def only(self, patterns: list[str] | None) -> "SweepSpec":
+        """The same sweep restricted to the runs whose name matches one of the shell-style
+        ``patterns`` (``tripod_*``, ``*_seed[01]``), in the file's order; ``None`` or an empty
+        list keeps every run. A pattern that matches no run is refused with the runs' names."""
+        if not patterns:
+            return self
+        for pat in patterns:
+            if not any(fnmatch.fnmatchcase(r.name, pat) for r in self.runs):
+                raise ValueError(f"{self.path}: --only {pat!r} matches no run; the runs are "
+                                 + ", ".join(self.names()))
+        runs = [r for r in self.runs if any(fnmatch.fnmatchcase(r.name, pat) for pat in patterns)]
+        return replace(self, runs=runs)
 
 
 def _norm(key: str) -> str:

@@ -11,8 +11,9 @@ from typing import Any
 from ..results.files import atomic_write_png
 from ..results.result import atomic_write_bytes
 from .spec import SweepSpec
+from .task import read_status
 
-__all__ = ["summary_rows", "write_summary", "METRIC_COLUMNS"]
+__all__ = ["summary_rows", "statuses_on_disk", "write_summary", "METRIC_COLUMNS"]
 
 METRIC_COLUMNS = ("speed_bl_per_min", "upright", "target_bl_per_min", "objective", "gn_iterations",
                   "sim_steps", "timesteps", "result_status")
@@ -43,6 +44,18 @@ def _cell(v: Any) -> str:
     if isinstance(v, list):
         return " ".join(map(str, v))
     return str(v)
+
+
+def statuses_on_disk(spec: SweepSpec, out: str | Path, statuses: dict[str, dict]) -> dict[str, dict]:
+    """``statuses`` completed with the status.json of the spec's other runs under ``out`` (those a
+    sweep restricted with ``--only`` left out), so that the summary lists the whole sweep."""
+    out = Path(out)
+    full = {}
+    for run in spec.runs:
+        st = statuses.get(run.name) or read_status(out / run.name)
+        if st is not None:
+            full[run.name] = st
+    return full
 
 
 def write_summary(spec: SweepSpec, statuses: dict[str, dict], out: str | Path, *, plot: bool = True) -> list[Path]:
