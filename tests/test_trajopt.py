@@ -319,3 +319,30 @@ def test_gauss_newton_resume_keeps_the_rejection_count():
     resumed = gauss_newton(fun, np.zeros(1), np.array([-5.0]), np.array([5.0]), opts,
                            first_iteration=3, rejections=2)
     assert resumed.status == "stalled" and [h["iteration"] for h in resumed.history] == [3]
+
+
+def test_a_jacobian_rollout_asked_again_at_the_same_point_is_not_simulated_again():
+    """The start is moved into the motors' line with rollouts with sensitivities, and
+    Gauss-Newton's first evaluation is at the same point: the problem keeps the last one."""
+    from trajopt.optim.optimize import build_problem
+    from trajopt.optim.motor_limit import max_step_of_env
+
+    def problem():
+        env = make_gradient_env("tripod", contact="coulomb")
+        return build_problem(env, "walk", GaitSpec(n_prep=4, n_cycle=8, n_cycles=1, n_keyframes=4), speed_bl_per_min=8.0,
+                             heading_deg=0.0, turn="right", target=None, weights=ObjectiveWeights.for_task("walk"),
+                             max_step=max_step_of_env(env), motor_model="torque-speed")
+    p = problem()
+    lo, hi = p.param.bounds()
+    z = lo + 0.3 * (hi - lo)
+    r, J, _ = p.evaluate(z, True)
+    steps, rollouts = p.sim_steps, p.rollouts
+    r2, J2, _ = p.evaluate(z.copy(), True)
+    assert (p.sim_steps, p.rollouts) == (steps, rollouts)
+    assert np.array_equal(r, r2) and np.array_equal(J, J2)
+    p.evaluate(z, False, check=False)                      # a trial always simulates
+    assert p.rollouts == rollouts + 1
+    p.evaluate(lo + 0.31 * (hi - lo), True)                # another point: simulated
+    assert p.rollouts == rollouts + 2
+    fresh_r, fresh_J, _ = problem().evaluate(z, True)
+    assert np.array_equal(fresh_r, r) and np.array_equal(fresh_J, J)

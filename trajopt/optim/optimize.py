@@ -89,6 +89,7 @@ class GaitProblem:
         self.rollouts = 0
         self.refused_trials = 0           # line-search trials refused for breaking the motors' line
         self.last_traj = None
+        self._last_jacobian = None        # (z's bytes, store_dxdz, trajectory) of the last rollout with sensitivities
 
     def controls(self, z: np.ndarray) -> np.ndarray:
         """Controls (K, n_motors) of the optimised horizon (prep + ``gait.n_cycles`` cycles)."""
@@ -100,7 +101,14 @@ class GaitProblem:
     def rollout(self, z: np.ndarray, sensitivities: bool = False, store_dxdz: bool = False, stop=None):
         """The rollout of keyframes ``z`` (with ``dgammadz`` and ``dcomdz`` when ``sensitivities``;
         ``stop``: see :meth:`soft_envs.envs.GradientEnv.rollout`). Its steps are counted, those of
-        a stopped rollout as far as it went."""
+        a stopped rollout as far as it went. The last rollout with sensitivities is kept: asked
+        again for the same z (the start moved into the motors' line, then Gauss-Newton's first
+        evaluation there), it is returned without simulating (a rollout is a function of z: the
+        problem's environment and robot do not change during its life)."""
+        key = np.asarray(z, dtype=np.float64).tobytes()
+        memo = self._last_jacobian
+        if sensitivities and memo is not None and memo[0] == key and (memo[1] or not store_dxdz):
+            return memo[2]
         u = self.controls(z)
         self.rollouts += 1
         try:
@@ -109,6 +117,8 @@ class GaitProblem:
             self.sim_steps += stopped.k
             raise
         self.sim_steps += len(u)
+        if sensitivities:
+            self._last_jacobian = (key, store_dxdz, traj)
         return traj
 
     def __call__(self, z: np.ndarray, need_jac: bool = True, bound: float | None = None):
