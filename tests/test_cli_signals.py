@@ -147,3 +147,34 @@ def test_evaluate_into_a_closed_pipe_exits_quietly(tmp_path):
                           stdout=write, stderr=subprocess.PIPE, text=True, env=env, timeout=DEADLINE)
     os.close(write)
     assert proc.stderr == "" and proc.returncode == 128 + signal.SIGPIPE, proc.stderr
+
+
+#: runs ``trajopt`` with RL training held (sleeping) at its first environment step
+RL_HELD = """
+import os, sys, time
+import stable_baselines3.common.callbacks as cb
+RealList = cb.CallbackList
+class Park(cb.BaseCallback):
+    def _on_step(self):
+        open(os.environ["HELD_MARKER"], "w").close()
+        time.sleep(600)
+        return True
+cb.CallbackList = lambda callbacks: RealList(list(callbacks) + [Park()])
+from trajopt.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_rl_train_saves_its_model_on_sigterm_as_on_ctrl_c(tmp_path, signum):
+    pytest.importorskip("stable_baselines3")
+    proc = start(["rl", "train", "tripod", "--timesteps", "256", "--n-envs", "1", "--vec-env", "dummy",
+                  "--no-progress", "--out", str(tmp_path), "--name", "r"], RL_HELD, held=tmp_path / "held")
+    wait_for_file(tmp_path / "held", proc)
+    proc.send_signal(signum)
+    out, err = proc.communicate(timeout=DEADLINE)
+    assert proc.returncode == 128 + signum, err
+    label = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+    assert f"interrupted by {label} after" in err and "Traceback" not in err, err
+    config = json.loads((tmp_path / "r" / "rl_config.json").read_text())
+    assert config["status"] == "interrupted" and (tmp_path / "r" / "model.zip").is_file()

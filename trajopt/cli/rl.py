@@ -112,7 +112,9 @@ def _cmd_train(args) -> int:
               f"({'upright' if ev['upright'] else 'fell over'}; trajopt's metric, as trajopt rl evaluate)")
     print(f"  evaluate:    trajopt rl evaluate {run.run_dir}")
     print(f"  TensorBoard: tensorboard --logdir {run.run_dir / 'logs'}")
-    return 130 if run.status == "interrupted" else 0
+    if run.status == "interrupted":
+        return 128 + (run.signal or 2)           # 130 for Ctrl-C, 143 for SIGTERM, as the other commands
+    return 0
 
 
 def _print_eval(ev: dict) -> None:

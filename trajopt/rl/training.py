@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..hardware.signals import Terminated, signal_label, signal_of
 from . import require_sb3
 from .envs import TRAIN_HORIZON, env_id, make_env, robot_name
 from .hyperparams import ALGOS, default_hyperparams, jsonable, vecnormalize_kwargs
@@ -41,7 +42,8 @@ VECNORM_NAME = "vecnormalize.pkl"
 @dataclass
 class TrainRun:
     """What :func:`train` did: where it saved, how many steps, how long, and how it ended
-    (``status`` "done" or "interrupted")."""
+    (``status`` "done" or "interrupted"; ``signal``: the signal that interrupted it, SIGINT for
+    Ctrl-C, None when it finished)."""
 
     run_dir: Path
     model_path: Path
@@ -51,6 +53,7 @@ class TrainRun:
     sim_steps: int
     wall_time_s: float
     checkpoints: list[Path] = field(default_factory=list)
+    signal: int | None = None
 
 
 def write_config(run_dir: Path, config: dict[str, Any]) -> Path:
@@ -199,15 +202,15 @@ def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_su
     if callback is not None:
         callbacks.append(callback)
 
-    status = "done"
+    status, signum = "done", None
     t0 = time.perf_counter()
     try:
         model.learn(total_timesteps=timesteps, callback=CallbackList(callbacks),
                     progress_bar=progress_bar)
-    except KeyboardInterrupt:
-        status = "interrupted"
-        print(f"\ninterrupted after {model.num_timesteps} steps: saving the model to {run_dir}",
-              file=sys.stderr)
+    except (KeyboardInterrupt, Terminated) as exc:     # Ctrl-C, SIGTERM, SIGHUP: the model is saved
+        status, signum = "interrupted", signal_of(exc)
+        print(f"\ninterrupted by {signal_label(signum)} after {model.num_timesteps} steps: saving the model to "
+              f"{run_dir}", file=sys.stderr)
     wall = time.perf_counter() - t0
     model_path = run_dir / MODEL_NAME
     _save_atomically(model, venv, model_path, run_dir / VECNORM_NAME)
@@ -217,7 +220,7 @@ def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_su
     checkpoints = sorted(ckpt_dir.glob("model_*_steps.zip"), key=checkpoint_steps)
     return TrainRun(run_dir=run_dir, model_path=model_path, config=config, status=status,
                     timesteps=done, sim_steps=done * int(frame_skip), wall_time_s=wall,
-                    checkpoints=checkpoints)
+                    checkpoints=checkpoints, signal=signum)
 
 
 def _available(*modules: str) -> bool:

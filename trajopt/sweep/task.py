@@ -16,6 +16,7 @@ import contextlib
 import json
 import os
 import platform
+import signal
 import sys
 import time
 import traceback
@@ -183,8 +184,9 @@ def _call(run: Run, out: Path, run_dir: Path, robot_file: Path | None = None) ->
         args.setdefault("n_envs", run.cpus)
         train_run = train_with_options(args.pop("robot"), **{**args, "out": out, "name": run.name,
                                                              "no_progress": True, "overwrite": True})
-        if train_run.status == "interrupted":
-            raise KeyboardInterrupt
+        if train_run.status == "interrupted":      # as the signal that stopped it (Ctrl-C, SIGTERM)
+            from ..hardware.signals import interruption
+            raise interruption(train_run.signal or signal.SIGINT)
     elif run.kind == "rl-evaluate":
         from ..rl.evaluate import evaluate_policy_metric, load_policy
         policy = load_policy(args["model"])
