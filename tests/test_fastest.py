@@ -13,6 +13,7 @@ from trajopt import GaitSpec
 from trajopt.argtypes import speed
 from trajopt.cli import main
 from trajopt.fastest import SearchSettings, keyframes_at, search_table_paths
+from trajopt.search.hold import FASTEST_HELD, FASTEST_UPRIGHT, choose_gait, hold_steps
 from trajopt.optim.motor_limit import speed_limit_constraints
 from trajopt.optim.parameterization import (
     GaitParameterization,
@@ -86,7 +87,10 @@ def speed_max(tmp_path_factory):
     return out / "tripod_walk.npz"
 
 
-def test_speed_max_writes_the_fastest_upright_gait_of_its_table(speed_max):
+def test_speed_max_writes_the_gait_its_rule_chooses_from_its_table(speed_max):
+    """The refined gait is replayed at 2, 8 and 16 physics steps per control step; the result is
+    the fastest gait that holds, by its slowest speed, else the fastest upright one; the table's
+    steps add up to the search's."""
     res = Result.load(speed_max)
     csv_path, md_path = search_table_paths(speed_max)
     assert md_path.is_file()
@@ -97,12 +101,48 @@ def test_speed_max_writes_the_fastest_upright_gait_of_its_table(speed_max):
     assert best["motor_model"] == res.settings["motor_model"] == "torque-speed" and best["stage"] == "fine"
     upright = [r for r in rows if r["upright"] == "True" and r["motor_model"] == best["motor_model"]]
     assert {r["motor_model"] for r in rows if r["stage"] != "fine"} == {"speed"}     # explored under the speed limit
-    assert float(best["speed_bl_per_min"]) == max(float(r["speed_bl_per_min"]) for r in upright)
+    assert {r["holds"] for r in rows if r["stage"] == "fine"} <= {"True", "False"}   # every refined gait checked
+    assert {r["holds"] for r in rows if r["stage"] != "fine"} == {""}
+    held = [r for r in upright if r["holds"] == "True"]
+    if held:
+        assert float(best["slowest_bl_per_min"]) == max(float(r["slowest_bl_per_min"]) for r in held)
+    else:
+        assert float(best["speed_bl_per_min"]) == max(float(r["speed_bl_per_min"]) for r in upright)
+    hold = res.evaluation["hold"]
+    assert hold["substeps"] == [2, 4, 8, 16] and hold["speeds"][1] == res.evaluation["speed_bl_per_min"]
+    assert hold["slowest"] == pytest.approx(float(best["slowest_bl_per_min"]), rel=1e-12)
     assert (int(best["n_cycle"]), int(best["n_keyframes"])) == (res.settings["n_cycle"], res.settings["n_keyframes"])
     assert res.evaluation["speed_bl_per_min"] == pytest.approx(float(best["speed_bl_per_min"]), rel=1e-12)
     assert res.evaluation["upright"] and res.settings["interpolation"] == "linear"
-    assert res.evaluation["search_sim_steps"] == int(rows[-1]["total_sim_steps"]) == \
-        sum(int(r["optimization_sim_steps"]) + int(r["evaluation_sim_steps"]) for r in rows)
+    assert res.evaluation["search_sim_steps"] == int(rows[-1]["total_sim_steps"]) + sum(
+        int(r["hold_sim_steps"]) for r in rows) == sum(int(r["optimization_sim_steps"]) + int(r["evaluation_sim_steps"])
+                                                        + int(r["hold_sim_steps"]) for r in rows)
+    assert res.settings["search"]["chosen_by"].startswith(FASTEST_HELD if held else FASTEST_UPRIGHT)
+
+
+def _run(speed, credible=None, holds="", slowest=float("nan")):
+    row = {"speed_bl_per_min": speed, "credible_bl_per_min": speed if credible is None else credible,
+           "holds": holds, "slowest_bl_per_min": slowest}
+    return row, f"gait {speed}"
+
+
+def test_the_search_returns_the_fastest_gait_that_holds_by_its_slowest_speed():
+    fragile = _run(20.5, holds=False, slowest=18.1)
+    steady = _run(16.5, holds=True, slowest=16.2)
+    steadier_but_slower = _run(16.9, holds=True, slowest=15.0)
+    never_checked = _run(25.0)
+    assert choose_gait([fragile, steady, steadier_but_slower, never_checked])[1:] == ("gait 16.5", FASTEST_HELD)
+    row, res, rule = choose_gait([fragile, never_checked, _run(19.0, holds=False, slowest=19.0)])
+    assert res == "gait 25.0" and rule == (FASTEST_UPRIGHT + ": none of the 2 gait(s) checked holds its speed "
+                                           "within 5 % at other physics steps")
+    assert choose_gait([_run(9.0, credible=7.0), _run(8.5)])[1:] == ("gait 8.5", FASTEST_UPRIGHT)   # an ensemble's
+    with pytest.raises(ValueError, match="no upright gait"):
+        choose_gait([])
+
+
+def test_the_replays_of_the_hold_check():
+    assert hold_steps(4) == [2, 8, 16] and hold_steps(1) == [2, 4] and hold_steps(3, (0.5, 2.0)) == [6]
+    assert hold_steps(4, ()) == []
 
 
 def test_speed_max_obeys_the_limit_over_ten_cycles(speed_max):
@@ -148,7 +188,7 @@ def test_the_search_keeps_within_its_budget():
     from trajopt.fastest import fastest_gait
     settings = dataclasses.replace(SearchSettings.quick(), coarse_iterations=3, max_sim_steps=600)
     res, rows = fastest_gait("tripod", contact="coulomb", settings=settings, quiet=True)
-    assert rows[-1]["total_sim_steps"] == res.evaluation["search_sim_steps"] <= 600
+    assert rows[-1]["total_sim_steps"] + sum(r["hold_sim_steps"] for r in rows) == res.evaluation["search_sim_steps"] <= 600
     assert any(r["status"] == "skipped: budget" for r in rows) or any(r["status"] == "callback" for r in rows)
 
 

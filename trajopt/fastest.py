@@ -23,7 +23,15 @@ cycle length and the keyframe count discretely, with several starts, coarse to f
    On the shipped Tripod the fastest coarse gait is the shortest cycle (nothing to revisit);
    within one PPO seed's budget (the RL comparison) the Puppy's revisits do not fit;
 3. **fine**: the ``n_fine`` fastest upright candidates continue for ``fine_iterations``
-   iterations from where they stopped.
+   iterations from where they stopped;
+4. **hold**: each refined gait is replayed with half, twice and four times its physics steps per
+   control step (``hold_factors``, :mod:`trajopt.search.hold`), and the search returns the one
+   whose speed holds within ``max_spread`` (5 %) at all of them with the highest slowest speed.
+   Measured on the shipped Tripod (Coulomb law, 8.25 ms): the fastest refined gait (8-step cycle,
+   20.5 BL/min) walks 18.1-21.6 at 16.5-2.06 ms (19 %), the other (12-step cycle, 16.5 BL/min)
+   16.2-16.7 (3.0 %): the search returns the latter. When none holds it returns the fastest
+   upright gait and says so. In a budgeted search the replays' steps are reserved before the
+   fine stage.
 
 Under the motors' torque-speed line (the default model) the coarse and revisit stages explore
 under the speed limit alone and the fine stage tightens their fastest gaits to the line
@@ -31,7 +39,7 @@ under the speed limit alone and the fine stage tightens their fastest gaits to t
 cycles end in gaits that lean rather than walk (measured on the shipped Tripod, Coulomb law: the
 8-step cycle at 0.01 BL/min after its coarse iterations, the search's best a 36-step gait at
 14.7 BL/min), while the speed limit's 8-step gait moved into the line and refined walks at
-20.8 BL/min. The result is the fastest upright run made under the search's own model.
+20.8 BL/min. The result is made under the search's own model (stage 4 says which).
 
 Every optimisation tracks a straight line (the walk's objective, paper eq. 5-7) at a target
 speed chosen above the fastest gait found so far: ``max(min_target, target_margin * best)``
@@ -83,6 +91,7 @@ from .optim.optimize import optimize_gait
 from .optim.parameterization import GaitParameterization
 from .results.result import Result
 from .search.checkpoint import SearchCheckpoint, finish_search, search_checkpoint_dir, search_identity
+from .search.hold import FASTEST_HELD, choose_gait, hold_cost, hold_stage
 from .search.settings import SEARCH_EVAL_CYCLES, SearchSettings
 from .search.table import TABLE_COLUMNS, search_table_paths, table_row, write_search_table
 
@@ -153,6 +162,7 @@ class _Search:
         self.runs: list[tuple[dict, Result]] = []
         self.total = 0
         self.best = 0.0
+        self.reserve = 0                 # steps kept for the hold stage's replays
         self.replay, self.checkpoint = list(replay), checkpoint
 
     def _replayed(self, stage: str, gait: GaitSpec, start: str) -> tuple[bool, Result | None]:
@@ -168,6 +178,9 @@ class _Search:
                              f"{row['n_keyframes']}, but the search now runs {stage} cycle {gait.n_cycle} keyframes "
                              f"{gait.n_keyframes}: not this search's; start afresh with --overwrite")
         row.setdefault("credible_bl_per_min", row["speed_bl_per_min"])      # checkpoints of before ensembles
+        for key, value in (("slowest_bl_per_min", float("nan")), ("spread", float("nan")), ("holds", ""),
+                           ("hold_sim_steps", 0)):
+            row.setdefault(key, value)                                        # checkpoints of before hold checks
         self.rows.append(row)
         self.total = int(row["total_sim_steps"])
         if res is not None:
@@ -179,9 +192,9 @@ class _Search:
         self._tick()
         return True, res
 
-    def _cap(self, share: float) -> float:
+    def cap(self, share: float) -> float:
         budget = self.settings.max_sim_steps
-        return np.inf if budget is None else share * budget
+        return np.inf if budget is None else share * budget - self.reserve
 
     def _n_starts(self, gait: GaitSpec, warm, z0, n_seeds: int) -> int:
         """Rollouts :func:`~trajopt.optim.optimize.choose_start` screens before Gauss-Newton."""
@@ -198,6 +211,15 @@ class _Search:
             return SPEED
         return self.motor_model
 
+    def costs(self, gait: GaitSpec, options: GaussNewtonOptions = GaussNewtonOptions()) -> tuple[int, int, int]:
+        """``(horizon, one iteration, evaluation)``: the simulation steps of a rollout of ``gait``'s
+        horizon, of one Gauss-Newton iteration at most (its line search and a Jacobian rollout) and
+        of its evaluation, in steps of the default physics (an ensemble's members weighted)."""
+        weight = sum(ensemble_substeps(self.env, self.settings.ensemble)) / int(self.env.substeps)
+        horizon = int(math.ceil(weight * gait.n_steps()))
+        eval_steps = int(math.ceil(weight * (gait.n_prep + self.settings.eval_cycles * gait.n_cycle)))
+        return horizon, horizon * (options.max_backtracks + 2), eval_steps
+
     def run(self, stage: str, gait: GaitSpec, start: str, iterations: int, share: float, *, warm=None, z0=None,
             n_seeds: int = 0) -> Result | None:
         """One optimisation and its evaluation, within ``share`` of the budget: skipped when the
@@ -207,11 +229,8 @@ class _Search:
         replayed, res = self._replayed(stage, gait, start)
         if replayed:
             return res
-        cap, options = self._cap(share), GaussNewtonOptions(max_iter=iterations)
-        weight = sum(ensemble_substeps(self.env, self.settings.ensemble)) / int(self.env.substeps)  # an ensemble's
-        horizon = int(math.ceil(weight * gait.n_steps()))                 # steps, in steps of the default physics
-        eval_steps = int(math.ceil(weight * (gait.n_prep + self.settings.eval_cycles * gait.n_cycle)))
-        per_iteration = horizon * (options.max_backtracks + 2)
+        cap, options = self.cap(share), GaussNewtonOptions(max_iter=iterations)
+        horizon, per_iteration, eval_steps = self.costs(gait, options)
         target = self.settings.target(self.best)
         if self.total + (self._n_starts(gait, warm, z0, n_seeds) + 1) * horizon + per_iteration + eval_steps > cap:
             self.rows.append(table_row(stage, None, gait, start, target, 0, 0, self.total, 0.0, "skipped: budget",
@@ -255,6 +274,20 @@ class _Search:
         if self.bar is not None:
             self.bar.set_postfix(best=f"{self.best:.2f} BL/min", steps=f"{self.total:,}")
             self.bar.update(1)
+
+
+def _hold_reserve(search: _Search, settings: SearchSettings, fine: list[Result]) -> int:
+    """The steps a budgeted search keeps for the hold stage's replays of the gaits to refine,
+    when the budget left then still fits a refinement of each (its start, one iteration and its
+    evaluation); else none (a refined gait matters more than its check)."""
+    if settings.max_sim_steps is None or not fine:
+        return 0
+    reserve = sum(hold_cost(search.env, settings, res.settings) for res in fine)
+    need = 0
+    for res in fine:
+        horizon, per_iteration, eval_steps = search.costs(GaitSpec.from_settings(res.settings))
+        need += horizon + per_iteration + eval_steps
+    return reserve if search.total + need + reserve <= settings.max_sim_steps else 0
 
 
 def _revisit(search: _Search, settings: SearchSettings, candidates: list[tuple[int, int]]) -> None:
@@ -329,10 +362,13 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
                 search.bar.total = len(search.rows) + settings.n_fine
                 search.bar.refresh()
         upright = sorted((p for p in search.runs if p[0]["upright"]), key=lambda p: -p[0]["credible_bl_per_min"])
+        search.reserve = _hold_reserve(search, settings, [res for _, res in upright[:settings.n_fine]])
         for row, res in upright[:settings.n_fine]:
             gait = GaitSpec.from_settings(res.settings)
             search.run("fine", gait, f"coarse cycle {gait.n_cycle}, {gait.n_keyframes} keyframes",
                        settings.fine_iterations, 1.0, z0=res.z)
+        search.reserve = 0
+        hold_stage(search, settings, model)
     except (KeyboardInterrupt, Terminated):
         if store is not None:
             store.mark(search.rows, "interrupted")
@@ -353,10 +389,15 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     if not upright:
         raise SimulationError(f"--speed max: none of the {len(rows)} gaits tried stayed upright over "
                               f"{settings.eval_cycles} cycles ({total:,} simulation steps)")
-    row, res = max(upright, key=lambda p: p[0]["credible_bl_per_min"])
+    row, res, chosen_by = choose_gait(upright, settings.max_spread)
+    if chosen_by != FASTEST_HELD and any(isinstance(r["holds"], bool) for r, _ in upright):
+        spread = f", spread {100 * row['spread']:.1f} %" if isinstance(row["holds"], bool) else ""
+        search.say(f"no refined gait holds its speed within {100 * settings.max_spread:g} % at other physics "
+                   f"steps: returning the fastest upright one ({row['speed_bl_per_min']:.2f} BL/min{spread})")
     row["chosen"] = True
     res.settings["search"] = {"settings": asdict(settings), "cycle_steps_pinned": cycle_steps, "runs": len(rows),
-                              "sim_steps": total, "wall_time_s": time.perf_counter() - search.t_start}
+                              "sim_steps": total, "wall_time_s": time.perf_counter() - search.t_start,
+                              "chosen_by": chosen_by}
     res.evaluation["search_sim_steps"] = total
     res.evaluation["search_wall_time_s"] = time.perf_counter() - search.t_start
     return res, rows

@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass
 
 from ..optim.gait import GaitSpec
+from .hold import HOLD_FACTORS, MAX_SPREAD
 
 __all__ = ["SEARCH_EVAL_CYCLES", "SearchSettings"]
 
@@ -28,6 +29,10 @@ class SearchSettings:
     ``ensemble``: physics steps per control step of other physics every candidate is optimised
     on as well (:mod:`trajopt.optim.ensemble`; empty: the default physics alone); the search then
     ranks the candidates by their credible speed, the slowest member's.
+    ``hold_factors``: the refined gaits are replayed with their physics steps per control step
+    times each of these (:mod:`trajopt.search.hold`), and the search returns the fastest of those
+    whose speed holds within ``max_spread`` at every one, by their slowest speed (the fastest
+    upright gait when none holds; empty: no check, the fastest upright gait).
     ``max_sim_steps``: a budget of simulation steps (None: none) the search never exceeds: the
     coarse stage keeps within ``coarse_share`` of it, the fine stage within all of it; a run
     that would not fit is skipped (listed in the table), and one that runs stops early rather
@@ -52,6 +57,8 @@ class SearchSettings:
     revisit: bool = True
     explore_under_speed: bool = True
     ensemble: tuple[int, ...] = ()
+    hold_factors: tuple[float, ...] = HOLD_FACTORS
+    max_spread: float = MAX_SPREAD
 
     @classmethod
     def quick(cls) -> SearchSettings:

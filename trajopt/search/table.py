@@ -1,7 +1,10 @@
 """The table of a ``--speed max`` search: one row per optimisation (:data:`TABLE_COLUMNS`),
 written beside the result as ``NAME.search.csv`` and ``NAME.search.md``. ``credible_bl_per_min``
 is what the search ranks by: the slowest member's speed of a gait optimised on an ensemble of
-physics (:mod:`trajopt.optim.ensemble`; NaN and not upright when a member fell), else its speed."""
+physics (:mod:`trajopt.optim.ensemble`; NaN and not upright when a member fell), else its speed.
+A refined gait replayed at other physics steps (:mod:`trajopt.search.hold`) has its slowest speed
+there (``slowest_bl_per_min``), the spread and whether it ``holds`` (empty: not checked), and the
+replays' steps (``hold_sim_steps``, counted in ``total_sim_steps`` of the search's end)."""
 from __future__ import annotations
 
 import csv
@@ -20,7 +23,8 @@ __all__ = ["TABLE_COLUMNS", "table_row", "search_table_paths", "write_search_tab
 #: the columns of the search table (one row per optimisation)
 TABLE_COLUMNS = ("stage", "motor_model", "n_cycle", "n_keyframes", "horizon_cycles", "start", "target_bl_per_min", "iterations",
                  "status", "speed_bl_per_min", "credible_bl_per_min", "upright", "max_tilt_deg", "optimization_sim_steps",
-                 "evaluation_sim_steps", "total_sim_steps", "wall_time_s", "chosen")
+                 "evaluation_sim_steps", "total_sim_steps", "wall_time_s", "slowest_bl_per_min", "spread", "holds",
+                 "hold_sim_steps", "chosen")
 
 
 def table_row(stage: str, res: Result | None, gait: GaitSpec, start: str, target: float, opt_steps: int,
@@ -36,7 +40,8 @@ def table_row(stage: str, res: Result | None, gait: GaitSpec, start: str, target
             "speed_bl_per_min": speed, "credible_bl_per_min": credible,
             "upright": bool(ev.get("upright", False)) and bool(np.isfinite(credible)), "max_tilt_deg": float(ev.get("max_tilt_deg", float("nan"))),
             "optimization_sim_steps": opt_steps, "evaluation_sim_steps": eval_steps, "total_sim_steps": total,
-            "wall_time_s": round(seconds, 2), "chosen": False}
+            "wall_time_s": round(seconds, 2), "slowest_bl_per_min": float("nan"), "spread": float("nan"),
+            "holds": "", "hold_sim_steps": 0, "chosen": False}
 
 
 #: what the table's target column is (printed under the Markdown table)
