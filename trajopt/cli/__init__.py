@@ -53,9 +53,10 @@ def _add_optimize(sub) -> None:
                    help="what the gait does (trajopt.tasks): walk straight, turn a quarter circle, incline: walk "
                         "up the --angle slope")
     p.add_argument("--speed", type=speed, default=None,
-                   help="target speed [body lengths/min], or max: the fastest upright walk within the motors' "
-                        "speed limit (searches the cycle length and keyframes; writes NAME.search.csv/.md beside "
-                        "the result; --cycle-steps pins the cycle)")
+                   help="target speed [body lengths/min], or max: the fastest walk within the motors' limits "
+                        "whose speed holds within 5 %% at half, twice and four times the physics steps (searches "
+                        "the cycle length and keyframes; writes NAME.search.csv/.md beside the result; "
+                        "--cycle-steps pins the cycle)")
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--turn", choices=["right", "left"], default="right", help="turn direction (task turn)")
     p.add_argument("--angle", type=slope_deg, default=20.0, help="slope [deg] (task incline)")
