@@ -1,0 +1,141 @@
+r"""Contact geometry against a height field ``y = h(x, z)`` (:class:`~soft_envs.sim.ground.HeightField`)
+and the normal penalty on it, shared by the contact laws' height-field variants.
+
+The penetration of a point ``p = (x, y, z)`` is its gap below the surface measured along the
+normal, to first order:
+
+.. math::
+    s(p) = \frac{h(x, z) - y}{L}, \qquad L = \sqrt{1 + h_x^2 + h_z^2}, \qquad
+    n = \frac{(-h_x, 1, -h_z)}{L}
+
+(``s > 0`` below the ground; ``n`` the upward unit normal at ``(x, z)``). For a planar field
+``s`` is exactly the signed distance to the plane and ``grad s = -n``: the contact on a plane of
+any slope is the contact on ``y = 0`` rotated. On a curved field ``grad s = -n + (h - y)
+grad(1/L)``, along the normal on the surface and tilted by O(depth x curvature) below it. The
+normal penalty is ``Q_n(s)`` (:func:`.penalty.Q`); its gradient ``Q_n'(s) grad s`` and Hessian
+``Q_n''(s) grad s grad s^T + Q_n'(s) hess s``, where ``hess s`` involves the third
+derivatives of ``h`` (the field is C4, so it is continuous). Its PSD substitute (Newton's
+fallback) drops the curvature term ``Q_n' hess s``.
+
+A field is passed to the kernels as the tuple ``HeightField.args``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..ground import height_derivatives
+from .penalty import Q, d2Q, dQ
+
+__all__ = ["penetration", "surface_normal", "field_normal_penalty", "field_normal_forces", "surface_foot",
+           "LOWER_SLOTS"]
+
+#: the row-major 3x3 positions (i, j) with i >= j: the stored lower triangle of a node's block
+LOWER_SLOTS = np.array([0, 3, 4, 6, 7, 8])
+
+
+@njit(cache=True)
+def penetration(field, px, py, pz, ds, d2s, want_hess):
+    """``s(p)`` (module docstring); fills ``ds (3,)`` with ``grad s`` and, with ``want_hess``,
+    ``d2s (3, 3)`` with ``hess s``."""
+    coef, x0, z0, dx, dz, ax, az = field
+    h, hx, hz, hxx, hxz, hzz, hxxx, hxxz, hxzz, hzzz = height_derivatives(coef, x0, z0, dx, dz, ax, az, px, pz)
+    q = 1.0 / np.sqrt(1.0 + hx * hx + hz * hz)
+    u = h - py
+    q3 = q * q * q
+    mx = hx * hxx + hz * hxz                 # d(|grad h|^2 / 2)/dx
+    mz = hx * hxz + hz * hzz
+    qx, qz = -q3 * mx, -q3 * mz              # grad (1/L)
+    ds[0] = q * hx + u * qx
+    ds[1] = -q
+    ds[2] = q * hz + u * qz
+    if want_hess:
+        du = (hx, -1.0, hz)
+        qv = (qx, 0.0, qz)
+        mxx = hxx * hxx + hxz * hxz + hx * hxxx + hz * hxxz
+        mxz = hxz * hxx + hzz * hxz + hx * hxxz + hz * hxzz
+        mzz = hxz * hxz + hzz * hzz + hx * hxzz + hz * hzzz
+        q5 = q3 * q * q
+        for i in range(3):
+            for j in range(3):
+                d2s[i, j] = du[i] * qv[j] + qv[i] * du[j]
+        d2s[0, 0] += q * hxx + u * (3.0 * q5 * mx * mx - q3 * mxx)
+        d2s[0, 2] += q * hxz + u * (3.0 * q5 * mx * mz - q3 * mxz)
+        d2s[2, 0] += q * hxz + u * (3.0 * q5 * mx * mz - q3 * mxz)
+        d2s[2, 2] += q * hzz + u * (3.0 * q5 * mz * mz - q3 * mzz)
+    return u * q
+
+
+@njit(cache=True)
+def surface_normal(field, px, pz, n, dn):
+    """The surface point's height ``h(px, pz)``; fills ``n (3,)`` with the unit normal there and
+    ``dn (2, 3)`` with its derivatives along x and z."""
+    coef, x0, z0, dx, dz, ax, az = field
+    h, hx, hz, hxx, hxz, hzz, _, _, _, _ = height_derivatives(coef, x0, z0, dx, dz, ax, az, px, pz)
+    q = 1.0 / np.sqrt(1.0 + hx * hx + hz * hz)
+    q3 = q * q * q
+    n[0], n[1], n[2] = -q * hx, q, -q * hz
+    for a in range(2):
+        ha_x = hxx if a == 0 else hxz            # d h_x / d a
+        ha_z = hxz if a == 0 else hzz
+        qa = -q3 * (hx * ha_x + hz * ha_z)
+        dn[a, 0] = -qa * hx - q * ha_x
+        dn[a, 1] = qa
+        dn[a, 2] = -qa * hz - q * ha_z
+    return h
+
+
+@njit(cache=True, inline="always")
+def field_normal_penalty(x, node, field, k_n, eps_n, grad, hdata, slots, want_grad, want_hess, project, ds, d2s):
+    """The normal penalty ``Q_n(s)`` of node ``node`` (module docstring): adds its gradient
+    (``want_grad``) and its 3x3 Hessian block into the row-major ``slots (9,)`` (``want_hess``;
+    ``project``: without the curvature term). ``ds``, ``d2s``: work arrays (3,), (3, 3)."""
+    s = penetration(field, x[node, 0], x[node, 1], x[node, 2], ds, d2s, want_hess and not project)
+    if s <= 0.0:
+        return 0.0
+    if want_grad:
+        f = dQ(s, k_n, eps_n)
+        for i in range(3):
+            grad[3 * node + i] += f * ds[i]
+    if want_hess:
+        f = dQ(s, k_n, eps_n)
+        f2 = d2Q(s, k_n, eps_n)
+        for i in range(3):
+            for j in range(i + 1):
+                v = f2 * ds[i] * ds[j]
+                if not project:
+                    v += f * d2s[i, j]
+                hdata[slots[3 * i + j]] += v
+    return Q(s, k_n, eps_n)
+
+
+@njit(cache=True)
+def field_normal_forces(x, nodes, field, k_n, eps_n):
+    """Normal force ``N_i = Q_n'(s(x_i))`` [N] at every contact node."""
+    out = np.empty(nodes.shape[0])
+    ds = np.empty(3)
+    d2s = np.empty((3, 3))
+    for c in range(nodes.shape[0]):
+        n = nodes[c]
+        out[c] = dQ(penetration(field, x[n, 0], x[n, 1], x[n, 2], ds, d2s, False), k_n, eps_n)
+    return out
+
+
+@njit(cache=True)
+def surface_foot(field, p, J):
+    """The foot ``(x, z)`` of point ``p (3,)`` on the surface, ``p + s(p) n`` with the normal at
+    ``(p_x, p_z)`` (for a planar field the orthogonal projection), and its derivative
+    ``J (2, 3)`` (rows x, z) with respect to ``p``."""
+    ds = np.empty(3)
+    d2s = np.empty((3, 3))
+    n = np.empty(3)
+    dn = np.empty((2, 3))
+    s = penetration(field, p[0], p[1], p[2], ds, d2s, False)
+    surface_normal(field, p[0], p[2], n, dn)
+    for r in range(2):
+        k = 2 * r                            # x or z component
+        for j in range(3):
+            J[r, j] = (1.0 if j == k else 0.0) + n[k] * ds[j]
+        J[r, 0] += s * dn[0, k]
+        J[r, 2] += s * dn[1, k]
+    return p[0] + s * n[0], p[2] + s * n[2]
