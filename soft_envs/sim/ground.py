@@ -34,28 +34,31 @@ __all__ = ["HeightField", "height_derivatives", "ground_from_table", "GROUND_TYP
 
 #: the quintic B-spline at the integers -2..2 (interpolation weights of a grid node)
 _NODE_WEIGHTS = np.array([1.0, 26.0, 66.0, 26.0, 1.0]) / 120.0
-_FACTORIALS = (1.0, 1.0, 2.0, 6.0, 24.0, 120.0)
-_BINOMIAL6 = (1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0)
 
 
 @njit(cache=True, inline="always")
-def _bspline(u, m):
-    """The m-th derivative of the quintic B-spline with support (0, 6) at u (truncated powers,
-    evaluated on the half ``u <= 3`` by symmetry, so no large terms cancel)."""
-    sign = 1.0
-    if u > 3.0:
-        u = 6.0 - u
-        sign = -1.0 if m % 2 == 1 else 1.0
-    if u <= 0.0:
-        return 0.0
-    p = 5 - m
-    total = 0.0
-    k = 0
-    while k < u and k <= 3:
-        term = _BINOMIAL6[k] * (u - k) ** p
-        total += -term if k % 2 == 1 else term
-        k += 1
-    return sign * total / _FACTORIALS[p]
+def _basis(t, out):
+    """``out[m, a]`` (4, 6): the m-th derivative (m = 0..3) of the quintic B-spline of coefficient
+    ``i0 - 2 + a`` at ``i0 + t`` (unit spacing). Cox-de Boor's recursion for uniform knots,
+    ``b^k_j = ((t + k - j) b^{k-1}_{j-1} + (j + 1 - t) b^{k-1}_j) / k``, and the derivative of
+    degree k as the difference of degree k - 1: ``(b^k_j)' = b^{k-1}_{j-1} - b^{k-1}_j``."""
+    b = np.zeros((6, 6))                     # b[k, j]: degree k, j = 0..k
+    b[0, 0] = 1.0
+    for k in range(1, 6):
+        for j in range(k + 1):
+            left = b[k - 1, j - 1] if j > 0 else 0.0
+            right = b[k - 1, j] if j < k else 0.0
+            b[k, j] = ((t + k - j) * left + (j + 1 - t) * right) / k
+    for m in range(4):
+        k = 5 - m
+        for j in range(k + 1):               # degree k, then m differences up to degree 5
+            out[m, j] = b[k, j]
+        for d in range(m):
+            kk = k + d + 1                   # the degree after this difference
+            for j in range(kk, -1, -1):
+                left = out[m, j - 1] if j > 0 else 0.0
+                right = out[m, j] if j < kk else 0.0
+                out[m, j] = left - right
 
 
 @njit(cache=True)
@@ -70,12 +73,12 @@ def height_derivatives(coef, x0, z0, dx, dz, ax, az, x, z):
     j0 = int(math.floor(zj))
     tx = xi - i0
     tz = zj - j0
+    if nx == 1 and nz == 1:              # a plane
+        return coef[0, 0] + ax * x + az * z, ax, az, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     bx = np.empty((4, 6))
     bz = np.empty((4, 6))
-    for a in range(6):                   # coefficient i0 - 2 + a: spline argument tx + 5 - a
-        for m in range(4):
-            bx[m, a] = _bspline(tx + 5.0 - a, m)
-            bz[m, a] = _bspline(tz + 5.0 - a, m)
+    _basis(tx, bx)
+    _basis(tz, bz)
     out = np.zeros(10)
     for a in range(6):
         i = min(max(i0 - 2 + a, 0), nx - 1)
