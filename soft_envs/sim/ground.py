@@ -23,6 +23,7 @@ table. No field (``Robot.ground = None``) is the plane ``y = 0`` of the original
 """
 from __future__ import annotations
 
+import inspect
 import math
 from dataclasses import dataclass
 
@@ -316,12 +317,13 @@ def ground_from_table(table, src: str) -> HeightField:
                 key, "a list of 2 numbers" if key in _PAIRS or (key == "spacing" and kind == "grid") else "a number")
             raise ValueError(f"{src}: [ground].{key} must be {need}, got {value!r}")
         kwargs[key] = tuple(value) if key in _PAIRS else value
-    if kind == "grid" and "heights" not in kwargs:
-        raise ValueError(f"{src}: [ground].heights is missing (type 'grid')")
+    required = [p.name for p in inspect.signature(make).parameters.values()
+                if p.default is inspect.Parameter.empty and p.name in keys]
+    for key in required:
+        if key not in kwargs:
+            raise ValueError(f"{src}: [ground].{key} is missing (type {kind!r})")
     try:
         return make(**kwargs)
-    except TypeError as exc:      # a required key missing
-        raise ValueError(f"{src}: [ground] (type {kind!r}) {exc}") from None
     except ValueError as exc:
         raise ValueError(f"{src}: [{str(exc).replace('ground.', 'ground].', 1)}" if str(exc).startswith("ground.")
                          else f"{src}: [ground] {exc}") from None
