@@ -37,29 +37,27 @@ __all__ = ["HeightField", "height_derivatives", "ground_from_table", "GROUND_TYP
 _NODE_WEIGHTS = np.array([1.0, 26.0, 66.0, 26.0, 1.0]) / 120.0
 
 
+#: the six pieces of the quintic B-spline on a cell, ``beta_a(t) = sum_p _PIECES[a, p] t^p``
+#: (``t`` in [0, 1), piece a weights coefficient ``i0 - 2 + a``)
+_PIECES = np.array([[1, -5, 10, -10, 5, -1], [26, -50, 20, 20, -20, 5], [66, 0, -60, 0, 30, -10],
+                    [26, 50, 20, -20, -20, 10], [1, 5, 10, 10, 5, -5], [0, 0, 0, 0, 0, 1]], dtype=np.float64) / 120.0
+#: their derivatives 0..3: ``_PIECE_DERIVATIVES[m, a, p]`` multiplies ``t^p``
+_PIECE_DERIVATIVES = np.zeros((4, 6, 6))
+for _m in range(4):
+    for _p in range(_m, 6):
+        _PIECE_DERIVATIVES[_m, :, _p - _m] = _PIECES[:, _p] * np.prod(np.arange(_p - _m + 1, _p + 1))
+
+
 @njit(cache=True, inline="always")
-def _basis(t, out):
-    """``out[m, a]`` (4, 6): the m-th derivative (m = 0..3) of the quintic B-spline of coefficient
-    ``i0 - 2 + a`` at ``i0 + t`` (unit spacing). Cox-de Boor's recursion for uniform knots,
-    ``b^k_j = ((t + k - j) b^{k-1}_{j-1} + (j + 1 - t) b^{k-1}_j) / k``, and the derivative of
-    degree k as the difference of degree k - 1: ``(b^k_j)' = b^{k-1}_{j-1} - b^{k-1}_j``."""
-    b = np.zeros((6, 6))                     # b[k, j]: degree k, j = 0..k
-    b[0, 0] = 1.0
-    for k in range(1, 6):
-        for j in range(k + 1):
-            left = b[k - 1, j - 1] if j > 0 else 0.0
-            right = b[k - 1, j] if j < k else 0.0
-            b[k, j] = ((t + k - j) * left + (j + 1 - t) * right) / k
-    for m in range(4):
-        k = 5 - m
-        for j in range(k + 1):               # degree k, then m differences up to degree 5
-            out[m, j] = b[k, j]
-        for d in range(m):
-            kk = k + d + 1                   # the degree after this difference
-            for j in range(kk, -1, -1):
-                left = out[m, j - 1] if j > 0 else 0.0
-                right = out[m, j] if j < kk else 0.0
-                out[m, j] = left - right
+def _basis(t, m):
+    """The m-th derivative (m = 0..3) of the six pieces at ``t`` (unit spacing), a 6-tuple."""
+    D = _PIECE_DERIVATIVES[m]
+    return (((((D[0, 5] * t + D[0, 4]) * t + D[0, 3]) * t + D[0, 2]) * t + D[0, 1]) * t + D[0, 0],
+            ((((D[1, 5] * t + D[1, 4]) * t + D[1, 3]) * t + D[1, 2]) * t + D[1, 1]) * t + D[1, 0],
+            ((((D[2, 5] * t + D[2, 4]) * t + D[2, 3]) * t + D[2, 2]) * t + D[2, 1]) * t + D[2, 0],
+            ((((D[3, 5] * t + D[3, 4]) * t + D[3, 3]) * t + D[3, 2]) * t + D[3, 1]) * t + D[3, 0],
+            ((((D[4, 5] * t + D[4, 4]) * t + D[4, 3]) * t + D[4, 2]) * t + D[4, 1]) * t + D[4, 0],
+            ((((D[5, 5] * t + D[5, 4]) * t + D[5, 3]) * t + D[5, 2]) * t + D[5, 1]) * t + D[5, 0])
 
 
 @njit(cache=True)
@@ -68,39 +66,40 @@ def height_derivatives(coef, x0, z0, dx, dz, ax, az, x, z):
     docstring) at ``(x, z)`` [m]: the spline coefficients ``coef (n_x, n_z)``, grid origin
     ``(x0, z0)``, spacing ``(dx, dz)`` and plane slope ``(ax, az)``."""
     nx, nz = coef.shape
+    if nx == 1 and nz == 1:              # a plane
+        return coef[0, 0] + ax * x + az * z, ax, az, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     xi = (x - x0) / dx
     zj = (z - z0) / dz
     i0 = int(math.floor(xi))
     j0 = int(math.floor(zj))
     tx = xi - i0
     tz = zj - j0
-    if nx == 1 and nz == 1:              # a plane
-        return coef[0, 0] + ax * x + az * z, ax, az, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    bx = np.empty((4, 6))
-    bz = np.empty((4, 6))
-    _basis(tx, bx)
-    _basis(tz, bz)
-    out = np.zeros(10)
-    for a in range(6):
-        i = min(max(i0 - 2 + a, 0), nx - 1)
-        for b in range(6):
-            c = coef[i, min(max(j0 - 2 + b, 0), nz - 1)]
-            if c == 0.0:
-                continue
-            out[0] += c * bx[0, a] * bz[0, b]
-            out[1] += c * bx[1, a] * bz[0, b]
-            out[2] += c * bx[0, a] * bz[1, b]
-            out[3] += c * bx[2, a] * bz[0, b]
-            out[4] += c * bx[1, a] * bz[1, b]
-            out[5] += c * bx[0, a] * bz[2, b]
-            out[6] += c * bx[3, a] * bz[0, b]
-            out[7] += c * bx[2, a] * bz[1, b]
-            out[8] += c * bx[1, a] * bz[2, b]
-            out[9] += c * bx[0, a] * bz[3, b]
+    bx0, bx1, bx2, bx3 = _basis(tx, 0), _basis(tx, 1), _basis(tx, 2), _basis(tx, 3)
+    bz0, bz1, bz2, bz3 = _basis(tz, 0), _basis(tz, 1), _basis(tz, 2), _basis(tz, 3)
+    h = hx = hz = hxx = hxz = hzz = hxxx = hxxz = hxzz = hzzz = 0.0
+    for b in range(6):
+        j = min(max(j0 - 2 + b, 0), nz - 1)
+        # sums over the x pieces of column b, then weighted by the z pieces
+        s0 = s1 = s2 = s3 = 0.0
+        for a in range(6):
+            c = coef[min(max(i0 - 2 + a, 0), nx - 1), j]
+            s0 += c * bx0[a]
+            s1 += c * bx1[a]
+            s2 += c * bx2[a]
+            s3 += c * bx3[a]
+        h += s0 * bz0[b]
+        hx += s1 * bz0[b]
+        hz += s0 * bz1[b]
+        hxx += s2 * bz0[b]
+        hxz += s1 * bz1[b]
+        hzz += s0 * bz2[b]
+        hxxx += s3 * bz0[b]
+        hxxz += s2 * bz1[b]
+        hxzz += s1 * bz2[b]
+        hzzz += s0 * bz3[b]
     sx, sz = 1.0 / dx, 1.0 / dz
-    return (out[0] + ax * x + az * z, out[1] * sx + ax, out[2] * sz + az, out[3] * sx * sx, out[4] * sx * sz,
-            out[5] * sz * sz, out[6] * sx * sx * sx, out[7] * sx * sx * sz, out[8] * sx * sz * sz,
-            out[9] * sz * sz * sz)
+    return (h + ax * x + az * z, hx * sx + ax, hz * sz + az, hxx * sx * sx, hxz * sx * sz, hzz * sz * sz,
+            hxxx * sx * sx * sx, hxxz * sx * sx * sz, hxzz * sx * sz * sz, hzzz * sz * sz * sz)
 
 
 def _interpolation_solve(values: np.ndarray) -> np.ndarray:
@@ -168,13 +167,15 @@ class HeightField:
 
     @property
     def args(self) -> tuple:
-        """``(coef, x0, z0, dx, dz, ax, az)``: the field as :func:`height_derivatives` takes it."""
+        """``(coef, x0, z0, dx, dz, ax, az, top)``: the field as the contact kernels take it
+        (the first seven are :func:`height_derivatives`'s); ``top = max(coef)`` bounds the relief
+        (``h <= ax x + az z + top``: B-spline weights are >= 0 and sum to 1)."""
         return (self.coefficients, self.origin[0], self.origin[1], self.spacing[0], self.spacing[1],
-                self.slope[0], self.slope[1])
+                self.slope[0], self.slope[1], float(self.coefficients.max()))
 
     def derivatives(self, x: float, z: float) -> tuple:
         """``(h, h_x, h_z, h_xx, h_xz, h_zz, h_xxx, h_xxz, h_xzz, h_zzz)`` at ``(x, z)`` [m]."""
-        return height_derivatives(*self.args, float(x), float(z))
+        return height_derivatives(*self.args[:7], float(x), float(z))
 
     def height(self, x, z) -> np.ndarray:
         """``h`` [m] at the points ``(x, z)`` (arrays of one shape)."""

@@ -23,70 +23,65 @@ import numpy as np
 from numba import njit
 
 from .paper import GroundContact
-from .penalty import d2Q, dQ
-from .surface import field_normal_forces, field_normal_penalty, penetration, surface_normal
+from .surface import LaggedGeometry, field_normal_forces, field_normal_penalty
 
 __all__ = ["PaperFieldContact"]
 
 
 @njit(cache=True)
-def _assemble(field, x, x_prev, nodes, k_n, eps_n, mu_f, grad, hdata, slots, want_grad, want_hess, project):
+def _assemble(field, x, x_prev, lag, nodes, k_n, eps_n, mu_f, grad, hdata, slots, want_grad, want_hess, project):
+    """The energy (module docstring; ``lag`` from :class:`.surface.LaggedGeometry` below
+    ``x_prev``); adds its gradient and 3x3 Hessian blocks (``slots (c, 9)``)."""
     total = 0.0
-    ds, d2s, n_, dn = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty((2, 3))
+    ds, d2s = np.empty(3), np.empty((3, 3))
+    N, nrm = lag[0], lag[4]
     for c in range(nodes.shape[0]):
         n = nodes[c]
         total += field_normal_penalty(x, n, field, k_n, eps_n, grad, hdata, slots[c], want_grad, want_hess,
                                       project, ds, d2s)
-        N = dQ(penetration(field, x_prev[n, 0], x_prev[n, 1], x_prev[n, 2], ds, d2s, False), k_n, eps_n)
-        if N <= 0.0:
+        if N[c] <= 0.0:
             continue
-        surface_normal(field, x_prev[n, 0], x_prev[n, 2], n_, dn)
+        a = mu_f * N[c]
         nd = 0.0
         dd = 0.0
         for i in range(3):
             di = x[n, i] - x_prev[n, i]
-            nd += n_[i] * di
+            nd += nrm[c, i] * di
             dd += di * di
-        total += mu_f * N * (dd - nd * nd)
+        total += a * (dd - nd * nd)
         if want_grad:
             for i in range(3):
-                grad[3 * n + i] += 2.0 * mu_f * N * (x[n, i] - x_prev[n, i] - nd * n_[i])
+                grad[3 * n + i] += 2.0 * a * (x[n, i] - x_prev[n, i] - nd * nrm[c, i])
         if want_hess:
             for i in range(3):
                 for j in range(i + 1):
-                    hdata[slots[c, 3 * i + j]] += 2.0 * mu_f * N * ((1.0 if i == j else 0.0) - n_[i] * n_[j])
+                    hdata[slots[c, 3 * i + j]] += 2.0 * a * ((1.0 if i == j else 0.0) - nrm[c, i] * nrm[c, j])
     return total
 
 
 @njit(cache=True)
-def _prev_product(field, x, x_prev, nodes, k_n, eps_n, mu_f, S, out, transpose):
+def _prev_product(x, x_prev, lag, nodes, mu_f, S, out, transpose):
     """``out += d(grad)/dx_prev @ S`` (module docstring); ``transpose``: ``out (3n, 1) +=
     (...)^T @ S (3n, 1)``."""
-    dsp, d2s, n_, dn = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty((2, 3))
-    J = np.empty((3, 3))
-    Pd = np.empty(3)
-    delta = np.empty(3)
+    J, Pd, delta = np.empty((3, 3)), np.empty(3), np.empty(3)
+    N, Npp, dsp, _, nrm, dnrm = lag
     for c in range(nodes.shape[0]):
         n = nodes[c]
-        sp = penetration(field, x_prev[n, 0], x_prev[n, 1], x_prev[n, 2], dsp, d2s, False)
-        N = dQ(sp, k_n, eps_n)
-        if N <= 0.0:
+        if N[c] <= 0.0:
             continue
-        Npp = d2Q(sp, k_n, eps_n)
-        surface_normal(field, x_prev[n, 0], x_prev[n, 2], n_, dn)
         nd = 0.0
         for i in range(3):
             delta[i] = x[n, i] - x_prev[n, i]
-            nd += n_[i] * delta[i]
+            nd += nrm[c, i] * delta[i]
         for i in range(3):
-            Pd[i] = delta[i] - nd * n_[i]
+            Pd[i] = delta[i] - nd * nrm[c, i]
         for i in range(3):
             for j in range(3):
-                J[i, j] = Pd[i] * Npp * dsp[j] - N * ((1.0 if i == j else 0.0) - n_[i] * n_[j])
+                J[i, j] = Pd[i] * Npp[c] * dsp[c, j] - N[c] * ((1.0 if i == j else 0.0) - nrm[c, i] * nrm[c, j])
         for a in range(2):
-            nad = dn[a, 0] * delta[0] + dn[a, 1] * delta[1] + dn[a, 2] * delta[2]
+            nad = dnrm[c, a, 0] * delta[0] + dnrm[c, a, 1] * delta[1] + dnrm[c, a, 2] * delta[2]
             for i in range(3):
-                J[i, 2 * a] -= N * (dn[a, i] * nd + n_[i] * nad)
+                J[i, 2 * a] -= N[c] * (dnrm[c, a, i] * nd + nrm[c, i] * nad)
         for i in range(3):
             for j in range(3):
                 J[i, j] *= 2.0 * mu_f
@@ -106,6 +101,7 @@ class PaperFieldContact(GroundContact):
     def __init__(self, robot):
         super().__init__(robot)
         self.field = robot.ground.args
+        self.lagged = LaggedGeometry(self.field, self.nodes, self.k_n, self.eps_n)
 
     def hessian_blocks(self) -> list[np.ndarray]:
         return [3 * self.nodes[:, None] + np.arange(3)]
@@ -114,40 +110,37 @@ class PaperFieldContact(GroundContact):
         self.diag_slots = diag_slots
         self.slots = np.ascontiguousarray(slots[0])                 # (c, 9)
 
-    def _args(self, x, x_prev):
-        return self.field, x, x_prev, self.nodes, self.k_n, self.eps_n, self.mu_f
-
     def normal_forces(self, x):
         return field_normal_forces(x, self.nodes, self.field, self.k_n, self.eps_n)
 
+    def _assemble(self, x, x_prev, mu_f, grad, hdata, want_grad, want_hess, project) -> float:
+        return _assemble(self.field, x, x_prev, self.lagged(x_prev), self.nodes, self.k_n, self.eps_n, mu_f, grad,
+                         hdata, self.slots, want_grad, want_hess, project)
+
     def energy(self, x, x_prev, u, hist=None) -> float:
-        return _assemble(*self._args(x, x_prev), self._scratch, self._scratch, self.slots, False, False, False)
+        return self._assemble(x, x_prev, self.mu_f, self._scratch, self._scratch, False, False, False)
 
     def assemble(self, x, x_prev, u, hist, grad, hdata, want_hess) -> float:
-        return _assemble(*self._args(x, x_prev), grad, hdata, self.slots, True, want_hess, False)
+        return self._assemble(x, x_prev, self.mu_f, grad, hdata, True, want_hess, False)
 
     def assemble_projected(self, x, x_prev, u, hist, grad, hdata) -> float:
-        return _assemble(*self._args(x, x_prev), grad, hdata, self.slots, True, True, True)
+        return self._assemble(x, x_prev, self.mu_f, grad, hdata, True, True, True)
 
     def add_prev_product(self, x, x_prev, u, hist, S, out) -> None:
-        _prev_product(*self._args(x, x_prev), S, out, False)
+        _prev_product(x, x_prev, self.lagged(x_prev), self.nodes, self.mu_f, S, out, False)
 
     def add_prev_product_T(self, x, x_prev, u, hist, lam, out) -> None:
         tmp = np.zeros((out.shape[0], 1))
-        _prev_product(*self._args(x, x_prev), lam.reshape(-1, 1), tmp, True)
+        _prev_product(x, x_prev, self.lagged(x_prev), self.nodes, self.mu_f, lam.reshape(-1, 1), tmp, True)
         out += tmp[:, 0]
-
-    def _gradient(self, x, x_prev, mu_f) -> np.ndarray:
-        g = np.zeros(3 * len(x))
-        _assemble(self.field, x, x_prev, self.nodes, self.k_n, self.eps_n, mu_f, g, self._scratch, self.slots,
-                  True, False, False)
-        return g
 
     def add_parameter_jacobian(self, x, x_prev, u, hist, names, out) -> None:
         """The whole gradient is linear in k_n (``N`` and ``N_{k-1}``), its friction part
         linear in mu_f."""
-        normal = self._gradient(x, x_prev, 0.0)
-        friction = self._gradient(x, x_prev, 1.0) - normal             # at mu_f = 1
+        normal, friction = np.zeros(out.shape[0]), np.zeros(out.shape[0])
+        self._assemble(x, x_prev, 0.0, normal, self._scratch, True, False, False)
+        self._assemble(x, x_prev, 1.0, friction, self._scratch, True, False, False)
+        friction -= normal                                                  # at mu_f = 1
         for j, n in enumerate(names):
             if n == "contact_stiffness":
                 out[:, j] += (normal + self.mu_f * friction) / self.k_n

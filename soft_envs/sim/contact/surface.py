@@ -17,7 +17,9 @@ normal penalty is ``Q_n(s)`` (:func:`.penalty.Q`); its gradient ``Q_n'(s) grad s
 derivatives of ``h`` (the field is C4, so it is continuous). Its PSD substitute (Newton's
 fallback) drops the curvature term ``Q_n' hess s``.
 
-A field is passed to the kernels as the tuple ``HeightField.args``.
+A field is passed to the kernels as the tuple ``HeightField.args``. Nodes above the relief's
+highest coefficient (``HeightField.args``' ``top``) skip the field's evaluation in the
+normal penalty: most of a robot's boundary nodes are in the air.
 """
 from __future__ import annotations
 
@@ -38,7 +40,7 @@ LOWER_SLOTS = np.array([0, 3, 4, 6, 7, 8])
 def penetration(field, px, py, pz, ds, d2s, want_hess):
     """``s(p)`` (module docstring); fills ``ds (3,)`` with ``grad s`` and, with ``want_hess``,
     ``d2s (3, 3)`` with ``hess s``."""
-    coef, x0, z0, dx, dz, ax, az = field
+    coef, x0, z0, dx, dz, ax, az, _ = field
     h, hx, hz, hxx, hxz, hzz, hxxx, hxxz, hxzz, hzzz = height_derivatives(coef, x0, z0, dx, dz, ax, az, px, pz)
     q = 1.0 / np.sqrt(1.0 + hx * hx + hz * hz)
     u = h - py
@@ -70,7 +72,7 @@ def penetration(field, px, py, pz, ds, d2s, want_hess):
 def surface_normal(field, px, pz, n, dn):
     """The surface point's height ``h(px, pz)``; fills ``n (3,)`` with the unit normal there and
     ``dn (2, 3)`` with its derivatives along x and z."""
-    coef, x0, z0, dx, dz, ax, az = field
+    coef, x0, z0, dx, dz, ax, az, _ = field
     h, hx, hz, hxx, hxz, hzz, _, _, _, _ = height_derivatives(coef, x0, z0, dx, dz, ax, az, px, pz)
     q = 1.0 / np.sqrt(1.0 + hx * hx + hz * hz)
     q3 = q * q * q
@@ -90,6 +92,9 @@ def field_normal_penalty(x, node, field, k_n, eps_n, grad, hdata, slots, want_gr
     """The normal penalty ``Q_n(s)`` of node ``node`` (module docstring): adds its gradient
     (``want_grad``) and its 3x3 Hessian block into the row-major ``slots (9,)`` (``want_hess``;
     ``project``: without the curvature term). ``ds``, ``d2s``: work arrays (3,), (3, 3)."""
+    _, _, _, _, _, ax, az, top = field
+    if x[node, 1] - ax * x[node, 0] - az * x[node, 2] >= top:       # above the highest relief: s < 0
+        return 0.0
     s = penetration(field, x[node, 0], x[node, 1], x[node, 2], ds, d2s, want_hess and not project)
     if s <= 0.0:
         return 0.0
@@ -122,14 +127,11 @@ def field_normal_forces(x, nodes, field, k_n, eps_n):
 
 
 @njit(cache=True)
-def surface_foot(field, p, J):
+def surface_foot(field, p, J, ds, d2s, n, dn):
     """The foot ``(x, z)`` of point ``p (3,)`` on the surface, ``p + s(p) n`` with the normal at
     ``(p_x, p_z)`` (for a planar field the orthogonal projection), and its derivative
-    ``J (2, 3)`` (rows x, z) with respect to ``p``."""
-    ds = np.empty(3)
-    d2s = np.empty((3, 3))
-    n = np.empty(3)
-    dn = np.empty((2, 3))
+    ``J (2, 3)`` (rows x, z) with respect to ``p``. ``ds, d2s, n, dn``: work arrays (3,),
+    (3, 3), (3,), (2, 3)."""
     s = penetration(field, p[0], p[1], p[2], ds, d2s, False)
     surface_normal(field, p[0], p[2], n, dn)
     for r in range(2):
@@ -139,3 +141,43 @@ def surface_foot(field, p, J):
         J[r, 0] += s * dn[0, k]
         J[r, 2] += s * dn[1, k]
     return p[0] + s * n[0], p[2] + s * n[2]
+
+
+@njit(cache=True)
+def _lagged(field, x_prev, nodes, k_n, eps_n, points, at_nodes, N, Npp, dsp, height, normal, dnormal):
+    d2s = np.empty((3, 3))
+    for c in range(nodes.shape[0]):
+        n = nodes[c]
+        sp = penetration(field, x_prev[n, 0], x_prev[n, 1], x_prev[n, 2], dsp[c], d2s, False)
+        N[c] = dQ(sp, k_n, eps_n)
+        Npp[c] = d2Q(sp, k_n, eps_n)
+        px, pz = (x_prev[n, 0], x_prev[n, 2]) if at_nodes else (points[c, 0], points[c, 1])
+        height[c] = surface_normal(field, px, pz, normal[c], dnormal[c])
+
+
+class LaggedGeometry:
+    """What a field law's friction takes from the previous step, once per step instead of once
+    per Newton iteration: at every contact node ``N_{k-1} = Q_n'(s(x_prev))``, ``Q_n''(s(x_prev))``
+    and ``grad s(x_prev)`` (c, 3), and the surface's height, normal (c, 3) and the normal's
+    derivatives (c, 2, 3) at ``points`` (c, 2) (the stick anchors), or below ``x_prev`` when
+    ``points`` is None. Recomputed when ``x_prev`` or ``points`` differ from the last call's."""
+
+    def __init__(self, field, nodes, k_n, eps_n):
+        self.field, self.nodes, self.k_n, self.eps_n = field, nodes, k_n, eps_n
+        self._key: tuple | None = None
+        self._value: tuple | None = None
+
+    def __call__(self, x_prev, points=None) -> tuple:
+        """``(N, Q_n'', grad s, height, normal, d normal)`` (module docstring of the class)."""
+        key = self._key
+        if key is not None and np.array_equal(key[0], x_prev) and (
+                (points is None and key[1] is None) or (points is not None and key[1] is not None
+                                                         and np.array_equal(key[1], points))):
+            return self._value
+        c = len(self.nodes)
+        value = (np.empty(c), np.empty(c), np.empty((c, 3)), np.empty(c), np.empty((c, 3)), np.empty((c, 2, 3)))
+        _lagged(self.field, x_prev, self.nodes, self.k_n, self.eps_n,
+                np.zeros((c, 2)) if points is None else points, points is None, *value)
+        self._key = (np.array(x_prev), None if points is None else np.array(points))
+        self._value = value
+        return value
