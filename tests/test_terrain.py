@@ -9,6 +9,7 @@ the plane.
   for the Coulomb law, the anchors' ``add_history_product`` and ``history_tangent`` (+
   transposes), along random directions with h = 1e-7 m: relative error <= 1e-6 (measured 4e-10
   to 1e-7, the largest for the anchor derivatives).
+* Their parameter Jacobians (contact stiffness, friction): <= 1e-6 (tests/test_parameter_derivatives.py).
 * Rollout sensitivities on rough ground (tests/gradcheck.py, Newton at 1e-13 m): <= 1e-4 for the
   paper's law and <= 1e-6 for the Coulomb law, as tests/test_sensitivity.py asks on the plane.
 * A flat field is the plane, a planar slope field is the plane rotated with gravity
@@ -190,3 +191,16 @@ def test_planar_slope_field_is_the_rotated_incline(model):
     b = field.rollout(u, x0=field.state_at_rest(start.x @ R.T, tuple(history)))
     assert np.abs(a.com[-1] - a.com[0]).max() > 5e-4
     assert np.abs(a.x @ R.T - b.x).max() <= 1e-9
+
+
+@pytest.mark.parametrize("model", ["coulomb", "paper"])
+def test_field_contact_parameter_jacobians(model):
+    """``add_parameter_jacobian`` of every term on rough ground (contact stiffness and the law's
+    friction parameter for the contact term) against central differences of the gradient
+    (tests/test_parameter_derivatives.py's check, relative error <= 1e-6)."""
+    from .test_parameter_derivatives import check_term_parameter_jacobians
+    sim = Simulator(tripod(model, ROUGH))
+    x, x_prev, hist = _perturbed(sim, np.random.default_rng(1))
+    history = list(sim.system.initial_history(x_prev))
+    history[sim.system.terms.index(sim.system.contact)] = hist
+    check_term_parameter_jacobians(sim, x, x_prev, np.full(sim.robot.n_motors, 0.004), tuple(history))

@@ -30,10 +30,9 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     friction_coefficient = 0.8   # Coulomb's mu (model = "coulomb")
     slip_distance = 3e-4         # [m] offset from its stick anchor at which a node slides (coulomb)
 
-    [ground]                     # optional: a height field (soft_envs.sim.ground; absent: the plane y = 0)
-    type = "rough"               # flat, incline, step, trench, rough or grid, and that ground's keys
-    amplitude = 0.002            # [m] RMS height (rough)
-    wavelength = 0.05            # [m]
+    [ground]                     # optional: the ground's height field (soft_envs.sim.ground.ground_from_table:
+    type = "rough"               # flat, incline, step, trench, rough or grid and its keys); absent: y = 0
+    amplitude = 0.002            # [m] RMS height, with wavelength = 0.05 [m]
 
     [fixed]                      # optional: clamped nodes
     nodes = [0, 1, 2]            # and/or box = [[x0, x1], [y0, y1], [z0, z1]] (mesh frame and units)
