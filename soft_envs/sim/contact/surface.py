@@ -30,10 +30,7 @@ from ..ground import height_derivatives
 from .penalty import Q, d2Q, dQ
 
 __all__ = ["penetration", "surface_normal", "field_normal_penalty", "field_normal_forces", "surface_foot",
-           "LOWER_SLOTS"]
-
-#: the row-major 3x3 positions (i, j) with i >= j: the stored lower triangle of a node's block
-LOWER_SLOTS = np.array([0, 3, 4, 6, 7, 8])
+           "LaggedGeometry"]
 
 
 @njit(cache=True)
