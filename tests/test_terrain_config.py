@@ -3,6 +3,8 @@ value a ValueError naming the file and the field), the environments' ``ground=``
 initial placement on a field, and a block resting on a step edge."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -93,3 +95,21 @@ def test_block_on_a_step_edge(model):
     assert traj.x[:, :, 1].min() > 0.004                                # still on the upper level
     moved = np.abs(traj.x - traj.x[0]).max()
     assert moved < (1e-9 if model == "coulomb" else 1e-3), moved
+
+
+def test_paper_law_has_a_rest_state_on_ground_that_is_not_flat():
+    """The paper's lagged friction creeps on any slope, so its relaxation on a field that is not
+    flat holds the feet by Coulomb friction (soft_envs.sim.rest._held_on_ground); the rest state
+    keeps the paper law's (empty) history, and its derivative by the friction weight is refused."""
+    tripod = load_robot("tripod")
+    robot = tripod.replace(contact=dataclasses.replace(tripod.contact, model="paper"))
+    for ground in (HeightField.incline(5.0), HeightField.rough(0.003, 0.05, seed=1)):
+        sim = Simulator(robot.replace(ground=ground))
+        rest = sim.rest_state()
+        assert rest.history == (None,) * len(sim.system.terms)
+        gap = rest.x[:, 1] - ground.height(rest.x[:, 0], rest.x[:, 2])
+        assert -1e-3 < gap.min() < 0.0                       # standing on it
+    with pytest.raises(ValueError, match="friction"):
+        sim.rest_sensitivity(["friction"])
+    x0, _, dx0, _ = sim.rest_sensitivity(["youngs_modulus"])
+    assert np.isfinite(dx0).all() and np.array_equal(x0, rest.x)

@@ -173,6 +173,11 @@ class HeightField:
         return (self.coefficients, self.origin[0], self.origin[1], self.spacing[0], self.spacing[1],
                 self.slope[0], self.slope[1], float(self.coefficients.max()))
 
+    @property
+    def is_flat(self) -> bool:
+        """Whether the field is a horizontal plane (no slope, all heights equal)."""
+        return self.slope == (0.0, 0.0) and bool(np.all(self.heights == self.heights.flat[0]))
+
     def derivatives(self, x: float, z: float) -> tuple:
         """``(h, h_x, h_z, h_xx, h_xz, h_zz, h_xxx, h_xxz, h_xzz, h_zzz)`` at ``(x, z)`` [m]."""
         return height_derivatives(*self.args[:7], float(x), float(z))
