@@ -105,14 +105,11 @@ def height_derivatives(coef, x0, z0, dx, dz, ax, az, x, z):
 def _interpolation_solve(values: np.ndarray) -> np.ndarray:
     """Coefficients ``c`` along axis 0 with ``sum_k c_clip(k) beta(i - k) = values_i``."""
     n = values.shape[0]
-    A = np.zeros((n, n))
+    ab = np.zeros((5, n))                       # banded storage: ab[2 + i - j, j] = A[i, j]
     for i in range(n):
         for off, w in zip(range(-2, 3), _NODE_WEIGHTS):
-            A[i, min(max(i + off, 0), n - 1)] += w
-    ab = np.zeros((5, n))                       # banded storage, 2 sub- and 2 super-diagonals
-    for i in range(n):
-        for j in range(max(0, i - 2), min(n, i + 3)):
-            ab[2 + i - j, j] = A[i, j]
+            j = min(max(i + off, 0), n - 1)
+            ab[2 + i - j, j] += w
     return scipy.linalg.solve_banded((2, 2), ab, values)
 
 
