@@ -34,9 +34,10 @@ __all__ = ["penetration", "surface_normal", "field_normal_penalty", "field_norma
 
 
 @njit(cache=True)
-def penetration(field, px, py, pz, ds, d2s, want_hess):
-    """``s(p)`` (module docstring); fills ``ds (3,)`` with ``grad s`` and, with ``want_hess``,
-    ``d2s (3, 3)`` with ``hess s``."""
+def penetration(field, px, py, pz, ds, d2s, want_hess, n=None, dn=None):
+    """``s(p)`` (module docstring); fills ``ds (3,)`` with ``grad s``, with ``want_hess``
+    ``d2s (3, 3)`` with ``hess s``, and when given ``n (3,)`` and ``dn (2, 3)`` with the normal
+    at ``(px, pz)`` and its derivatives (:func:`surface_normal`, from the same evaluation)."""
     coef, x0, z0, dx, dz, ax, az, _ = field
     h, hx, hz, hxx, hxz, hzz, hxxx, hxxz, hxzz, hzzz = height_derivatives(coef, x0, z0, dx, dz, ax, az, px, pz)
     q = 1.0 / np.sqrt(1.0 + hx * hx + hz * hz)
@@ -48,6 +49,8 @@ def penetration(field, px, py, pz, ds, d2s, want_hess):
     ds[0] = q * hx + u * qx
     ds[1] = -q
     ds[2] = q * hz + u * qz
+    if n is not None:
+        _normal(q, hx, hz, hxx, hxz, hzz, n, dn)
     if want_hess:
         du = (hx, -1.0, hz)
         qv = (qx, 0.0, qz)
@@ -71,7 +74,13 @@ def surface_normal(field, px, pz, n, dn):
     ``dn (2, 3)`` with its derivatives along x and z."""
     coef, x0, z0, dx, dz, ax, az, _ = field
     h, hx, hz, hxx, hxz, hzz, _, _, _, _ = height_derivatives(coef, x0, z0, dx, dz, ax, az, px, pz)
-    q = 1.0 / np.sqrt(1.0 + hx * hx + hz * hz)
+    _normal(1.0 / np.sqrt(1.0 + hx * hx + hz * hz), hx, hz, hxx, hxz, hzz, n, dn)
+    return h
+
+
+@njit(cache=True, inline="always")
+def _normal(q, hx, hz, hxx, hxz, hzz, n, dn):
+    """``n = q (-h_x, 1, -h_z)`` and ``dn (2, 3)`` (``q = 1 / sqrt(1 + h_x^2 + h_z^2)``)."""
     q3 = q * q * q
     n[0], n[1], n[2] = -q * hx, q, -q * hz
     for a in range(2):
@@ -81,7 +90,6 @@ def surface_normal(field, px, pz, n, dn):
         dn[a, 0] = -qa * hx - q * ha_x
         dn[a, 1] = qa
         dn[a, 2] = -qa * hz - q * ha_z
-    return h
 
 
 @njit(cache=True, inline="always")
@@ -117,9 +125,11 @@ def field_normal_forces(x, nodes, field, k_n, eps_n):
     out = np.empty(nodes.shape[0])
     ds = np.empty(3)
     d2s = np.empty((3, 3))
+    _, _, _, _, _, ax, az, top = field
     for c in range(nodes.shape[0]):
         n = nodes[c]
-        out[c] = dQ(penetration(field, x[n, 0], x[n, 1], x[n, 2], ds, d2s, False), k_n, eps_n)
+        above = x[n, 1] - ax * x[n, 0] - az * x[n, 2] >= top
+        out[c] = 0.0 if above else dQ(penetration(field, x[n, 0], x[n, 1], x[n, 2], ds, d2s, False), k_n, eps_n)
     return out
 
 
@@ -129,8 +139,7 @@ def surface_foot(field, p, J, ds, d2s, n, dn):
     ``(p_x, p_z)`` (for a planar field the orthogonal projection), and its derivative
     ``J (2, 3)`` (rows x, z) with respect to ``p``. ``ds, d2s, n, dn``: work arrays (3,),
     (3, 3), (3,), (2, 3)."""
-    s = penetration(field, p[0], p[1], p[2], ds, d2s, False)
-    surface_normal(field, p[0], p[2], n, dn)
+    s = penetration(field, p[0], p[1], p[2], ds, d2s, False, n, dn)
     for r in range(2):
         k = 2 * r                            # x or z component
         for j in range(3):
@@ -142,14 +151,30 @@ def surface_foot(field, p, J, ds, d2s, n, dn):
 
 @njit(cache=True)
 def _lagged(field, x_prev, nodes, k_n, eps_n, points, at_nodes, N, Npp, dsp, height, normal, dnormal):
+    """:class:`LaggedGeometry`'s arrays; a node not pressed into the ground at ``x_prev`` (no
+    friction) gets ``N = 0`` and a horizontal frame, without evaluating the field above it."""
+    _, _, _, _, _, ax, az, top = field
     d2s = np.empty((3, 3))
     for c in range(nodes.shape[0]):
         n = nodes[c]
-        sp = penetration(field, x_prev[n, 0], x_prev[n, 1], x_prev[n, 2], dsp[c], d2s, False)
+        if x_prev[n, 1] - ax * x_prev[n, 0] - az * x_prev[n, 2] >= top:
+            sp = -1.0
+        elif at_nodes:
+            sp = penetration(field, x_prev[n, 0], x_prev[n, 1], x_prev[n, 2], dsp[c], d2s, False, normal[c],
+                             dnormal[c])
+            height[c] = x_prev[n, 1] + sp / normal[c, 1]          # s = (h - y) n_y
+        else:
+            sp = penetration(field, x_prev[n, 0], x_prev[n, 1], x_prev[n, 2], dsp[c], d2s, False)
+            if sp > 0.0:
+                height[c] = surface_normal(field, points[c, 0], points[c, 1], normal[c], dnormal[c])
         N[c] = dQ(sp, k_n, eps_n)
         Npp[c] = d2Q(sp, k_n, eps_n)
-        px, pz = (x_prev[n, 0], x_prev[n, 2]) if at_nodes else (points[c, 0], points[c, 1])
-        height[c] = surface_normal(field, px, pz, normal[c], dnormal[c])
+        if N[c] <= 0.0:
+            dsp[c] = 0.0
+            height[c] = 0.0
+            normal[c] = 0.0
+            normal[c, 1] = 1.0
+            dnormal[c] = 0.0
 
 
 class LaggedGeometry:
