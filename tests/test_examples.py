@@ -70,6 +70,10 @@ EXPECTED = {
                       r"torque-speed: +[+-]?\d+\.\d+ BL/min as optimised, .* \(off by 0\.\d\d %, "   # within 1 %
                       r"\d+ motor-steps held back\); .*worst line excess [+-]0\.\d %",
                       r"wrote results/motor_line_example_quick\.png"],
+    "rough_ground.py": [r"plane y = 0 +: COM +[+-]\d+\.\d mm along x in 0\.7 s \([+-]\d+\.\d+ BL/min\), "
+                        r"largest tilt +\d+\.\d deg, deepest foot \d\.\d\d mm into the ground",
+                        r"rough, RMS 1 mm +: COM", r"rough, RMS 3 mm +: COM", r"step up 5 mm at x = 0\.2 m +: COM",
+                        r"trench 5 mm deep, 3 cm long +: COM"],
     "robot_from_surface.py": [r"meshed quadruped\.obj: \d+ nodes, \d+ tets",
                               r"mass +body \d+\.\d g \+ payload \d+\.\d g on \d+ top nodes",
                               r"picture: results/quadruped_quick/quadruped\.png", r"iteration 1: objective \S+ -> \S+",

@@ -31,6 +31,7 @@ from gymnasium import logger, spaces
 from ..sim import (DEFAULT_DT, GAIT_CYCLE_STEPS, FactorCache, Robot, SimulationError, Simulator, State,
                    incline_gravity, load_robot)
 from ..sim.contact import CONTACT_LAWS
+from ..sim.ground import HeightField
 from ..sim.robot import DEFAULT_MAX_SPEED_RPM
 from ..sim.motors import TORQUE_SPEED
 from .actuation import MOTOR_SPEED_FROM_ROBOT, Actuation
@@ -91,6 +92,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         observe_nodes: bool = False,
         domain_randomization: Mapping[str, tuple[float, float]] | bool | None = None,
         contact: str | None = None,
+        ground: HeightField | None = None,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -111,6 +113,8 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
             raise ValueError(f"robot must be a shipped name, a robot.toml path or a Robot, got {type(robot).__name__}")
         limit_threads_in_worker()      # a vector-env worker: one BLAS/numba thread (threads.py)
         self._base_robot = with_contact_law(robot if isinstance(robot, Robot) else load_robot(robot), contact)
+        if ground is not None:         # a HeightField (else the robot file's [ground], or the plane y = 0)
+            self._base_robot = self._base_robot.replace(ground=ground)
         if self._base_robot.n_motors == 0:
             raise ValueError(f"robot {self._base_robot.name!r} has no motors")
         self.frame_skip = int(frame_skip)

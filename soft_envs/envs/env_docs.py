@@ -271,6 +271,9 @@ def _arguments(r: RobotDoc) -> list[tuple[str, str, str, str]]:
          f"or `None` for the robot file's `[contact] model`. `{r.env_name}-v2`, the latest id, passes "
          f"`\"coulomb\"` (`gym.make(\"{r.env_name}-v2\", contact=\"paper\")` for the paper's law); "
          f"`{r.env_name}-v0` passes `\"paper\"` (Table I), `{r.env_name}-v1` `\"coulomb\"` at one physics step"),
+        ("`ground`", "**HeightField \\| None**", "`None`",
+         "the ground's surface, a `soft_envs.sim.ground.HeightField` (rough terrain, a step, a trench; "
+         "`soft_envs.sim.ground`); `None`: the robot file's `[ground]`, or the plane y = 0 without one"),
         ("`render_mode`", "**str \\| None**", "`None`",
          '`"rgb_array"` (uint8 frames, offscreen matplotlib, no OpenGL) or `"human"` (matplotlib window)'),
         ("`width`, `height`", "**int**", "`480`, `360`", "frame size in pixels"),

@@ -8,6 +8,7 @@ import os
 from typing import Any
 
 from ..sim import Robot
+from ..sim.ground import HeightField
 from ..sim.motors import TORQUE_SPEED
 from .base import PAPER_TIMESTEP, SoftRobotEnv
 from .protocol import GRADIENT_ENV_MEMBERS, GradientEnv
@@ -20,7 +21,7 @@ __all__ = ["as_gradient_env", "make_gradient_env"]
 def make_gradient_env(robot: str | os.PathLike | Robot = "puppy", *, incline_deg: float = 0.0,
                       heading_deg: float = 0.0, timestep: float = PAPER_TIMESTEP,
                       contact: str | None = None, substeps: int | None = None,
-                      motor_model: str = TORQUE_SPEED) -> SoftRobotEnv:
+                      motor_model: str = TORQUE_SPEED, ground: HeightField | None = None) -> SoftRobotEnv:
     """A bare environment for trajectory optimisation, reset without noise: its rollouts start
     at the exact rest state with the motors at ``robot.u_rest``.
 
@@ -30,11 +31,13 @@ def make_gradient_env(robot: str | os.PathLike | Robot = "puppy", *, incline_deg
     [s] (one row of a rollout's controls); ``contact`` the contact law ("paper", "coulomb"; None:
     the robot file's); ``substeps`` the physics steps per control step (None: the law's default,
     :attr:`~soft_envs.sim.contact.ContactLaw.default_substeps`); ``motor_model`` the motors' law of
-    its steps (:mod:`soft_envs.sim.motors`; rollouts apply controls as given, whatever the law)."""
+    its steps (:mod:`soft_envs.sim.motors`; rollouts apply controls as given, whatever the law);
+    ``ground`` a :class:`~soft_envs.sim.ground.HeightField` to stand on (None: the robot file's
+    ``[ground]``, or the plane y = 0)."""
     shipped = {"tripod": SoftTripodEnv, "puppy": SoftPuppyEnv}
     cls = shipped.get(robot, SoftRobotEnv) if isinstance(robot, str) else SoftRobotEnv
     env = cls(robot, incline_deg=incline_deg, target_heading_deg=heading_deg, timestep=timestep,
-              reset_noise_scale=0.0, contact=contact, substeps=substeps, motor_model=motor_model)
+              reset_noise_scale=0.0, contact=contact, substeps=substeps, motor_model=motor_model, ground=ground)
     env.reset(seed=0)
     return env
 

@@ -15,7 +15,10 @@ def initial_placement(robot) -> np.ndarray:
     where the rest relaxation starts."""
     x = np.array(robot.mesh.points)
     if robot.fixed_nodes.size == 0:
-        x[:, 1] -= x[:, 1].min()
+        if robot.ground is None:
+            x[:, 1] -= x[:, 1].min()
+        else:                                   # the lowest node above the field touches it
+            x[:, 1] -= (x[:, 1] - robot.ground.height(x[:, 0], x[:, 2])).min()
     return x
 
 

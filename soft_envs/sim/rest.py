@@ -4,7 +4,8 @@ Computed as proximal-point iterations ``x_{j+1} = argmin E(x; x_prev = x_j) + |x
 (implicit steps of 1 s from rest, each the one loop body :func:`~.state.advance`), which converge
 to a state where the friction term exerts no force, so a rollout started there stays still. With
 the paper's lagged (viscous-like) friction a robot on a slope creeps, so the relaxation of an
-inclined simulator then uses only the normal component of gravity. The Coulomb law holds it: its
+inclined simulator then uses only the normal component of gravity (on a height field that is not
+flat, the Coulomb law holds the feet instead: :func:`_held_on_ground`). The Coulomb law holds it: its
 relaxation is under the full gravity, with the stick anchors carried through the steps (the rest
 state's anchors are loaded, and belong to it). With physical parameters the relaxation is
 differentiated through the same recurrence as rollouts (:class:`~.sensitivity.ForwardSensitivities`).
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .contact import ContactParams
 from .inputs import initial_placement
 from .integrator import FactorCache, NewtonOptions, NewtonSolver, SimulationError
 from .parameter_block import parameter_block
@@ -45,7 +47,8 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
     g = sim.gravity
     anchored = sim.system.has_history
     relax_g = g if (anchored or sim.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])
-    system = EnergySystem(sim.robot, gravity=relax_g, control=sim.control)
+    robot = _held_on_ground(sim.robot, anchored, params)
+    system = EnergySystem(robot, gravity=relax_g, control=sim.control)
     solver = NewtonSolver(system, 1.0, NewtonOptions(tol=min(tol, 1e-10), max_iter=100,
                                                      solver=sim.newton.options.solver))
     x = initial_placement(sim.robot)
@@ -77,11 +80,30 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
         raise SimulationError(f"rest_state of robot {sim.robot.name!r} did not settle in {max_iter} "
                               f"relaxation steps (last motion {moved:.2e} m; u = {u.tolist()}, "
                               f"gravity = {relax_g.tolist()}, tol = {tol}; {_material(sim.robot)}){hint}")
-    rest = State.at_rest(x, history, u=u)
+    held = robot is not sim.robot            # anchors the law does not keep
+    rest = State.at_rest(x, sim.system.initial_history(x) if held else history, u=u)
     if sens is None:
         return rest
-    dh = tuple(None if p is None else p[:, sens.nz:].copy() for p in (sens.P or (None,) * len(history)))
+    dh = tuple(None if (p is None or held) else p[:, sens.nz:].copy()
+               for p in (sens.P or (None,) * len(history)))
     return rest, sens.S1[:, sens.nz:].copy(), dh
+
+
+def _held_on_ground(robot, anchored: bool, params=()):
+    """The robot the relaxation simulates. A law without stick anchors (the paper's lagged,
+    viscous-like friction) creeps on any ground that is not flat (a slope, rough ground), so it
+    never settles there; on a height field that is not flat the relaxation holds the feet by
+    the Coulomb law instead (its default friction coefficient and slip distance, the law's
+    normal penalty), as the plane's relaxation drops gravity's tangential part on an incline;
+    its anchors are not kept. Otherwise ``robot`` itself."""
+    ground, contact = robot.ground, robot.contact
+    if anchored or ground is None or ground.is_flat or robot.fixed_nodes.size:
+        return robot
+    fp = contact.law.friction_parameter
+    if fp is not None and fp in tuple(params or ()):
+        raise ValueError(f"{robot.source}: the rest state on {ground.description} is relaxed with the feet held "
+                         f"by Coulomb friction: its derivative with respect to {fp} is not available")
+    return robot.replace(contact=ContactParams(model="coulomb", stiffness=contact.stiffness, blend=contact.blend))
 
 
 def placement_sensitivity(sim, system, params) -> tuple:
@@ -95,7 +117,13 @@ def placement_sensitivity(sim, system, params) -> tuple:
         return None, None
     dX = np.array(dX, dtype=np.float64)
     if sim.robot.fixed_nodes.size == 0:
-        dX[:, 1, :] -= dX[int(np.argmin(sim.robot.mesh.points[:, 1])), 1, :]
+        ground, X = sim.robot.ground, sim.robot.mesh.points
+        if ground is None:
+            dX[:, 1, :] -= dX[int(np.argmin(X[:, 1])), 1, :]
+        else:                  # the lowest node above the field: its gap y - h(x, z) moves
+            i = int(np.argmin(X[:, 1] - ground.height(X[:, 0], X[:, 2])))
+            _, hx, hz = ground.derivatives(X[i, 0], X[i, 2])[:3]
+            dX[:, 1, :] -= dX[i, 1, :] - hx * dX[i, 0, :] - hz * dX[i, 2, :]
     cols = [system.initial_history(dX[:, :, j]) for j in range(dX.shape[2])]
     dh = tuple(None if h is None else np.stack([c[i].ravel() for c in cols], axis=1)
                for i, h in enumerate(cols[0])) if cols else None

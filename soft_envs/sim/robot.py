@@ -18,6 +18,7 @@ import meshio
 import numpy as np
 
 from .contact import CONTACT_LAWS, ContactParams
+from .ground import HeightField
 from .drive import (DEFAULT_MAX_SPEED_RPM, DEFAULT_MAX_TORQUE, DEFAULT_STALL_TORQUE, MOTOR_DEFAULTS, CableData, Motor,
                     Tendon, bind_tendons, cable_data, check_drive)
 from .markers import Marker, MarkerSet
@@ -70,6 +71,9 @@ class Robot:
         modulus_scale (np.ndarray | None): (n_tets,) positive per-tet factor [-] on
             ``youngs_modulus``, or None for a uniform material; the regional moduli of a design
             (:mod:`soft_envs.sim.design`) set it.
+        ground (HeightField | None): the ground the robot stands on
+            (:class:`~soft_envs.sim.ground.HeightField`, ``robot.toml``'s ``[ground]``); None
+            (default) for the plane ``y = 0``.
     """
 
     name: str
@@ -88,9 +92,12 @@ class Robot:
     source: str = "<python>"
     markers: tuple[Marker, ...] = ()
     modulus_scale: np.ndarray | None = None
+    ground: HeightField | None = None
 
     def __post_init__(self):
         lame_parameters(self.youngs_modulus, self.poisson_ratio)   # validates
+        if self.ground is not None and not isinstance(self.ground, HeightField):
+            raise ValueError(f"{self.source}: ground must be a HeightField or None, got {type(self.ground).__name__}")
         if self.modulus_scale is not None:
             scale = np.array(self.modulus_scale, dtype=np.float64)
             if scale.shape != (self.mesh.n_tets,) or not (np.isfinite(scale).all() and (scale > 0).all()):

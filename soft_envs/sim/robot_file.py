@@ -30,6 +30,10 @@ Format (all lengths in the mesh file's units times ``robot.scale``, then SI)::
     friction_coefficient = 0.8   # Coulomb's mu (model = "coulomb")
     slip_distance = 3e-4         # [m] offset from its stick anchor at which a node slides (coulomb)
 
+    [ground]                     # optional: the ground's height field (soft_envs.sim.ground.ground_from_table:
+    type = "rough"               # flat, incline, step, trench, rough or grid and its keys); absent: y = 0
+    amplitude = 0.002            # [m] RMS height, with wavelength = 0.05 [m]
+
     [fixed]                      # optional: clamped nodes
     nodes = [0, 1, 2]            # and/or box = [[x0, x1], [y0, y1], [z0, z1]] (mesh frame and units)
 
@@ -90,6 +94,7 @@ from typing import Any
 import numpy as np
 
 from .mesh import TetMesh, load_mesh
+from .ground import ground_from_table
 from .robot import MOTOR_DEFAULTS, ContactParams, Marker, Motor, Robot, Tendon
 
 __all__ = ["load_robot", "asset_path", "robot_file_path", "robot_document", "read_robot_toml", "SHIPPED_ROBOTS"]
@@ -238,7 +243,7 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
     path = robot_file_path(name_or_path)
     src = str(path)
     doc = read_robot_toml(path)
-    allowed = set(_SCHEMA) | {"tendons", "motors", "markers", "design"}   # [design]: soft_envs.sim.design
+    allowed = set(_SCHEMA) | {"tendons", "motors", "markers", "design", "ground"}   # [design]: soft_envs.sim.design
     for key in doc:
         if key not in allowed:
             raise ValueError(f"{src}: unknown table [{key}] (allowed: {', '.join(sorted(allowed))})")
@@ -274,7 +279,8 @@ def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
                   payload_nodes=payload_nodes if float(pay.get("mass", 0.0)) > 0 else np.zeros(0, np.int64),
                   fixed_nodes=fixed_nodes, contact=contact,
                   body_length=float(rt["body_length"]) if "body_length" in rt else None,
-                  cable_blend=float(tables["cables"].get("blend", 2e-4)), source=src, markers=markers)
+                  cable_blend=float(tables["cables"].get("blend", 2e-4)), source=src, markers=markers,
+                  ground=ground_from_table(doc["ground"], src) if "ground" in doc else None)
     if "regions" in mat:
         kwargs["modulus_scale"] = _material_regions(mat["regions"], mesh, float(mat["youngs_modulus"]), src)
     kwargs.update(overrides)

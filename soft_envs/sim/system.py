@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .cables import Cables, CableTensions
+from .contact import contact_term
 from .elastic import Elastic
 from .gravity import Gravity
 from .parameters import MASS_PARAMETERS, check_parameters, node_mass_jacobian
@@ -103,7 +104,7 @@ class EnergySystem:
         self.free = np.flatnonzero(~self.fixed_dof)
         self.elastic = Elastic(robot)
         self.cables = (Cables if control == "length" else CableTensions)(robot)
-        self.contact = robot.contact.law(robot)      # the law registered as [contact] model
+        self.contact = contact_term(robot)      # the law registered as [contact] model (on robot.ground)
         masses = [n for n in MASS_PARAMETERS if n != "payload_mass" or robot.payload_nodes.size]
         self._mass_jacobian = dict(zip(masses, node_mass_jacobian(robot, masses).T))
         self.terms: list[EnergyTerm] = [self.elastic, self.cables, self.contact,

@@ -1,15 +1,19 @@
 r"""Ground contact laws and their registry :data:`CONTACT_LAWS` (``robot.toml``'s ``[contact] model``).
 
-==============  ===================================================================================
-module          what
-==============  ===================================================================================
-:mod:`.penalty` the one-sided quadratic ``Q``, ``Q'``, ``Q''`` (paper II-B; the cables use it too)
-                and the normal penalty ``Q_n(-y)`` of every law
-:mod:`.law`     :class:`ContactLaw`, the base of the laws, and :class:`ContactParameter`, the
-                declaration of a ``[contact]`` key a law reads
-:mod:`.paper`   ``"paper"``: :class:`GroundContact`, the paper's lagged friction (II-C)
-:mod:`.coulomb` ``"coulomb"``: :class:`CoulombContact`, Coulomb friction held by stick anchors
-==============  ===================================================================================
+===================  ==============================================================================
+module               what
+===================  ==============================================================================
+:mod:`.penalty`      the one-sided quadratic ``Q``, ``Q'``, ``Q''`` (paper II-B; the cables use it
+                     too) and the normal penalty ``Q_n(-y)`` of every law
+:mod:`.law`          :class:`ContactLaw`, the base of the laws, and :class:`ContactParameter`, the
+                     declaration of a ``[contact]`` key a law reads
+:mod:`.paper`        ``"paper"``: :class:`GroundContact`, the paper's lagged friction (II-C)
+:mod:`.coulomb`      ``"coulomb"``: :class:`CoulombContact`, Coulomb friction held by stick anchors
+:mod:`.surface`      contact geometry on a height field (``Robot.ground``): penetration along the
+                     normal, the normal penalty on it
+:mod:`.paper_field`  the two laws on a height field (:data:`HEIGHT_FIELD_LAWS`,
+:mod:`.coulomb_field` :func:`contact_term`)
+===================  ==============================================================================
 
 A law is a :class:`ContactLaw` subclass that declares its name (``model``), the ``[contact]``
 keys it reads (``contact_parameters``: defaults, units, bounds) and its friction parameter
@@ -38,19 +42,40 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from .coulomb import CoulombContact
+from .coulomb_field import CoulombFieldContact
 from .law import BLEND, STIFFNESS, ContactLaw, ContactParameter
 from .paper import GroundContact, contact_assemble, friction_cross, friction_cross_T, normal_forces
+from .paper_field import PaperFieldContact
 from .penalty import normal_penalty
 
 __all__ = ["CONTACT_LAWS", "ContactLaw", "ContactParameter", "register_contact_law", "unregister_contact_law",
            "contact_law", "friction_parameters", "check_contact_parameters", "contact_default", "ContactParams",
-           "GroundContact", "CoulombContact", "STIFFNESS", "BLEND",
+           "GroundContact", "CoulombContact", "STIFFNESS", "BLEND", "HEIGHT_FIELD_LAWS", "contact_term",
            # the old module soft_envs.sim.contact (now .paper)
            "contact_assemble", "friction_cross", "friction_cross_T", "normal_forces", "normal_penalty"]
 
 #: The contact laws by name (``[contact] model``); add one with :func:`register_contact_law`.
 CONTACT_LAWS: dict[str, type[ContactLaw]] = {GroundContact.model: GroundContact,
                                              CoulombContact.model: CoulombContact}
+
+
+#: A law's variant on a height field (``Robot.ground``, :mod:`.surface`): the law class -> its
+#: subclass that contacts the field instead of the plane ``y = 0``.
+HEIGHT_FIELD_LAWS: dict[type[ContactLaw], type[ContactLaw]] = {GroundContact: PaperFieldContact,
+                                                                CoulombContact: CoulombFieldContact}
+
+
+def contact_term(robot) -> ContactLaw:
+    """The contact energy term of ``robot``: its law (``robot.contact.law``) against the plane
+    ``y = 0`` when ``robot.ground`` is None (the original kernels), else the law's
+    :data:`HEIGHT_FIELD_LAWS` variant against the field (a ValueError for a law without one)."""
+    law = robot.contact.law
+    if getattr(robot, "ground", None) is None:
+        return law(robot)
+    if law not in HEIGHT_FIELD_LAWS:
+        raise ValueError(f"{robot.source}: contact law {law.model!r} has no height-field variant "
+                         f"(ground given; laws with one: {', '.join(k.model for k in HEIGHT_FIELD_LAWS)})")
+    return HEIGHT_FIELD_LAWS[law](robot)
 
 
 def register_contact_law(law: type[ContactLaw]) -> type[ContactLaw]:
