@@ -50,7 +50,7 @@ EXPECTED = {
                       r"heading per cycle \[deg\], 6 cycles:( [+-]\d+\.\d){6}",
                       r"saved results/puppy_turn_example_quick\.npz"],
     "fastest_gait.py": [r"coarse cycle +\d+ steps, \d keyframes: +\d+\.\d+ BL/min",
-                        r"fastest: \d+\.\d+ BL/min on a \d+-step cycle of \d keyframes, upright over \d+ cycles: True",
+                        r"chosen: \d+\.\d+ BL/min on a \d+-step cycle of \d keyframes, upright over \d+ cycles: True",
                         r"simulation steps of the whole search: [\d,]+",
                         r"saved results/tripod_fastest_example_quick\.npz and results/tripod_fastest_example_quick"
                         r"\.search\.csv"],
