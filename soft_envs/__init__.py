@@ -20,7 +20,7 @@ Importing the package registers the environments with Gymnasium when Gymnasium i
 only imported when an environment is made.
 """
 __all__ = ["ENV_VERSIONS", "LATEST_VERSION", "ENV_IDS_BY_ROBOT", "ENV_IDS", "ENV_ROBOTS", "ENV_KWARGS", "LATEST_ENV_IDS",
-           "MAX_EPISODE_STEPS"]
+           "MAX_EPISODE_STEPS", "TASKS", "TASK_ENV_IDS", "TASK_IDS_BY_TASK"]
 
 #: The versions of the environments (Gymnasium's convention: a new version when the dynamics
 #: change), each the keywords its ids pass: ``-v0`` the paper's contact law at the paper's
@@ -58,6 +58,20 @@ ENV_KWARGS = {f"{name}-{version}": dict(kwargs) for name in _ENV_NAMES.values()
 #: examples); the paper's law is its ``contact="paper"``, never ``-v0`` unless Table I is asked for.
 LATEST_ENV_IDS = {robot: f"{name}-{LATEST_VERSION}" for robot, name in _ENV_NAMES.items()}
 
+#: The benchmark's tasks (issue #39; soft_envs.envs.tasks, docs/tasks.md): task key -> (id stem,
+#: class in ``soft_envs.envs.tasks``). Each has an id per robot, ``<robot name><stem>-v0``
+#: (``SoftTripodWalk-v0``, ``SoftPuppyReachGoal-v0``), on the latest physics (``-v2``'s).
+TASKS = {"walk": ("Walk", "WalkEnv"), "turn": ("Turn", "TurnEnv"), "slope_up": ("SlopeUp", "SlopeUpEnv"),
+         "slope_down": ("SlopeDown", "SlopeDownEnv"), "rough_terrain": ("RoughTerrain", "RoughTerrainEnv"),
+         "climb_step": ("ClimbStep", "ClimbStepEnv"), "cross_trench": ("CrossTrench", "CrossTrenchEnv"),
+         "reach_goal": ("ReachGoal", "ReachGoalEnv")}
+#: Each task id's entry point and keywords (its robot): ``{id: (entry point, kwargs)}``.
+TASK_ENV_IDS = {f"{name}{stem}-v0": (f"soft_envs.envs.tasks:{cls}", {"robot": robot})
+                for robot, name in _ENV_NAMES.items() for stem, cls in TASKS.values()}
+#: task key -> {robot: its id}
+TASK_IDS_BY_TASK = {task: {robot: f"{name}{stem}-v0" for robot, name in _ENV_NAMES.items()}
+                    for task, (stem, _) in TASKS.items()}
+
 #: Episode length of ``gymnasium.make`` (its ``TimeLimit`` wrapper), in environment steps: 300
 #: steps of 0.033 s are 10 s, about four of the paper's 72-step gait cycles. Pass
 #: ``max_episode_steps`` to ``gymnasium.make`` for another length (``trajopt rl`` trains on
@@ -74,6 +88,9 @@ def _register_environments() -> None:
         if env_id not in registry:    # re-imports (importlib.reload) must not re-register
             register(id=env_id, entry_point=entry_point, max_episode_steps=MAX_EPISODE_STEPS,
                      kwargs=dict(ENV_KWARGS.get(env_id, {})))
+    for env_id, (entry_point, kwargs) in TASK_ENV_IDS.items():
+        if env_id not in registry:
+            register(id=env_id, entry_point=entry_point, max_episode_steps=MAX_EPISODE_STEPS, kwargs=dict(kwargs))
 
 
 _register_environments()

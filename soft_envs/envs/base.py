@@ -37,7 +37,8 @@ from ..sim.motors import TORQUE_SPEED
 from .actuation import MOTOR_SPEED_FROM_ROBOT, Actuation
 from .arguments import RENDER_MODES, check_env_arguments
 from .domain import draw_standing_robot, parse_domain_randomization, randomized_robot
-from .measure import BodyFrame, tilt_deg_of, wrap_angle, yaw_of
+from .ground_reference import GroundReference
+from .measure import BodyFrame, wrap_angle, yaw_of
 from .observation import Observation
 from .task import LocomotionTask
 from .threads import limit_threads_in_worker
@@ -115,6 +116,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         self._base_robot = with_contact_law(robot if isinstance(robot, Robot) else load_robot(robot), contact)
         if ground is not None:         # a HeightField (else the robot file's [ground], or the plane y = 0)
             self._base_robot = self._base_robot.replace(ground=ground)
+        self._ground_ref = GroundReference(self._base_robot.ground)   # heights, tilts: above the ground
         if self._base_robot.n_motors == 0:
             raise ValueError(f"robot {self._base_robot.name!r} has no motors")
         self.frame_skip = int(frame_skip)
@@ -234,7 +236,8 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         x_rest = sim.rest_state(robot.u_rest).x
         self._sim, self._domain = sim, factors
         self._frame = BodyFrame(x_rest, robot.node_masses)
-        self._rest_com_height = float(self._frame.com(x_rest)[1])
+        com_rest = self._frame.com(x_rest)
+        self._rest_com_height = float(com_rest[1]) - self._ground_ref.height_under(com_rest)
 
     def _draw_domain(self) -> dict[str, Any]:
         """Draw this episode's robot (:func:`~soft_envs.envs.domain.draw_standing_robot`: redraws
@@ -353,8 +356,9 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         self._com = self._frame.com(x)
         self._rot = self._frame.rotation(x)
         self._yaw = yaw_of(self._rot)
-        self._tilt = tilt_deg_of(self._rot)
-        self._healthy = self._task.is_healthy(self._tilt, self._com, self._rest_com_height)
+        self._tilt = self._ground_ref.tilt_deg(self._rot)
+        self._healthy = self._task.is_healthy(self._tilt, self._com, self._rest_com_height,
+                                              self._ground_ref.height_under(self._com))
         if state.k == 0 or not hasattr(self, "_trail"):
             self._trail: deque[np.ndarray] = deque(maxlen=_TRAIL_LENGTH)
         if self.render_mode is not None:     # the COM path drawn on the ground
@@ -367,8 +371,9 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
 
     @property
     def is_healthy(self) -> bool:
-        """Upright (tilt of the up vector from +y at most ``healthy_tilt_deg``), COM at least
-        ``healthy_height_fraction`` of its rest height, and a finite state."""
+        """Upright (tilt of the up vector from the ground's normal, +y on the plane, at most
+        ``healthy_tilt_deg``), COM at least ``healthy_height_fraction`` of its rest height (both
+        heights above the ground under the COM: :mod:`.ground_reference`), and a finite state."""
         return self._healthy
 
     def _get_obs(self) -> np.ndarray:

@@ -62,11 +62,13 @@ class LocomotionTask:
         """Unit vector (3,) of the target heading in the ground plane."""
         return heading_vector(self.target_heading_deg)
 
-    def is_healthy(self, tilt_deg: float, com: np.ndarray, rest_com_height: float) -> bool:
-        """Upright (tilt of the up vector from +y at most ``healthy_tilt_deg``), COM at least
-        ``healthy_height_fraction`` of its rest height, and finite."""
+    def is_healthy(self, tilt_deg: float, com: np.ndarray, rest_com_height: float, ground_height: float = 0.0) -> bool:
+        """Upright (tilt of the up vector from the ground's normal at most ``healthy_tilt_deg``),
+        COM at least ``healthy_height_fraction`` of its rest height, and finite. The heights are
+        above the ground: ``com[1] - ground_height`` against ``rest_com_height`` (measured the
+        same way at rest; ``ground_height`` 0 on the plane y = 0)."""
         return bool(tilt_deg <= self.healthy_tilt_deg
-                    and com[1] >= self.healthy_height_fraction * rest_com_height
+                    and com[1] - ground_height >= self.healthy_height_fraction * rest_com_height
                     and np.isfinite(com).all())
 
     def reward(self, forward_velocity: float, yaw_rate: float, action: np.ndarray, healthy: bool,
