@@ -131,7 +131,9 @@ _BASE_PARTS = (("com_position", "COM x, height (y), z; x and z relative to the C
                 "-Inf", "Inf"),
                ("contraction", "each motor's applied contraction, scaled like the actions", "dimensionless",
                 "-1", "1"),
-               ("gait_phase", "sin, cos of 2 pi t / gait_period", "dimensionless", "-1", "1"))
+               ("gait_phase", "sin, cos of 2 pi t / gait_period", "dimensionless", "-1", "1"),
+               ("nodes", "only with `observe_nodes=True`: node positions minus the COM, 3 n_nodes entries "
+                "(none by default; the task's parts then follow them)", "position (m)", "-Inf", "Inf"))
 
 
 def _span(start: int, size: int) -> str:
@@ -147,6 +149,9 @@ def _observation_rows(t: TaskDoc) -> list[tuple[str, ...]]:
     extra = {name: size for name, size, _, _ in t.observation}
     for name, what, unit, lo, hi in parts:
         cells = []
+        if name == "nodes":
+            rows.append(("-", "-", f"`{name}`: {what}", lo, hi, unit))
+            continue
         for r in ROBOTS:
             n = sizes[r.name].get(name, extra.get(name))
             cells.append(_span(at[r.name], n))
@@ -190,7 +195,7 @@ action *a* in [-1, 1] commands each motor's cable contraction.
 {markdown_table(("Id", "Action space", "Motors (robot.toml order)"), action_rows)}
 
 ## Observation Space
-A `Box(low, high, (n,), float64)`: n = {n_obs['tripod']} for the Tripod, {n_obs['puppy']} for the
+A `Box(low, high, (n,), float64)`: n = {n_obs['tripod']} for the Tripod, n = {n_obs['puppy']} for the
 Puppy. The robot environment's parts (its Observation Space section), then the task's; the first
 two columns are each part's entries.
 
