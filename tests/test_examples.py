@@ -74,6 +74,11 @@ EXPECTED = {
                         r"largest tilt +\d+\.\d deg, deepest foot \d\.\d\d mm into the ground",
                         r"rough, RMS 1 mm +: COM", r"rough, RMS 3 mm +: COM", r"step up 5 mm at x = 0\.2 m +: COM",
                         r"trench 5 mm deep, 3 cm long +: COM"],
+    "benchmark_tasks.py": [r"SoftTripodWalk-v0 +obs 20, act 2, task parts -; 5 steps: reward +[+-]\d+\.\d+ = forward "
+                           r"+[+-]\d+\.\d+ +ctrl +-\d+\.\d+ +survive +\+\d\.\d+ +success",
+                           r"SoftPuppyRoughTerrain-v0 +obs 41, act 8, task parts \['terrain'\]",
+                           r"SoftTripodReachGoal-v0 +obs 22, act 2, task parts \['goal_offset'\]",
+                           r"16 task ids made at difficulty 'medium'"],
     "robot_from_surface.py": [r"meshed quadruped\.obj: \d+ nodes, \d+ tets",
                               r"mass +body \d+\.\d g \+ payload \d+\.\d g on \d+ top nodes",
                               r"picture: results/quadruped_quick/quadruped\.png", r"iteration 1: objective \S+ -> \S+",
