@@ -199,7 +199,9 @@ All randomness comes from `self.np_random` (seeded by `reset(seed=...)`).
 ### Termination
 - If `terminate_when_unhealthy` (default), when the robot is unhealthy: its up vector tilts
   more than `healthy_tilt_deg` (60) degrees from +y, or its COM is lower than
-  `healthy_height_fraction` (0.5) of its rest height (the robot fell over).
+  `healthy_height_fraction` (0.5) of its rest height (the robot fell over). On a `ground=` height
+  field the tilt is from the normal of the field's plane part and both heights are above the
+  ground under the COM (`soft_envs.envs.ground_reference`).
 - Always, when the simulation fails (the Newton solver raises `SimulationError`): the step
   returns `terminated=True`, reward 0, `info["sim_failure"]` with the reason, and the
   environment's state is left as it was before the step.
