@@ -256,3 +256,15 @@ def test_the_ground_reference_is_the_old_rule_on_the_plane():
         assert ref.height_under(rng.normal(size=3)) == 0.0
     flat_rough = GroundReference(HeightField.step(0.01, 0.5))
     assert not flat_rough.tilted and flat_rough.height_under(np.array([1.0, 0.0, 0.0])) == pytest.approx(0.01)
+
+
+@pytest.mark.parametrize("env_id", ["SoftTripodRoughTerrain-v0", "SoftPuppyReachGoal-v0"])
+def test_a_task_pickles_and_resets_without_a_seed(env_id):
+    import pickle
+    env = gym.make(env_id).unwrapped
+    env.reset()                                    # np_random seeded by the OS
+    env.reset(seed=2)
+    copy = pickle.loads(pickle.dumps(env))
+    a = np.full(env.action_space.shape, 0.5)
+    r1, r2 = env.step(a), copy.step(a)
+    assert np.array_equal(r1[0], r2[0]) and r1[1] == r2[1]
