@@ -268,3 +268,31 @@ def test_a_task_pickles_and_resets_without_a_seed(env_id):
     a = np.full(env.action_space.shape, 0.5)
     r1, r2 = env.step(a), copy.step(a)
     assert np.array_equal(r1[0], r2[0]) and r1[1] == r2[1]
+
+
+def test_a_terrain_the_robot_cannot_rest_on_is_redrawn(monkeypatch):
+    from soft_envs.envs.tasks.base import TaskEnv
+    from soft_envs.sim import SimulationError
+    env = gym.make("SoftTripodRoughTerrain-v0").unwrapped
+    calls = []
+    real = TaskEnv._set_ground
+
+    def flaky(self, ground):
+        calls.append(ground)
+        if len(calls) == 1:
+            raise SimulationError("rest_state failed")
+        real(self, ground)
+    monkeypatch.setattr(TaskEnv, "_set_ground", flaky)
+    obs, info = env.reset(seed=0)
+    assert info["terrain_draws"] == 2 and len(calls) == 2 and env.robot.ground is calls[1]
+    assert env.observation_space.contains(obs)
+    # a failed draw changes nothing
+    monkeypatch.setattr(TaskEnv, "_set_ground", real)
+    sim, robot, ref = env.simulator, env._base_robot, env._ground_ref
+
+    def cannot_rest(self, factors, dt=None):
+        raise SimulationError("rest_state failed")
+    monkeypatch.setattr(TaskEnv, "_set_domain", cannot_rest)
+    with pytest.raises(SimulationError):
+        env._set_ground(HeightField.flat(0.01))
+    assert env.simulator is sim and env._base_robot is robot and env._ground_ref is ref

@@ -11,7 +11,8 @@ calibration, compiling the kernels ahead of a first run, and the motors' law of
 :mod:`soft_envs.sim.motors`: :class:`MotorLaw`, :data:`MOTOR_MODELS`, :func:`motor_step`,
 :func:`line_excess`, :func:`winding_speed`, :func:`load_torque`, :data:`MOTOR_DEFAULTS`).
 It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`; never
-``trajopt``.
+``trajopt``. The benchmark's tasks (``SoftTripodWalk-v0``, ..., docs/tasks.md) are the
+subpackage :mod:`soft_envs.envs.tasks`, imported when one is made.
 """
 from ..sim import RolloutStopped, Robot, SimulationError, Trajectory, load_robot
 from ..sim.contact import CONTACT_LAWS

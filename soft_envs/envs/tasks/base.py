@@ -20,7 +20,7 @@ from typing import Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
-from ...sim import Robot, load_robot
+from ...sim import Robot, SimulationError, load_robot
 from ..base import SoftRobotEnv
 from ..ground_reference import GroundReference
 from .difficulty import DEFAULT_DIFFICULTY, level
@@ -117,12 +117,17 @@ class TaskEnv(SoftRobotEnv):
     # ------------------------------------------------------------------ helpers
     def _set_ground(self, ground) -> None:
         """Stand the robot on ``ground`` (a HeightField) from now on: the simulator and the rest
-        state are rebuilt (with the episode's physical parameters)."""
-        dt = self.timestep
+        state are rebuilt (with the episode's physical parameters). SimulationError, and nothing
+        changed, when the robot cannot be placed at rest on it."""
+        dt, before = self.timestep, (self._base_robot, self._ground_ref, self._sim)
         self._base_robot = self._base_robot.replace(ground=ground)
         self._ground_ref = GroundReference(ground)
         self._sim = None
-        self._set_domain(dict(self._domain), dt=dt)
+        try:
+            self._set_domain(dict(self._domain), dt=dt)
+        except SimulationError:         # the robot cannot be placed at rest there: nothing changes
+            self._base_robot, self._ground_ref, self._sim = before
+            raise
 
     def ground_height(self, x: float, z: float) -> float:
         """The ground's height [m] at ``(x, z)`` (0 on the plane y = 0)."""

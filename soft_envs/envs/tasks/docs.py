@@ -84,7 +84,8 @@ TASK_DOCS = {
         ("task", "ground", "target_heading_deg", "incline_deg"), _TERRAIN_PART,
         arguments=(("`terrain_seed`", "**int \\| None**", "`None`",
                     "seed of a fixed terrain; `None`: a new terrain at each reset, its seed from `np_random` "
-                    "(`info[\"terrain_seed\"]`)"),)),
+                    "(`info[\"terrain_seed\"]`; redrawn, at most 10 times, when the robot cannot be placed at rest "
+                    "on it: `info[\"terrain_draws\"]`)"),)),
     "climb_step": TaskDoc(
         "climb_step", "ClimbStep", "Walk along +x and climb a step (`HeightField.step`, its edge smoothed over "
         "0.07 body lengths) whose foot is 0.15 body lengths ahead of the robot's front at rest.",
@@ -250,7 +251,7 @@ except those the task sets: {owned} (a ValueError names it).
 
 #: the task's own ``info`` entries
 _INFO = {"walk": (), "turn": (), "slope_up": ("incline_deg",), "slope_down": ("incline_deg",),
-         "rough_terrain": ("height_above_ground", "terrain_seed"),
+         "rough_terrain": ("height_above_ground", "terrain_seed", "terrain_draws"),
          "climb_step": ("height_above_ground",), "cross_trench": ("height_above_ground",),
          "reach_goal": ("goal", "goal_distance")}
 
