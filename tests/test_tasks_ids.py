@@ -296,3 +296,13 @@ def test_a_terrain_the_robot_cannot_rest_on_is_redrawn(monkeypatch):
     with pytest.raises(SimulationError):
         env._set_ground(HeightField.flat(0.01))
     assert env.simulator is sim and env._base_robot is robot and env._ground_ref is ref
+
+
+@pytest.mark.parametrize("env_id", TASK_IDS)
+def test_every_level_of_every_id_resets_and_steps(env_id):
+    for level in ("easy", "medium", "hard"):
+        env = gym.make(env_id, difficulty=level)
+        obs, info = env.reset(seed=1)
+        obs, reward, terminated, _, info = env.step(np.zeros(env.action_space.shape))
+        assert env.observation_space.contains(obs) and np.isfinite(reward) and not terminated
+        assert env.unwrapped.difficulty == level and info["is_healthy"]
