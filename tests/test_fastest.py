@@ -393,3 +393,13 @@ def test_the_search_table_says_its_target_is_tracked_not_enforced(tmp_path):
     text = md_path.read_text()
     assert "target_bl_per_min: the speed of the target COM path" in text and "does not enforce its speed" in text
     assert csv_path.read_text().splitlines()[0] == ",".join(TABLE_COLUMNS)       # the CSV stays a table
+
+
+def test_a_hold_check_says_where_a_gait_fell():
+    from trajopt.search.hold import describe_hold
+    fell = {"speeds": [float("nan"), 25.56, 26.23, 33.81], "substeps": [2, 4, 8, 16], "spread": float("inf"),
+            "holds": False}
+    assert describe_hold(fell) == ("fell, 25.56, 26.23, 33.81 BL/min at 2, 4, 8, 16 physics steps per control step, "
+                                   "fell at 2 physics steps per control step: does not hold")
+    held = {"speeds": [16.72, 16.51, 16.23, 16.47], "substeps": [2, 4, 8, 16], "spread": 0.0304, "holds": True}
+    assert describe_hold(held).endswith("spread 3.0 %: holds")

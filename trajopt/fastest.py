@@ -391,7 +391,8 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
                               f"{settings.eval_cycles} cycles ({total:,} simulation steps)")
     row, res, chosen_by = choose_gait(upright, settings.max_spread)
     if chosen_by != FASTEST_HELD and any(isinstance(r["holds"], bool) for r, _ in upright):
-        spread = f", spread {100 * row['spread']:.1f} %" if isinstance(row["holds"], bool) else ""
+        spread = (f", spread {100 * row['spread']:.1f} %" if isinstance(row["holds"], bool) and np.isfinite(row["spread"])
+                  else ", it fell at another physics step" if isinstance(row["holds"], bool) else "")
         search.say(f"no refined gait holds its speed within {100 * settings.max_spread:g} % at other physics "
                    f"steps: returning the fastest upright one ({row['speed_bl_per_min']:.2f} BL/min{spread})")
     row["chosen"] = True

@@ -104,9 +104,11 @@ def _report(res: Result, path: Path, seconds: float) -> None:
         rows.append(("chosen as", res.settings["search"].get("chosen_by", "the fastest upright gait")))
         if "hold" in ev:                  # its speed replayed at other physics steps
             h = ev["hold"]
-            rows.append(("other steps", ", ".join(f"{v:.2f}" for v in h["speeds"]) + " BL/min at "
-                         + ", ".join(f"{1e3 * res.dt / n:.3g}" for n in h["substeps"])
-                         + f" ms physics steps: slowest {h['slowest']:.2f}, spread {100 * h['spread']:.1f} %"))
+            fell = [f"{1e3 * res.dt / n:.3g} ms" for n, v in zip(h["substeps"], h["speeds"]) if v != v]
+            rows.append(("other steps", ", ".join("fell" if v != v else f"{v:.2f}" for v in h["speeds"])
+                         + " BL/min at " + ", ".join(f"{1e3 * res.dt / n:.3g}" for n in h["substeps"])
+                         + " ms physics steps: " + (f"fell at {', '.join(fell)}" if fell else
+                                                    f"slowest {h['slowest']:.2f}, spread {100 * h['spread']:.1f} %")))
     print_table(rows)
     print(f"\nnext:\n  trajopt render {path}      # animation: {RESULTS_DIR / (path.stem + '.gif')}\n"
           f"  trajopt plot {path}        # COM path, controls, convergence: {RESULTS_DIR / 'plots'}/\n"

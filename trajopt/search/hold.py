@@ -30,7 +30,7 @@ from ..evaluation import evaluate_controls
 from ..optim.ensemble import member_env
 from ..replay import result_controls
 
-__all__ = ["HOLD_FACTORS", "MAX_SPREAD", "FASTEST_HELD", "FASTEST_UPRIGHT", "hold_steps", "hold_check", "hold_cost", "hold_stage", "choose_gait"]
+__all__ = ["HOLD_FACTORS", "MAX_SPREAD", "FASTEST_HELD", "FASTEST_UPRIGHT", "hold_steps", "hold_check", "hold_cost", "hold_stage", "choose_gait", "describe_hold"]
 
 #: the physics steps per control step a candidate is replayed with, as factors of its own
 HOLD_FACTORS = (0.5, 2.0, 4.0)
@@ -101,10 +101,17 @@ def hold_stage(search: Any, settings: Any, model: str) -> None:
         res.evaluation["hold"] = check
         row.update(slowest_bl_per_min=check["slowest"], spread=check["spread"], holds=check["holds"],
                    hold_sim_steps=check["steps"])
-        speeds = ", ".join(f"{v:.2f}" for v in check["speeds"])
-        search.say(f"hold cycle {row['n_cycle']} keyframes {row['n_keyframes']}: {speeds} BL/min at "
-                   f"{', '.join(str(n) for n in check['substeps'])} physics steps per control step, spread "
-                   f"{100 * check['spread']:.1f} %: {'holds' if check['holds'] else 'does not hold'}")
+        search.say(f"hold cycle {row['n_cycle']} keyframes {row['n_keyframes']}: {describe_hold(check)}")
+
+
+def describe_hold(check: dict[str, Any]) -> str:
+    """One line of a :func:`hold_check`: the speeds, where it fell, the spread and the verdict."""
+    speeds = ", ".join("fell" if not math.isfinite(v) else f"{v:.2f}" for v in check["speeds"])
+    fell = [n for n, v in zip(check["substeps"], check["speeds"]) if not math.isfinite(v)]
+    spread = (f"fell at {', '.join(map(str, fell))} physics steps per control step" if fell
+              else f"spread {100 * check['spread']:.1f} %")
+    return (f"{speeds} BL/min at {', '.join(map(str, check['substeps']))} physics steps per control step, {spread}: "
+            f"{'holds' if check['holds'] else 'does not hold'}")
 
 
 #: ``choose_gait``'s rule when a gait held (``settings["search"]["chosen_by"]``)
