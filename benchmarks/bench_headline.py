@@ -66,7 +66,7 @@ def fine_replay(res: Result, n: int, n_cycles: int) -> dict:
                            heading_deg=float(s.get("heading_deg", 0.0)),
                            check_rollout=lambda traj: seen.setdefault("traj", traj))
     out = {"n": n, "speed": float(ev["speed_bl_per_min"]), "upright": bool(ev.get("upright", False)),
-           "heading": float(ev["heading_change_deg"]), "excess": float("nan"), "torque": float("nan")}
+           "heading": float(ev.get("heading_change_deg", float("nan"))), "excess": float("nan"), "torque": float("nan")}
     if "traj" in seen:
         law = MotorLaw.of_robot(robot)
         tau = law.torque(seen["traj"].cable_deformation)                   # (steps + 1, M)
