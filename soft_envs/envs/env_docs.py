@@ -229,7 +229,9 @@ def _arguments(r: RobotDoc) -> list[tuple[str, str, str, str]]:
     """The rows of the Arguments table: the keywords of ``SoftRobotEnv.__init__``."""
     return [
         ("`robot`", "**str \\| Path \\| Robot**", f'`"{r.name}"`',
-         f"shipped robot name, a `robot.toml` path (e.g. the fine mesh `assets/{r.name}/robot_fine.toml`) or a "
+         "shipped robot name, a `robot.toml` path "
+         + (f"(e.g. the fine mesh `assets/{r.name}/robot_fine.toml`) " if "v0" in r.versions else "")
+         + "or a "
          "`Robot`; sizes in the tables above change accordingly"),
         ("`frame_skip`", "**int**", "`1`", "control steps per environment step; `env.unwrapped.dt = frame_skip * timestep`"),
         ("`timestep`", "**float**", "`0.033`",
