@@ -6,7 +6,8 @@ soft_envs.sim``; the rules hold at import time, ``tests/test_layers.py`` checks 
 * :mod:`soft_envs.sim` is the physics alone: robots, the finite-element energy, implicit-Euler
   rollouts and their exact sensitivities. It imports numpy, scipy, numba, meshio and cvxopt,
   never Gymnasium, :mod:`soft_envs.envs` or ``trajopt``; it imports without Gymnasium installed.
-* :mod:`soft_envs.envs` is the Gymnasium environments (``SoftTripod-v2``, ``SoftPuppy-v2``) and
+* :mod:`soft_envs.envs` is the Gymnasium environments (``SoftTripod-v2``, ``SoftPuppy-v2``,
+  ``SoftHexapod-v2``, ``SoftInchworm-v2``) and
   the gradient protocol (:class:`~soft_envs.envs.GradientEnv`) through which ``trajopt`` reaches
   the physics. It imports :mod:`soft_envs.sim`, Gymnasium and :mod:`soft_envs.render`, never
   ``trajopt``.
@@ -41,22 +42,30 @@ ENV_VERSIONS = {
 #: The latest version: the one the project makes (RL baseline, examples, trajopt).
 LATEST_VERSION = "v2"
 _ENV_NAMES = {"tripod": "SoftTripod", "puppy": "SoftPuppy"}
-#: The id the project makes for each shipped robot under each contact law: the latest (``-v2``)
+#: Robots shipped after the v2 physics (the Hexapod and the Inchworm, made with ``trajopt mesh``,
+#: docs/robots.md): registered at the latest version only, ``SoftHexapod-v2`` and
+#: ``SoftInchworm-v2`` (there is no Table I of theirs for a ``-v0`` to keep); no task ids yet.
+_LATEST_ONLY_NAMES = {"hexapod": "SoftHexapod", "inchworm": "SoftInchworm"}
+#: The id the project makes for each of the paper's robots under each contact law: the latest (``-v2``)
 #: for the Coulomb law; the paper's law is ``contact="paper"`` on it, and ``-v0`` keeps Table I's.
 ENV_IDS_BY_ROBOT = {robot: {"paper": f"{name}-v0", "coulomb": f"{name}-{LATEST_VERSION}"}
                     for robot, name in _ENV_NAMES.items()}
-_ENTRY_POINTS = {"tripod": "soft_envs.envs.tripod:SoftTripodEnv", "puppy": "soft_envs.envs.puppy:SoftPuppyEnv"}
-#: Each registered id's entry point (every version of every shipped robot).
-ENV_IDS = {f"{name}-{version}": _ENTRY_POINTS[robot] for robot, name in _ENV_NAMES.items() for version in ENV_VERSIONS}
+_ENTRY_POINTS = {"tripod": "soft_envs.envs.tripod:SoftTripodEnv", "puppy": "soft_envs.envs.puppy:SoftPuppyEnv",
+                 "hexapod": "soft_envs.envs.hexapod:SoftHexapodEnv",
+                 "inchworm": "soft_envs.envs.inchworm:SoftInchwormEnv"}
+#: every registered (robot, id stem, version)
+_REGISTERED = ([(robot, name, version) for robot, name in _ENV_NAMES.items() for version in ENV_VERSIONS]
+               + [(robot, name, LATEST_VERSION) for robot, name in _LATEST_ONLY_NAMES.items()])
+#: Each registered id's entry point (every version of the paper's robots, the latest of the others).
+ENV_IDS = {f"{name}-{version}": _ENTRY_POINTS[robot] for robot, name, version in _REGISTERED}
 #: The shipped robot of each registered id.
-ENV_ROBOTS = {f"{name}-{version}": robot for robot, name in _ENV_NAMES.items() for version in ENV_VERSIONS}
+ENV_ROBOTS = {f"{name}-{version}": robot for robot, name, version in _REGISTERED}
 #: Keyword arguments each id passes to its environment: its version's (a keyword given to
 #: ``gymnasium.make`` replaces it: ``contact="paper"`` on ``-v2``).
-ENV_KWARGS = {f"{name}-{version}": dict(kwargs) for name in _ENV_NAMES.values()
-              for version, kwargs in ENV_VERSIONS.items()}
+ENV_KWARGS = {f"{name}-{version}": dict(ENV_VERSIONS[version]) for _, name, version in _REGISTERED}
 #: The latest id of each shipped robot (``-v2``): the one the project makes (RL baseline,
 #: examples); the paper's law is its ``contact="paper"``, never ``-v0`` unless Table I is asked for.
-LATEST_ENV_IDS = {robot: f"{name}-{LATEST_VERSION}" for robot, name in _ENV_NAMES.items()}
+LATEST_ENV_IDS = {robot: f"{name}-{LATEST_VERSION}" for robot, name in {**_ENV_NAMES, **_LATEST_ONLY_NAMES}.items()}
 
 #: The benchmark's tasks (issue #39; soft_envs.envs.tasks, docs/tasks.md): task key -> (id stem,
 #: class in ``soft_envs.envs.tasks``). Each has an id per robot, ``<robot name><stem>-v0``

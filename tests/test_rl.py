@@ -243,13 +243,15 @@ def test_env_ids_have_one_home():
     assert set(ROBOTS) == set(soft_envs.ENV_IDS_BY_ROBOT)
     assert ROBOT_IDS == {"tripod": "SoftTripod-v0", "puppy": "SoftPuppy-v0"}
     assert COULOMB_IDS == {"tripod": "SoftTripod-v2", "puppy": "SoftPuppy-v2"}
-    assert set(soft_envs.ENV_IDS) == {*ROBOT_IDS.values(), *COULOMB_IDS.values(), "SoftTripod-v1", "SoftPuppy-v1"}
+    assert set(soft_envs.ENV_IDS) == {*ROBOT_IDS.values(), *COULOMB_IDS.values(), "SoftTripod-v1", "SoftPuppy-v1",
+                                      "SoftHexapod-v2", "SoftInchworm-v2"}     # robots shipped at v2: -v2 only
     speed = {"motor_model": "speed"}          # -v0 and -v1 keep the motors of their making
     paper, coulomb_33ms = {"contact": "paper", "substeps": 1, **speed}, {"contact": "coulomb", "substeps": 1, **speed}
     assert soft_envs.ENV_KWARGS == {"SoftTripod-v0": paper, "SoftPuppy-v0": paper,
                                     "SoftTripod-v1": coulomb_33ms, "SoftPuppy-v1": coulomb_33ms,
-                                    "SoftTripod-v2": {"contact": "coulomb"}, "SoftPuppy-v2": {"contact": "coulomb"}}
-    assert soft_envs.LATEST_ENV_IDS == COULOMB_IDS
+                                    "SoftTripod-v2": {"contact": "coulomb"}, "SoftPuppy-v2": {"contact": "coulomb"},
+                                    "SoftHexapod-v2": {"contact": "coulomb"}, "SoftInchworm-v2": {"contact": "coulomb"}}
+    assert soft_envs.LATEST_ENV_IDS == {**COULOMB_IDS, "hexapod": "SoftHexapod-v2", "inchworm": "SoftInchworm-v2"}
     # the RL baseline makes the latest id under either law (never -v0, "out of date")
     assert env_id("puppy") == "SoftPuppy-v2" and env_id("SoftPuppy-v0") == "SoftPuppy-v2"
     assert robot_name("SoftTripod-v1") == "tripod" and robot_name("SoftTripod-v2") == "tripod"

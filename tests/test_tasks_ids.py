@@ -35,7 +35,8 @@ def test_the_ids_are_registered_and_the_robot_ids_kept():
             assert spec.kwargs == {"robot": robot} and spec.max_episode_steps == soft_envs.MAX_EPISODE_STEPS
             assert re.fullmatch(r"Soft(Tripod|Puppy)[A-Z]\w+-v0", env_id)
             assert spec.entry_point.endswith(TASK_CLASSES[task].__name__)
-    assert sorted(soft_envs.ENV_IDS) == sorted(f"Soft{r}-v{v}" for r in ("Tripod", "Puppy") for v in range(3))
+    assert sorted(soft_envs.ENV_IDS) == sorted([*(f"Soft{r}-v{v}" for r in ("Tripod", "Puppy") for v in range(3)),
+                                                "SoftHexapod-v2", "SoftInchworm-v2"])
     for env_id, kwargs in soft_envs.ENV_KWARGS.items():
         assert gym.spec(env_id).kwargs == kwargs
 

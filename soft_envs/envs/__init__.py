@@ -1,7 +1,8 @@
 """Gymnasium environments of cable-driven soft robots, and the gradient protocol of trajopt.
 
 This layer turns the physics of :mod:`soft_envs.sim` into Gymnasium environments
-(``SoftTripod-v2``: :class:`SoftTripodEnv`, ``SoftPuppy-v2``: :class:`SoftPuppyEnv`, both
+(``SoftTripod-v2``: :class:`SoftTripodEnv`, ``SoftPuppy-v2``: :class:`SoftPuppyEnv`,
+``SoftHexapod-v2``: :class:`SoftHexapodEnv`, ``SoftInchworm-v2``: :class:`SoftInchwormEnv`, all
 :class:`SoftRobotEnv`, registered on ``import soft_envs``) and offers ``trajopt`` its one way into
 the physics: the :class:`GradientEnv` protocol (rollouts with exact sensitivities, the robot, the
 simulation time step, the slope) with :func:`make_gradient_env` / :func:`as_gradient_env`, plus the
@@ -28,10 +29,13 @@ from .measure import (BodyFrame, cable_points, heading_vector, strain_energy_den
                       yaw_of)
 from .factory import as_gradient_env, make_gradient_env
 from .protocol import GradientEnv
+from .hexapod import SoftHexapodEnv
+from .inchworm import SoftInchwormEnv
 from .puppy import SoftPuppyEnv
 from .tripod import SoftTripodEnv
 
-__all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "GradientEnv", "make_gradient_env",
+__all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "SoftHexapodEnv", "SoftInchwormEnv", "GradientEnv",
+           "make_gradient_env",
            "as_gradient_env", "Robot", "Trajectory", "SimulationError", "RolloutStopped", "load_robot",
            "robot_fingerprint",
            "BodyFrame", "yaw_of",

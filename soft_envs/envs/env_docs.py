@@ -39,6 +39,9 @@ class RobotDoc:
     contractions: str
     body_length_m: float
     example: str
+    #: the ids registered for the robot: the paper's robots every version, a robot shipped after
+    #: the v2 physics (the Hexapod, the Inchworm) only ``("v2",)``
+    versions: tuple[str, ...] = ("v0", "v1", "v2")
 
     @property
     def n_motors(self) -> int:
@@ -54,6 +57,12 @@ class RobotDoc:
         return {"u_min_mm": 1e3 * float(motor.get("u_min", 0.0)), "u_max_mm": 1e3 * float(motor["u_max"]),
                 "rpm": float(motor.get("max_speed_rpm", DEFAULT_MAX_SPEED_RPM)),
                 "spool_radius_mm": 1e3 * float(motor.get("spool_radius", 0.005))}
+
+    def motor_ranges_mm(self) -> list[tuple[float, float]]:
+        """Each motor's ``(u_min, u_max)`` [mm], in robot.toml order, read from the shipped file."""
+        from ..sim.robot_file import asset_path, read_robot_toml
+        return [(1e3 * float(m.get("u_min", 0.0)), 1e3 * float(m["u_max"]))
+                for m in read_robot_toml(asset_path(self.name))["motors"]]
 
     @property
     def n_observations(self) -> int:
@@ -86,11 +95,12 @@ _MOTOR_MODEL_ROWS = [
 
 
 def _action_section(r: RobotDoc) -> str:
-    m = r.motor_figures()
-    rows = [(str(i), what, f"-1 (u_min = {m['u_min_mm']:g} mm)", f"1 (u_max = {m['u_max_mm']:g} mm)", name,
-             "cable length (m)") for i, (what, name) in enumerate(r.actions)]
+    rows = [(str(i), what, f"-1 (u_min = {lo:g} mm)", f"1 (u_max = {hi:g} mm)", name, "cable length (m)")
+            for i, ((what, name), (lo, hi)) in enumerate(zip(r.actions, r.motor_ranges_mm()))]
     table = markdown_table(("Num", "Action", "Control Min", "Control Max", "Name (robot.toml)", "Type (Unit)"), rows)
-    motor_table = markdown_table(("motor_model", "winding (u rises)", "unwinding (u falls)"), _MOTOR_MODEL_ROWS)
+    model_rows = _MOTOR_MODEL_ROWS if "v0" in r.versions else [(m.replace(" (`-v0`, `-v1`)", ""), *rest)
+                                                                for m, *rest in _MOTOR_MODEL_ROWS]
+    motor_table = markdown_table(("motor_model", "winding (u rises)", "unwinding (u falls)"), model_rows)
     return f"""## Action Space
 The action space is a `Box(-1, 1, ({r.n_motors},), float32)`. Action *a* commands the cable
 contraction (metres of cable pulled in by the motor) `u_cmd = u_min + (a + 1) / 2 (u_max - u_min)`;
@@ -219,7 +229,9 @@ def _arguments(r: RobotDoc) -> list[tuple[str, str, str, str]]:
     """The rows of the Arguments table: the keywords of ``SoftRobotEnv.__init__``."""
     return [
         ("`robot`", "**str \\| Path \\| Robot**", f'`"{r.name}"`',
-         f"shipped robot name, a `robot.toml` path (e.g. the fine mesh `assets/{r.name}/robot_fine.toml`) or a "
+         "shipped robot name, a `robot.toml` path "
+         + (f"(e.g. the fine mesh `assets/{r.name}/robot_fine.toml`) " if "v0" in r.versions else "")
+         + "or a "
          "`Robot`; sizes in the tables above change accordingly"),
         ("`frame_skip`", "**int**", "`1`", "control steps per environment step; `env.unwrapped.dt = frame_skip * timestep`"),
         ("`timestep`", "**float**", "`0.033`",
@@ -256,8 +268,8 @@ def _arguments(r: RobotDoc) -> list[tuple[str, str, str, str]]:
         ("`motor_model`", "**str**", '`"torque-speed"`',
          "the motors' law (Action Space): `\"torque-speed\"` (a DC gearmotor's torque-speed line at the load "
          "torque and its gearbox's `max_torque`), `\"speed\"` (the speed limit alone), `\"ideal\"` (no limit). "
-         f"`{r.env_name}-v0` and `{r.env_name}-v1` pass `\"speed\"` (their dynamics are kept); "
-         "`soft_envs.sim.motors`"),
+         + (f"`{r.env_name}-v0` and `{r.env_name}-v1` pass `\"speed\"` (their dynamics are kept); "
+            if "v0" in r.versions else "") + "`soft_envs.sim.motors`"),
         ("`gait_period`", "**float**", "`2.376`", "period [s] of the gait-phase observation (the paper's cycle: 72 steps)"),
         ("`observe_nodes`", "**bool**", "`False`", "append all node positions relative to the COM to the observation"),
         ("`domain_randomization`", "**dict \\| bool \\| None**", "`None`",
@@ -271,8 +283,9 @@ def _arguments(r: RobotDoc) -> list[tuple[str, str, str, str]]:
          "normal force, feet held by stick anchors: `soft_envs.sim.contact.coulomb`; the shipped robot "
          "files' default), `\"paper\"` (paper II-C: viscous-like lagged friction, what Table I was made with), "
          f"or `None` for the robot file's `[contact] model`. `{r.env_name}-v2`, the latest id, passes "
-         f"`\"coulomb\"` (`gym.make(\"{r.env_name}-v2\", contact=\"paper\")` for the paper's law); "
-         f"`{r.env_name}-v0` passes `\"paper\"` (Table I), `{r.env_name}-v1` `\"coulomb\"` at one physics step"),
+         f"`\"coulomb\"` (`gym.make(\"{r.env_name}-v2\", contact=\"paper\")` for the paper's law)"
+         + (f"; `{r.env_name}-v0` passes `\"paper\"` (Table I), `{r.env_name}-v1` `\"coulomb\"` at one physics step"
+            if "v0" in r.versions else "")),
         ("`ground`", "**HeightField \\| None**", "`None`",
          "the ground's surface, a `soft_envs.sim.ground.HeightField` (rough terrain, a step, a trench; "
          "`soft_envs.sim.ground`); `None`: the robot file's `[ground]`, or the plane y = 0 without one"),
@@ -328,6 +341,14 @@ import soft_envs
 
 
 def _version_section(r: RobotDoc) -> str:
+    if "v0" not in r.versions:
+        return f"""## Version History
+* v2: Initial version of `{r.env_name}`, registered at the version of the physics it was
+  shipped with, that of `SoftTripod-v2` and `SoftPuppy-v2` (there is no `{r.env_name}-v0` or
+  `-v1`): every contact law at its own number of physics steps per 0.033 s control step
+  (`substeps=None`: 4 for the Coulomb law, 1 for the paper's law), the Coulomb law by default
+  and the motors on their torque-speed line (`motor_model="torque-speed"`).
+"""
     return """## Version History
 * v0: Initial version. Since then, without a new id (the dynamics and rewards are
   unchanged): `env.unwrapped.dt` is the duration of an environment step, as in Gymnasium's

@@ -71,6 +71,6 @@ __all__ = ["Robot", "Tendon", "Motor", "ContactParams", "Marker", "MarkerSet", "
 
 
 def load_robot(name_or_path, **overrides):
-    """Load a shipped robot by name (``"tripod"``, ``"puppy"``) or a ``robot.toml`` path."""
+    """Load a shipped robot by name (``"tripod"``, ``"puppy"``, ``"hexapod"``, ``"inchworm"``) or a ``robot.toml`` path."""
     from .robot_file import load_robot as _load
     return _load(name_or_path, **overrides)

@@ -99,7 +99,7 @@ from .robot import MOTOR_DEFAULTS, ContactParams, Marker, Motor, Robot, Tendon
 
 __all__ = ["load_robot", "asset_path", "robot_file_path", "robot_document", "read_robot_toml", "SHIPPED_ROBOTS"]
 
-SHIPPED_ROBOTS = ("tripod", "puppy")
+SHIPPED_ROBOTS = ("tripod", "puppy", "hexapod", "inchworm")
 
 _SCHEMA: dict[str, dict[str, tuple[type | tuple[type, ...], bool]]] = {
     "robot": {"name": (str, True), "mesh": (str, True), "body_length": ((int, float), False),
@@ -238,7 +238,7 @@ def _check_finite(doc: dict[str, Any], src: str) -> None:
 
 
 def load_robot(name_or_path: str | Path, **overrides: Any) -> Robot:
-    """Load ``"tripod"``/``"puppy"`` or a ``robot.toml`` path. ``overrides`` replace Robot
+    """Load a shipped robot (:data:`SHIPPED_ROBOTS`) or a ``robot.toml`` path. ``overrides`` replace Robot
     fields afterwards (e.g. ``youngs_modulus=2e5``)."""
     path = robot_file_path(name_or_path)
     src = str(path)

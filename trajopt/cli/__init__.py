@@ -48,7 +48,7 @@ _OVERWRITE_HELP = "replace existing output files"
 
 def _add_optimize(sub) -> None:
     p = sub.add_parser("optimize", help="optimise a gait (paper III) and save a result")
-    p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
+    p.add_argument("robot", help="shipped robot (tripod, puppy, hexapod, inchworm) or path to a robot.toml")
     p.add_argument("--task", choices=command_line_tasks(), default="walk",
                    help="what the gait does (trajopt.tasks): walk straight, turn a quarter circle, incline: walk "
                         "up the --angle slope")
@@ -192,7 +192,7 @@ def _add_robot_commands(sub) -> None:
     p.add_argument("--force", action="store_true", help="replace an existing robot.toml")
     p.set_defaults(func=_lazy("robot_commands", "run_mesh"))
     p = sub.add_parser("check", help="validate a robot, print its summary and draw it")
-    p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
+    p.add_argument("robot", help="shipped robot (tripod, puppy, hexapod, inchworm) or path to a robot.toml")
     p.add_argument("--picture", type=output_file, default=None,
                    help="PNG to write (default: <robot name>.png beside the robot.toml, or here)")
     p.add_argument("--no-picture", action="store_true", help="do not draw")
@@ -211,7 +211,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _add_identification_commands(sub) -> None:
     p = sub.add_parser("calibrate", help="fit physical parameters to tracked markers (writes a new robot.toml)")
-    p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml")
+    p.add_argument("robot", help="shipped robot (tripod, puppy, hexapod, inchworm) or path to a robot.toml")
     p.add_argument("--markers", type=Path, required=True, help="tracks CSV: t,marker,x,y,z [s, m]")
     p.add_argument("--controls", type=Path, required=True, help="the result whose controls were played")
     p.add_argument("--fit", required=True, help="comma-separated parameters, e.g. youngs_modulus,poisson_ratio,friction")

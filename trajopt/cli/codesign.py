@@ -25,7 +25,7 @@ def vary_kinds(text: str) -> tuple[str, ...]:
 
 def add_codesign_parser(sub) -> None:
     p = sub.add_parser("codesign", help="optimise a robot's design and its gait together (writes a new robot folder)")
-    p.add_argument("robot", help="shipped robot (tripod, puppy) or path to a robot.toml with a [design] table")
+    p.add_argument("robot", help="shipped robot (tripod, puppy, hexapod, inchworm) or path to a robot.toml with a [design] table")
     p.add_argument("--vary", type=vary_kinds, default=_KINDS, metavar="KINDS",
                    help="what may change, comma-separated: routing (via points), stiffness (Young's modulus per "
                         "region), legs (leg lengths); as the robot's [design] table declares them (default: all)")
