@@ -225,7 +225,7 @@ def test_revisit_runs_the_shorter_cycles_from_the_fastest_coarse_gait():
 
     class Search:
         def __init__(self, runs):
-            self.runs, self.calls = runs, []
+            self.runs, self.calls, self.rows, self.bar = runs, [], [], None
 
         def run(self, stage, gait, start, iterations, share, *, warm=None, z0=None, n_seeds=0):
             self.calls.append((stage, gait.n_cycle, gait.n_keyframes, start, np.asarray(warm.settings["keyframes"]),

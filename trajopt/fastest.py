@@ -299,9 +299,11 @@ def _revisit(search: _Search, settings: SearchSettings, candidates: list[tuple[i
         return
     row, best = max(upright, key=lambda p: p[0]["credible_bl_per_min"])
     source = f"cycle {row['n_cycle']}, {row['n_keyframes']} keyframes"
-    for n_cycle, n_kf in candidates:
-        if n_cycle >= row["n_cycle"]:
-            continue
+    shorter = [(n_cycle, n_kf) for n_cycle, n_kf in candidates if n_cycle < row["n_cycle"]]
+    if search.bar is not None:                # the revisits were not known in advance
+        search.bar.total = len(search.rows) + len(shorter) + settings.n_fine
+        search.bar.refresh()
+    for n_cycle, n_kf in shorter:
         warm = _KeyframeStart(keyframes_at(np.asarray(best.settings["keyframes"]), n_kf), source)
         search.run("revisit", settings.gait(n_cycle, n_kf), source, settings.coarse_iterations,
                    settings.coarse_share, warm=warm, n_seeds=0)
@@ -358,9 +360,6 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
             previous = res if res is not None else previous
         if settings.revisit:
             _revisit(search, settings, candidates)
-            if search.bar is not None:                    # the revisits were not known in advance
-                search.bar.total = len(search.rows) + settings.n_fine
-                search.bar.refresh()
         upright = sorted((p for p in search.runs if p[0]["upright"]), key=lambda p: -p[0]["credible_bl_per_min"])
         search.reserve = _hold_reserve(search, settings, [res for _, res in upright[:settings.n_fine]])
         for row, res in upright[:settings.n_fine]:
