@@ -403,3 +403,13 @@ def test_a_hold_check_says_where_a_gait_fell():
                                    "fell at 2 physics steps per control step: does not hold")
     held = {"speeds": [16.72, 16.51, 16.23, 16.47], "substeps": [2, 4, 8, 16], "spread": 0.0304, "holds": True}
     assert describe_hold(held).endswith("spread 3.0 %: holds")
+
+
+def test_the_hold_verdict():
+    from trajopt.search.hold import hold_verdict
+    assert hold_verdict([16.72, 16.51, 16.23, 16.47]) == {"slowest": 16.23, "spread": pytest.approx(0.0302, abs=1e-4),
+                                                           "holds": True}
+    assert not hold_verdict([18.14, 20.51, 20.25, 21.61])["holds"]                    # 19 %
+    assert not hold_verdict([-5.0, -5.1, -5.05, -5.02])["holds"]                      # steadily backwards
+    fell = hold_verdict([float("nan"), 25.56, 26.23, 33.81])
+    assert fell["holds"] is False and fell["slowest"] != fell["slowest"] and fell["spread"] == float("inf")

@@ -307,3 +307,18 @@ def test_every_level_of_every_id_resets_and_steps(env_id):
         obs, reward, terminated, _, info = env.step(np.zeros(env.action_space.shape))
         assert env.observation_space.contains(obs) and np.isfinite(reward) and not terminated
         assert env.unwrapped.difficulty == level and info["is_healthy"]
+
+
+def test_a_reset_whose_every_terrain_fails_keeps_the_terrain_and_its_seed(monkeypatch):
+    from soft_envs.envs.tasks.base import TaskEnv
+    from soft_envs.sim import SimulationError
+    env = gym.make("SoftTripodRoughTerrain-v0").unwrapped
+    env.reset(seed=0)
+    seed, ground = env._episode_seed, env.robot.ground
+
+    def never(self, ground):
+        raise SimulationError("rest_state failed")
+    monkeypatch.setattr(TaskEnv, "_set_ground", never)
+    with pytest.raises(SimulationError):
+        env.reset(seed=1)
+    assert env._episode_seed == seed and env.robot.ground is ground

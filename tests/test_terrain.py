@@ -206,3 +206,13 @@ def test_field_contact_parameter_jacobians(model):
     history = list(sim.system.initial_history(x_prev))
     history[sim.system.terms.index(sim.system.contact)] = hist
     check_term_parameter_jacobians(sim, x, x_prev, np.full(sim.robot.n_motors, 0.004), tuple(history))
+
+
+def test_the_rest_states_leg_derivative_is_refused_on_a_relief():
+    """On a relief the initial anchors are the nodes' feet on the surface (not linear in the
+    positions): the derivative with respect to the leg morph is refused, naming the ground."""
+    from soft_envs.sim.design import DesignParameters, LegMorph, legs_below
+    robot = load_robot("tripod").replace(ground=HeightField.step(0.004, 0.3))
+    design = DesignParameters(robot, [LegMorph(robot, legs_below(robot, 0.03), 0.03)])
+    with pytest.raises(ValueError, match="leg morph\\) is not available on step of 0.004 m"):
+        Simulator(robot).rest_sensitivity(design)

@@ -116,6 +116,12 @@ def placement_sensitivity(sim, system, params) -> tuple:
     if dX is None:
         return None, None
     dX = np.array(dX, dtype=np.float64)
+    ground = sim.robot.ground
+    if ground is not None and np.any(ground.heights != 0.0):
+        # the anchors on a relief are the nodes' feet on the surface, not linear in the positions:
+        # initial_history of a derivative would be wrong (a planar field through the origin is exact)
+        raise ValueError(f"{sim.robot.source}: the rest state's derivative with respect to parameters that move the "
+                         f"rest mesh (the leg morph) is not available on {ground.description}")
     if sim.robot.fixed_nodes.size == 0:
         ground, X = sim.robot.ground, sim.robot.mesh.points
         if ground is None:

@@ -13,7 +13,8 @@ default 8.25 ms: the headline's bar, ``benchmarks/bench_headline.py``) and repor
   included, in increasing order, and the speed [BL/min] at each (NaN where it fell);
 * ``slowest``: the slowest of them (the gait's credible speed);
 * ``spread``: ``(max - min) / slowest`` (inf when one fell);
-* ``holds``: every replay upright and ``spread <= max_spread`` (default 5 %);
+* ``holds``: every replay upright, walking forwards (``slowest > 0``) and ``spread <= max_spread``
+  (default 5 %);
 * ``steps``: the simulation steps the replays took, counted in steps of the gait's own physics
   (a replay with twice the physics steps per control step counts twice its control steps).
 
@@ -30,7 +31,7 @@ from ..evaluation import evaluate_controls
 from ..optim.ensemble import member_env
 from ..replay import result_controls
 
-__all__ = ["HOLD_FACTORS", "MAX_SPREAD", "FASTEST_HELD", "FASTEST_UPRIGHT", "hold_steps", "hold_check", "hold_cost", "hold_stage", "choose_gait", "describe_hold"]
+__all__ = ["HOLD_FACTORS", "MAX_SPREAD", "FASTEST_HELD", "FASTEST_UPRIGHT", "hold_steps", "hold_check", "hold_cost", "hold_stage", "choose_gait", "describe_hold", "hold_verdict"]
 
 #: the physics steps per control step a candidate is replayed with, as factors of its own
 HOLD_FACTORS = (0.5, 2.0, 4.0)
@@ -64,13 +65,21 @@ def hold_check(env: Any, res: Any, *, factors=HOLD_FACTORS, max_spread: float = 
         ev = evaluate_controls(member_env(env, n), u, n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading)
         speeds[n] = float(ev["speed_bl_per_min"]) if ev.get("upright") and "sim_failure" not in ev else float("nan")
         steps += len(u) * n / own
-    values = np.array([speeds[n] for n in sorted(speeds)])
+    values = [speeds[n] for n in sorted(speeds)]
+    return {"substeps": [int(n) for n in sorted(speeds)], "speeds": values, **hold_verdict(values, max_spread),
+            "max_spread": float(max_spread), "steps": int(math.ceil(steps))}
+
+
+def hold_verdict(speeds, max_spread: float = MAX_SPREAD) -> dict[str, Any]:
+    """``{"slowest", "spread", "holds"}`` of the speeds [BL/min] of one gait at several physics
+    steps (NaN: it fell there): the slowest (NaN when it fell anywhere), ``(max - min) / |slowest|``
+    (inf then) and whether it holds: upright everywhere, forwards (``slowest > 0``: a gait walking
+    steadily backwards does not) and ``spread <= max_spread``."""
+    values = np.asarray(speeds, dtype=np.float64)
     slowest = float(values.min()) if np.isfinite(values).all() else float("nan")
     spread = float((values.max() - values.min()) / abs(slowest)) if math.isfinite(slowest) and slowest else math.inf
-    return {"substeps": [int(n) for n in sorted(speeds)], "speeds": [speeds[n] for n in sorted(speeds)],
-            "slowest": slowest, "spread": spread,
-            "holds": bool(math.isfinite(slowest) and spread <= max_spread), "max_spread": float(max_spread),
-            "steps": int(math.ceil(steps))}
+    return {"slowest": slowest, "spread": spread,
+            "holds": bool(math.isfinite(slowest) and slowest > 0 and spread <= max_spread)}
 
 
 def hold_cost(env: Any, settings: Any, gait_settings: dict) -> int:

@@ -90,13 +90,15 @@ class RoughTerrainEnv(_TerrainEnv):
         if seed is not None:
             gym.Env.reset(self, seed=seed)
         if self.terrain_seed is None:
+            kept = self._episode_seed
             for draw in range(1, MAX_TERRAIN_DRAWS + 1):
-                self._episode_seed = int(self.np_random.integers(2**31 - 1))
+                self._episode_seed = int(self.np_random.integers(2**31 - 1))     # _make_ground reads it
                 try:
                     self._set_ground(self._make_ground())
                     break
                 except SimulationError:
                     if draw == MAX_TERRAIN_DRAWS:
+                        self._episode_seed = kept            # the terrain in use is still the old one
                         raise
             self._terrain_draws = draw
         return super().reset(seed=None, options=options)
