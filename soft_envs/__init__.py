@@ -20,6 +20,10 @@ Importing the package registers the environments with Gymnasium when Gymnasium i
 ``gymnasium.make("soft_envs:SoftPuppy-v2")`` without the import). The environment classes are
 only imported when an environment is made.
 """
+from .kernel_cache import use_source_keyed_cache
+
+use_source_keyed_cache()          # before any kernel is compiled: stale kernels never run
+
 __all__ = ["ENV_VERSIONS", "LATEST_VERSION", "ENV_IDS_BY_ROBOT", "ENV_IDS", "ENV_ROBOTS", "ENV_KWARGS", "LATEST_ENV_IDS",
            "MAX_EPISODE_STEPS", "TASKS", "TASK_ENV_IDS", "TASK_IDS_BY_TASK"]
 
