@@ -50,6 +50,12 @@ def _per_level(key: str, fmt) -> dict[str, str]:
 _TERRAIN_PART = (("terrain", 3, "COM height above the ground under it; the ground's height 0.5 and 1 body length "
                   "ahead (along the body's forward vector in the ground plane) minus the ground's under the COM",
                   "position (m)"),)
+def _in_mm(length_bl: float, digits: int) -> str:
+    """``"0.1 L (Tripod 14.0 mm, Puppy 13.0 mm)"``: a length in body lengths and on each robot."""
+    return (f"{length_bl:g} L (Tripod {1e3 * length_bl * TRIPOD.body_length_m:.{digits}f} mm, Puppy "
+            f"{1e3 * length_bl * PUPPY.body_length_m:.{digits}f} mm)")
+
+
 _WALK = "the COM's speed along the target heading (`target_heading_deg`, 0 = +x) in body lengths per second"
 _SUCCESS_ARGS = (("`success_reward`", "**float**", "`10`", "reward of the step that first succeeds"),
                  ("`terminate_on_success`", "**bool**", "`True`", "a success ends the episode (`terminated=True`)"))
@@ -78,9 +84,7 @@ TASK_DOCS = {
         "rough_terrain", "RoughTerrain", "Walk along +x over rough ground: a height field of 16 random plane waves "
         "(`HeightField.rough`) of wavelength 0.4 body lengths, a new one at each reset (its seed drawn from "
         "`np_random`) unless `terrain_seed` fixes it.",
-        _WALK, _per_level("rough_terrain", lambda v: f"RMS height {v['amplitude_bl']:g} L (Tripod "
-                          f"{1e3 * v['amplitude_bl'] * TRIPOD.body_length_m:.1f} mm, Puppy "
-                          f"{1e3 * v['amplitude_bl'] * PUPPY.body_length_m:.1f} mm)"),
+        _WALK, _per_level("rough_terrain", lambda v: f"RMS height {_in_mm(v['amplitude_bl'], 1)}"),
         ("task", "ground", "target_heading_deg", "incline_deg"), _TERRAIN_PART,
         arguments=(("`terrain_seed`", "**int \\| None**", "`None`",
                     "seed of a fixed terrain; `None`: a new terrain at each reset, its seed from `np_random` "
@@ -89,9 +93,7 @@ TASK_DOCS = {
     "climb_step": TaskDoc(
         "climb_step", "ClimbStep", "Walk along +x and climb a step (`HeightField.step`, its edge smoothed over "
         "0.07 body lengths) whose foot is 0.15 body lengths ahead of the robot's front at rest.",
-        _WALK, _per_level("climb_step", lambda v: f"step height {v['height_bl']:g} L (Tripod "
-                          f"{1e3 * v['height_bl'] * TRIPOD.body_length_m:.1f} mm, Puppy "
-                          f"{1e3 * v['height_bl'] * PUPPY.body_length_m:.1f} mm)"),
+        _WALK, _per_level("climb_step", lambda v: f"step height {_in_mm(v['height_bl'], 1)}"),
         ("task", "ground", "target_heading_deg", "incline_deg"), _TERRAIN_PART,
         "the COM is half a body length beyond the step's top edge (`env.unwrapped.finish_x`) and the robot "
         "healthy", _SUCCESS_ARGS),
@@ -99,9 +101,7 @@ TASK_DOCS = {
         "cross_trench", "CrossTrench", "Walk along +x across a trench 0.05 body lengths deep "
         "(`HeightField.trench`, edges smoothed over 0.07 body lengths) whose near edge is 0.15 body lengths "
         "ahead of the robot's front at rest.",
-        _WALK, _per_level("cross_trench", lambda v: f"trench length {v['length_bl']:g} L (Tripod "
-                          f"{1e3 * v['length_bl'] * TRIPOD.body_length_m:.0f} mm, Puppy "
-                          f"{1e3 * v['length_bl'] * PUPPY.body_length_m:.0f} mm)"),
+        _WALK, _per_level("cross_trench", lambda v: f"trench length {_in_mm(v['length_bl'], 0)}"),
         ("task", "ground", "target_heading_deg", "incline_deg"), _TERRAIN_PART,
         "the COM is half a body length beyond the trench's far edge (`env.unwrapped.finish_x`) and the robot "
         "healthy", _SUCCESS_ARGS),
