@@ -45,7 +45,7 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
     the controls, gravity and the material (so that a unit mistake shows), when a step fails or
     the body does not settle in ``max_iter``."""
     g = sim.gravity
-    anchored = sim.system.has_history
+    anchored = sim.system.contact.has_history        # the ground law holds the feet (Coulomb)
     relax_g = g if (anchored or sim.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])
     robot = _held_on_ground(sim.robot, anchored, params)
     system = EnergySystem(robot, gravity=relax_g, control=sim.control)

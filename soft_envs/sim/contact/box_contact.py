@@ -1,0 +1,320 @@
+r"""Contact between the robot and a box (:mod:`soft_envs.sim.box`): the :class:`BoxContact` term.
+
+Every robot boundary node ``p`` (not fixed) is checked against the box's six faces. Face ``f``
+has the corners ``a, b, c, d`` (cyclic, outward), the normal ``n_f = w / |w|`` with ``w = (c -
+a) x (d - b)`` (the mean plane of a face that the box's deformation has warped a little) and the
+centroid ``o_f = (a + b + c + d) / 4``; ``delta_f(p) = n_f . (p - o_f)`` is the signed distance
+from its plane. The box is convex, so ``p`` is inside when every ``delta_f < 0``, and its
+penetration is ``s = -max_f delta_f`` (the depth below the nearest face ``f*``), the maximum
+taken over the faces but the one opposite the node's nearest face at the previous step's
+positions (so a node pressed into the bottom face is pushed back out through it however deep a
+Newton iterate puts it, instead of through the top face: no tunnelling within a step):
+
+.. math::
+    E_i = Q_b(s_i) + \mu_b N_{k-1,i} G(|t_i|), \qquad t_i = (I - n n^T)(p_i - q_i),
+
+with ``Q_b`` the one-sided quadratic of :mod:`.penalty` (stiffness ``k_b``, blend ``eps_b``) and
+the friction of the ground's Coulomb law (:mod:`.coulomb`, docs/contact.md) moved onto the box:
+``G`` is the same bristle potential of slip distance ``r_b``, ``N_{k-1} = Q_b'(s)`` at the
+previous step's positions (lagged), and the anchor ``q = sum_j phi_j(xi, eta) x_j`` is a
+material point of the anchor face (bilinear in its corners, so it moves and turns with the
+box), ``n`` that face's normal. The history is per node ``(face, xi, eta)`` (``face = -1``: no
+anchor); after each step (:meth:`BoxContact.next_history`) a node whose friction was inactive
+(``N_{k-1} = 0``) is re-anchored at its projection on its nearest face when inside the box
+(``-1`` otherwise), one within ``r_b`` of its anchor sticks, one beyond slides and drags its
+anchor to ``r_b`` behind it in the face's plane. Friction therefore holds a payload on a tilted
+robot up to ``tan a = mu_b`` and slides it beyond, with no creep.
+
+Derivatives: per pair (node, face) the energy is a function of 15 coordinates ``y = (p, a, b, c,
+d)``; ``dn/dy = (I - n n^T) / |w| dw/dy`` and ``d^2 n / dy^2`` follow from ``w`` being
+bilinear in the corners, and the gradient and Hessian of ``delta`` and of ``t`` follow by the
+chain rule (:func:`face_normal`). The energy is C2 within a face's region and, at the switch of
+the nearest face, continuous with a gradient that jumps (a convex box has edges). The Hessian
+is exact; the Newton solver's projected fallback clamps each pair's negative eigenvalues
+(:meth:`BoxContact.assemble_projected`). Not modelled: the box's corners and edges against the
+robot's faces (only robot nodes are tested against the box), and the derivatives the
+sensitivities need (d grad / d x_prev, the anchors' tangent): a rollout with sensitivities
+refuses a robot with a box (:attr:`BoxContact.differentiable`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..box import BOX_FACES
+from ..terms import EnergyTerm
+from .penalty import one_sided_quadratic
+
+__all__ = ["BoxContact", "face_normal", "bristle", "NO_SENSITIVITIES"]
+
+NO_SENSITIVITIES = ("the contact between the robot and a box has no sensitivities yet (d grad / d x_prev, the "
+                    "anchors' derivatives): rollouts with derivatives, gradient hooks, calibration and trajopt are "
+                    "not available for a robot with a box")
+
+_EPS = np.zeros((3, 3, 3))
+_EPS[0, 1, 2] = _EPS[1, 2, 0] = _EPS[2, 0, 1] = 1.0
+_EPS[0, 2, 1] = _EPS[2, 1, 0] = _EPS[1, 0, 2] = -1.0
+
+
+def _select(j: int) -> np.ndarray:
+    """(3, 15): the coordinates of point j of ``y = (p, a, b, c, d)``."""
+    s = np.zeros((3, 15))
+    s[:, 3 * j:3 * j + 3] = np.eye(3)
+    return s
+
+
+_SEL = np.stack([_select(j) for j in range(5)])                  # (5, 3, 15)
+_E1 = _SEL[3] - _SEL[1]                                          # d(c - a)/dy
+_E2 = _SEL[4] - _SEL[2]                                          # d(d - b)/dy
+_T = np.einsum("klm,li,mj->kij", _EPS, _E1, _E2)
+_D2W = _T + _T.transpose(0, 2, 1)                                # d^2 w_k / dy^2 (constant: w is bilinear)
+_DR = _SEL[0] - _SEL[1:].mean(axis=0)                            # d(p - o)/dy
+
+
+def face_normal(F: np.ndarray, second: bool = True):
+    """``(n (P, 3), dn/dy (P, 3, 15), d^2 n/dy^2 (P, 3, 15, 15))`` of faces ``F`` (P, 4, 3)
+    (corners a, b, c, d): ``n = w / |w|``, ``w = (c - a) x (d - b)``, ``dn = J dw`` with ``J =
+    (I - n n^T) / |w|`` and ``d^2 n_k / dw_i dw_j = -(n_i P_kj + n_j P_ki + n_k P_ij) / |w|^2``
+    (None unless ``second``)."""
+    e1, e2 = F[:, 2] - F[:, 0], F[:, 3] - F[:, 1]
+    w = np.cross(e1, e2)
+    L = np.linalg.norm(w, axis=1)
+    n = w / L[:, None]
+    Dw = np.einsum("klm,li,pm->pki", _EPS, _E1, e2) + np.einsum("klm,pl,mi->pki", _EPS, e1, _E2)
+    P = np.eye(3)[None] - n[:, :, None] * n[:, None, :]
+    J = P / L[:, None, None]
+    Dn = np.einsum("pkm,pmi->pki", J, Dw)
+    if not second:
+        return n, Dn, None
+    Hn = -(np.einsum("pi,pkj->pkij", n, P) + np.einsum("pj,pki->pkij", n, P)
+           + np.einsum("pk,pij->pkij", n, P)) / (L * L)[:, None, None, None]
+    D2n = np.einsum("pkm,mij->pkij", J, _D2W) + np.einsum("pkab,pai,pbj->pkij", Hn, Dw, Dw)
+    return n, Dn, D2n
+
+
+def bristle(r: np.ndarray, rs: float):
+    """``(G, w = G'/r, c = w'/r)`` of the Coulomb law's bristle potential
+    (:func:`.coulomb.bristle_potential`) for arrays ``r``."""
+    rho = r / rs
+    inside = r < rs
+    safe = np.where(r > 0, r, 1.0)
+    G = np.where(inside, rs * rho * rho * (1.0 - rho / 3.0), r - rs / 3.0)
+    w = np.where(inside, (2.0 - rho) / rs, 1.0 / safe)
+    c = np.where(inside, np.where(r > 0, -1.0 / (rs * rs * safe), 0.0), -1.0 / safe**3)
+    return G, w, c
+
+
+def _bilinear(xi, eta) -> np.ndarray:
+    """(P, 4) the weights of corners a, b, c, d at ``(xi, eta)``: ``q = (1-xi)(1-eta) a +
+    xi (1-eta) b + xi eta c + (1-xi) eta d``."""
+    return np.stack([(1 - xi) * (1 - eta), xi * (1 - eta), xi * eta, (1 - xi) * eta], axis=1)
+
+
+def _project(F: np.ndarray, pts: np.ndarray):
+    """``(xi, eta)`` of the points of faces ``F`` (P, 4, 3) nearest ``pts`` (P, 3) (Gauss-Newton
+    on the bilinear map; exact in one step on a parallelogram)."""
+    xi = np.full(len(pts), 0.5)
+    eta = np.full(len(pts), 0.5)
+    a, b, c, d = F[:, 0], F[:, 1], F[:, 2], F[:, 3]
+    for _ in range(4):
+        q = np.einsum("pj,pjk->pk", _bilinear(xi, eta), F)
+        dxi = (1 - eta)[:, None] * (b - a) + eta[:, None] * (c - d)
+        deta = (1 - xi)[:, None] * (d - a) + xi[:, None] * (c - b)
+        Jm = np.stack([dxi, deta], axis=2)                                 # (P, 3, 2)
+        step = np.linalg.solve(np.einsum("pki,pkj->pij", Jm, Jm), np.einsum("pki,pk->pi", Jm, pts - q)[:, :, None])
+        xi, eta = xi + step[:, 0, 0], eta + step[:, 1, 0]
+    return xi, eta
+
+
+class BoxContact(EnergyTerm):
+    """Penalty contact and Coulomb friction between the robot's boundary nodes and its box
+    (module docstring). Parameters from ``robot.box``: ``stiffness`` k_b [N/m], ``blend``
+    eps_b [m], ``friction_coefficient`` mu_b, ``slip_distance`` r_b [m]. History: (c, 3) per
+    contact node ``(face, xi, eta)`` of its anchor on the box (face -1: none)."""
+
+    name = "box_contact"
+    has_history = True
+    #: whether the sensitivities' products exist (:data:`NO_SENSITIVITIES`)
+    differentiable = False
+
+    def __init__(self, robot):
+        box = robot.box
+        self.k, self.eps, self.mu, self.rs = box.stiffness, box.blend, box.friction_coefficient, box.slip_distance
+        boundary = robot.mesh.boundary_nodes
+        self.nodes = np.setdiff1d(boundary[boundary < robot.n_robot_nodes], robot.fixed_nodes).astype(np.int64)
+        self.box_nodes = robot.box_nodes
+        self.faces = self.box_nodes[BOX_FACES]                          # (6, 4) global corner nodes
+        # each pair's 15 local indices into the node's 27-dof block (its 3, then the box's 24)
+        self._local = np.concatenate([np.tile(np.arange(3), (6, 1)),
+                                      (3 + 3 * BOX_FACES[:, :, None] + np.arange(3)).reshape(6, 12)], axis=1)
+
+    def hessian_blocks(self) -> list[np.ndarray]:
+        box = np.tile((3 * self.box_nodes[:, None] + np.arange(3)).ravel(), (len(self.nodes), 1))
+        return [np.concatenate([3 * self.nodes[:, None] + np.arange(3), box], axis=1)]
+
+    def bind(self, slots, diag_slots) -> None:
+        super().bind(slots, diag_slots)
+        self.slots = slots[0].reshape(len(self.nodes), 27, 27)
+
+    # ------------------------------------------------------------------ geometry
+    def _distances(self, x: np.ndarray) -> np.ndarray:
+        """(c, 6) ``delta_f`` of every contact node from every face's plane."""
+        F = x[self.faces]                                                   # (6, 4, 3)
+        w = np.cross(F[:, 2] - F[:, 0], F[:, 3] - F[:, 1])
+        n = w / np.linalg.norm(w, axis=1)[:, None]
+        return (x[self.nodes] @ n.T) - np.einsum("fk,fk->f", F.mean(axis=1), n)[None]
+
+    def _lagged(self, x_prev: np.ndarray):
+        """``(opposite face (c,), N_{k-1} (c,))`` at ``x_prev``, kept while ``x_prev`` is the same
+        (the Newton iterations of one step)."""
+        cached = getattr(self, "_lag", None)
+        if cached is None or not np.array_equal(cached[0], x_prev):
+            delta = self._distances(x_prev)
+            f = np.argmax(delta, axis=1)
+            N = one_sided_quadratic(-delta[np.arange(len(self.nodes)), f], self.k, self.eps)[1]
+            self._lag = cached = (np.array(x_prev), f ^ 1, N)               # faces -x, +x, -y, +y, -z, +z
+        return cached[1], cached[2]
+
+    def depths(self, x: np.ndarray, x_prev: np.ndarray | None = None):
+        """``(s (c,), nearest face (c,))``: each contact node's penetration ``-max_f delta_f``;
+        with ``x_prev``, over the faces but the one opposite the node's nearest at ``x_prev``
+        (module docstring: no node tunnels through the box within a step)."""
+        delta = self._distances(x)
+        if x_prev is not None:
+            delta[np.arange(len(self.nodes)), self._lagged(x_prev)[0]] = -np.inf
+        f = np.argmax(delta, axis=1)
+        return -delta[np.arange(len(self.nodes)), f], f
+
+    def normal_forces(self, x: np.ndarray) -> np.ndarray:
+        """``N_i = Q_b'(s_i)`` of every contact node [N] (the nearest face's depth)."""
+        return self._lagged(x)[1]
+
+    def _pairs(self, x, x_prev, hist):
+        """The active pairs: ``(normal (node idx, face, s), friction (node idx, face, xi, eta,
+        mu N_{k-1}))``."""
+        s, f = self.depths(x, x_prev)
+        on = np.flatnonzero(s > 0)
+        a = self.mu * self.normal_forces(x_prev)
+        face = hist[:, 0].astype(np.int64)
+        fr = np.flatnonzero((face >= 0) & (a > 0))
+        return (on, f[on], s[on]), (fr, face[fr], hist[fr, 1], hist[fr, 2], a[fr])
+
+    def _normal(self, x, idx, face, want_hess):
+        """Energy, per-pair gradients (P, 15) and Hessians (P, 15, 15) of ``Q_b(-delta)``."""
+        F = x[self.faces[face]]
+        n, Dn, D2n = face_normal(F, want_hess)
+        r = x[self.nodes[idx]] - F.mean(axis=1)
+        d = np.einsum("pk,pk->p", n, r)
+        Dd = np.einsum("pk,pki->pi", r, Dn) + n @ _DR
+        q, dq, d2q = one_sided_quadratic(-d, self.k, self.eps)
+        g = -dq[:, None] * Dd
+        if not want_hess:
+            return q.sum(), g, None
+        M = np.einsum("pki,kj->pij", Dn, _DR)
+        D2d = np.einsum("pk,pkij->pij", r, D2n) + M + M.transpose(0, 2, 1)
+        return q.sum(), g, d2q[:, None, None] * Dd[:, :, None] * Dd[:, None, :] - dq[:, None, None] * D2d
+
+    def _friction(self, x, idx, face, xi, eta, a, want_hess):
+        """Energy, per-pair gradients and Hessians of ``mu N_{k-1} G(|t|)``."""
+        F = x[self.faces[face]]
+        n, Dn, D2n = face_normal(F, want_hess)
+        phi = _bilinear(xi, eta)
+        v = x[self.nodes[idx]] - np.einsum("pj,pjk->pk", phi, F)
+        V = _SEL[0][None] - np.einsum("pj,jki->pki", phi, _SEL[1:])
+        al = np.einsum("pk,pk->p", n, v)
+        Dal = np.einsum("pk,pki->pi", v, Dn) + np.einsum("pk,pki->pi", n, V)
+        t = v - al[:, None] * n
+        Dt = V - n[:, :, None] * Dal[:, None, :] - al[:, None, None] * Dn
+        r = np.linalg.norm(t, axis=1)
+        G, w, c = bristle(r, self.rs)
+        tDt = np.einsum("pk,pki->pi", t, Dt)
+        g = (a * w)[:, None] * tDt
+        if not want_hess:
+            return float((a * G).sum()), g, None
+        M = np.einsum("pki,pkj->pij", Dn, V)
+        D2al = np.einsum("pk,pkij->pij", v, D2n) + M + M.transpose(0, 2, 1)
+        C = np.einsum("pi,pkj->pkij", Dal, Dn)
+        D2t = (-n[:, :, None, None] * D2al[:, None] - C - C.transpose(0, 1, 3, 2)
+               - al[:, None, None, None] * D2n)
+        H = (w[:, None, None] * (np.einsum("pki,pkj->pij", Dt, Dt) + np.einsum("pk,pkij->pij", t, D2t))
+             + c[:, None, None] * tDt[:, :, None] * tDt[:, None, :])
+        return float((a * G).sum()), g, a[:, None, None] * H
+
+    def _contributions(self, x, x_prev, hist, want_hess):
+        (on, fn, _), (fr, ff, xi, eta, a) = self._pairs(x, x_prev, hist)
+        e1, g1, H1 = self._normal(x, on, fn, want_hess)
+        e2, g2, H2 = self._friction(x, fr, ff, xi, eta, a, want_hess)
+        return (e1 + e2, np.concatenate([on, fr]), np.concatenate([fn, ff]), np.concatenate([g1, g2]),
+                None if not want_hess else np.concatenate([H1, H2]))
+
+    def _scatter(self, idx, face, g, H, grad, hdata):
+        loc = self._local[face]                                             # (P, 15)
+        dofs = np.concatenate([3 * self.nodes[idx][:, None] + np.arange(3),
+                               (3 * self.faces[face][:, :, None] + np.arange(3)).reshape(-1, 12)], axis=1)
+        np.add.at(grad, dofs.ravel(), g.ravel())
+        if H is not None:
+            slots = self.slots[idx[:, None, None], loc[:, :, None], loc[:, None, :]]
+            np.add.at(hdata, slots.ravel(), H.ravel())
+
+    # ------------------------------------------------------------------ the term
+    def energy(self, x, x_prev, u, hist=None) -> float:
+        hist = self.initial_history(x_prev) if hist is None else hist
+        return self._contributions(x, x_prev, hist, False)[0]
+
+    def assemble(self, x, x_prev, u, hist, grad, hdata, want_hess) -> float:
+        e, idx, face, g, H = self._contributions(x, x_prev, hist, want_hess)
+        self._scatter(idx, face, g, H, grad, hdata)
+        return e
+
+    def assemble_projected(self, x, x_prev, u, hist, grad, hdata) -> float:
+        """Each pair's Hessian with its negative eigenvalues set to 0."""
+        e, idx, face, g, H = self._contributions(x, x_prev, hist, True)
+        if len(H):
+            lam, Q = np.linalg.eigh(H)
+            H = np.einsum("pik,pk,pjk->pij", Q, np.maximum(lam, 0.0), Q)
+        self._scatter(idx, face, g, H, grad, hdata)
+        return e
+
+    # ------------------------------------------------------------------ anchors
+    def _anchor(self, x, sel, face, pts):
+        F = x[self.faces[face]]
+        return _project(F, pts) if len(sel) else (np.zeros(0), np.zeros(0))
+
+    def initial_history(self, x0, x_prev=None) -> np.ndarray:
+        """Every node inside the box anchored at its projection on its nearest face (the
+        faces of :meth:`depths` with ``x_prev``)."""
+        out = np.zeros((len(self.nodes), 3))
+        out[:, 0] = -1.0
+        s, f = self.depths(x0, x_prev)
+        on = np.flatnonzero(s > 0)
+        xi, eta = self._anchor(x0, on, f[on], x0[self.nodes[on]])
+        out[on, 0], out[on, 1], out[on, 2] = f[on], xi, eta
+        return out
+
+    def next_history(self, x, x_prev, hist) -> np.ndarray:
+        """The anchors' update of the module docstring."""
+        out = np.array(hist, dtype=np.float64)
+        face = out[:, 0].astype(np.int64)
+        active = (face >= 0) & (self.normal_forces(x_prev) > 0)
+        fresh = self.initial_history(x, x_prev)
+        out[~active] = fresh[~active]
+        fr = np.flatnonzero(active)
+        if len(fr):
+            F = x[self.faces[face[fr]]]
+            n, _, _ = face_normal(F, False)
+            q = np.einsum("pj,pjk->pk", _bilinear(out[fr, 1], out[fr, 2]), F)
+            v = x[self.nodes[fr]] - q
+            t = v - np.einsum("pk,pk->p", n, v)[:, None] * n
+            r = np.linalg.norm(t, axis=1)
+            slide = r > self.rs
+            if slide.any():
+                sel = fr[slide]
+                target = q[slide] + (1.0 - self.rs / r[slide])[:, None] * t[slide]
+                out[sel, 1], out[sel, 2] = _project(F[slide], target)
+        return out
+
+    # ------------------------------------------------------------------ no sensitivities (yet)
+    def _refuse(self, *args, **kwargs):
+        raise NotImplementedError(NO_SENSITIVITIES)
+
+    add_prev_product = add_prev_product_T = add_history_product = add_history_product_T = _refuse
+    history_tangent = history_tangent_T = add_parameter_jacobian = _refuse
