@@ -1,6 +1,6 @@
 """Carry a payload: :class:`CarryEnv`.
 
-A box (:class:`~soft_envs.sim.Box`) rests on the robot's top, centred over its top nodes: 0.35
+A box (:class:`~soft_envs.sim.Box`) rests on the robot's top, centred over its top nodes: 0.6
 body lengths long, 0.1 deep, 1.1 times the robot's width across, pressed 0.1 mm into the top at
 rest so that friction holds it from the first step of the rest state's relaxation on. Its mass
 (a fraction of the robot's) and the friction coefficient between it and the robot are the
@@ -24,7 +24,7 @@ from .docs import TASK_DOCS, task_docstring
 __all__ = ["CarryEnv", "PAYLOAD_SIZE_BL", "PRESS_IN"]
 
 #: the payload's length (x) and depth (y) in body lengths; across (z) it is 1.1 times the robot's width
-PAYLOAD_SIZE_BL = (0.35, 0.1)
+PAYLOAD_SIZE_BL = (0.6, 0.1)
 #: how far the payload's bottom lies below the robot's top at rest [m]
 PRESS_IN = 1e-4
 

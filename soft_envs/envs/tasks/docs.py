@@ -126,7 +126,7 @@ TASK_DOCS = {
          ("`forward_reward_weight`", "**float**", "`10`", "weight of *forward_reward* (progress towards the goal)"),
          *_SUCCESS_ARGS)),
     "carry": TaskDoc(
-        "carry", "Carry", "Walk along +x carrying a payload, a stiff box resting on the robot's top (0.35 x 0.1 body "
+        "carry", "Carry", "Walk along +x carrying a payload, a stiff box resting on the robot's top (0.6 x 0.1 body "
         "lengths, 1.1 times the robot's width across; a second body in the same implicit solve, held by contact "
         "and Coulomb friction with the robot's nodes), without dropping it. `env.unwrapped.box` is the box. The gradient hooks (`rollout` with `dudz`, "
         "`rollout_parameters`) raise NotImplementedError: the box's contact has no sensitivities yet.",

@@ -1,0 +1,158 @@
+"""The tasks with a second body (issue #39): carry a payload (SoftTripodCarry-v0, SoftPuppyCarry-v0)
+and push a box (SoftTripodPushBox-v0, SoftPuppyPushBox-v0). Both checkers, reset / step / render
+and the docstrings run for every id in tests/test_tasks_ids.py; here: the box's observation
+parts, a payload that falls ends the episode with its penalty, the box's speed as the push
+reward and the push's success, the levels, determinism and the refused gradient hooks."""
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import soft_envs  # noqa: F401  (registers the ids)
+from soft_envs.envs.tasks import CarryEnv, LEVELS, PushBoxEnv
+from soft_envs.envs.tasks.box_task import BOX_PARTS
+
+BOX_IDS = ["SoftTripodCarry-v0", "SoftPuppyCarry-v0", "SoftTripodPushBox-v0", "SoftPuppyPushBox-v0"]
+
+
+def _gait(env, k):
+    """A travelling wave over the motors (a walk for the Tripod)."""
+    n = env.action_space.shape[0]
+    return np.sin(2 * np.pi * k / 20 + np.arange(n))
+
+
+@pytest.mark.parametrize("env_id", BOX_IDS)
+def test_the_box_is_in_the_observation_and_the_robot_measures_leave_it_out(env_id):
+    env = gym.make(env_id, reset_noise_scale=0.0)
+    obs, info = env.reset(seed=0)
+    u = env.unwrapped
+    s = u.observation_structure
+    assert list(s)[-3:] == list(BOX_PARTS) and obs.size == sum(s.values())
+    at = sum(s.values()) - sum(BOX_PARTS.values())
+    robot = u.robot
+    box = u.box_center()
+    np.testing.assert_allclose(obs[at:at + 3], box - u.com(), atol=1e-12)
+    np.testing.assert_allclose(obs[at + 3:at + 6], 0.0, atol=1e-9)                # at rest
+    np.testing.assert_allclose(obs[at + 6:at + 12], [1, 0, 0, 0, 1, 0], atol=2e-2)  # upright, facing +x
+    # the robot's COM, frame and health are its own: the box's nodes weigh nothing there
+    n = robot.n_robot_nodes
+    own = robot.node_masses[:n]
+    np.testing.assert_allclose(u.com(), own @ u._x[:n] / own.sum(), rtol=1e-12)
+    assert info["is_healthy"] and robot.mesh.n_nodes == n + 8
+    np.testing.assert_array_equal(info["box_position"], box)
+    if "Carry" in env_id:
+        assert box[1] > u._x[:n, 1].max() and not info["payload_fell"]
+    else:
+        assert box[0] > u._x[:n, 0].max() and abs(box[1] - 0.125 * robot.body_length) < 1e-3
+
+
+def test_a_payload_that_falls_ends_the_episode_with_its_penalty():
+    """The payload moved down beside the robot (set_state): the next step is terminated, its
+    reward holds -drop_penalty, info says it fell; the episode counts as ended."""
+    env = gym.make("SoftTripodCarry-v0", drop_penalty=7.0)
+    env.reset(seed=0)
+    u = env.unwrapped
+    obs, reward, terminated, _, info = env.step(np.zeros(2))
+    assert not terminated and info["reward_drop"] == 0.0 and not info["payload_fell"]
+    state = u.get_state()
+    x = state["x"].copy()
+    b = u.robot.box_nodes
+    x[b] += np.array([0.0, u.box.size[1] / 2 + 1e-3, 0.0]) - x[b].mean(axis=0) + [0.07, 0.0, 0.1]
+    u.set_state({**state, "x": x, "x_prev": x, "history": None})
+    with pytest.warns(UserWarning, match="already returned terminated"):       # the state set has ended
+        obs, reward, terminated, _, info = env.step(np.zeros(2))
+    assert terminated and info["payload_fell"] and info["is_healthy"]
+    assert info["reward_drop"] == -7.0
+    assert reward == pytest.approx(sum(info[k] for k in ("reward_forward", "reward_ctrl", "reward_survive",
+                                                         "reward_success", "reward_drop")), abs=1e-12)
+    assert u._has_terminated()          # a further step warns as after any end of an episode
+
+
+def test_a_tilted_payload_falls_too():
+    env = CarryEnv("tripod", fall_tilt_deg=0.1)     # the payload at rest already tilts a little more
+    env.reset(seed=0)
+    assert env.payload_fell() and env.box_tilt_deg() > 0.1
+
+
+def test_the_tripod_carries_the_easy_payload_while_it_walks():
+    """60 steps (2 s) of a gait: the payload rides along (it moves with the COM, does not fall)."""
+    env = gym.make("SoftTripodCarry-v0", difficulty="easy")
+    env.reset(seed=0)
+    for k in range(60):
+        _, _, terminated, _, info = env.step(_gait(env, k))
+        assert not terminated
+    assert info["displacement"][0] > 0.01
+    assert abs(info["box_displacement"][0] - info["displacement"][0]) < 5e-3 and not info["payload_fell"]
+
+
+def test_the_push_reward_is_the_box_speed_and_pushing_it_far_enough_succeeds():
+    env = gym.make("SoftTripodPushBox-v0", push_distance_bl=0.05, difficulty="easy")
+    _, info = env.reset(seed=0)
+    u = env.unwrapped
+    L = u.robot.body_length
+    before = u.box_center()
+    for k in range(120):
+        obs, reward, terminated, _, info = env.step(_gait(env, k))
+        now = u.box_center()
+        assert info["reward_forward"] == pytest.approx(10.0 * (now[0] - before[0]) / u.dt / L, rel=1e-12, abs=1e-12)
+        before = now
+        if terminated:
+            break
+    assert info["is_success"] and info["reward_success"] == 10.0 and info["box_pushed"] >= 0.05 * L
+    assert info["box_pushed"] == pytest.approx(info["box_displacement"][0], abs=1e-15)
+
+
+def test_the_levels_set_the_box():
+    L = None
+    for task, cls in (("carry", CarryEnv), ("push_box", PushBoxEnv)):
+        masses = []
+        for lv in ("easy", "medium", "hard"):
+            env = cls("tripod", difficulty=lv)
+            L = env.robot.body_length
+            assert env.box.mass == pytest.approx(LEVELS[task][lv]["mass_fraction"] * env.robot.total_mass)
+            masses.append(env.box.mass)
+            if task == "carry":
+                assert env.box.friction_coefficient == LEVELS["carry"][lv]["friction_coefficient"]
+        assert masses == sorted(masses)
+    assert L == pytest.approx(0.14)
+    with pytest.raises(ValueError, match="drop_penalty must be"):
+        CarryEnv("tripod", drop_penalty=-1.0)
+    with pytest.raises(ValueError, match="push_distance_bl must be"):
+        PushBoxEnv("tripod", push_distance_bl=0)
+
+
+@pytest.mark.parametrize("env_id", ["SoftTripodCarry-v0", "SoftPuppyPushBox-v0"])
+def test_a_seeded_reset_replays_bit_for_bit(env_id):
+    def run():
+        env = gym.make(env_id)
+        obs, _ = env.reset(seed=4)
+        out = [obs]
+        rng = np.random.default_rng(1)
+        for _ in range(4):
+            out.append(env.step(rng.uniform(-1, 1, env.action_space.shape))[0])
+        return np.array(out)
+    np.testing.assert_array_equal(run(), run())
+
+
+def test_the_gradient_hooks_are_refused_and_a_plain_rollout_runs():
+    env = gym.make("SoftTripodPushBox-v0").unwrapped
+    env.reset(seed=0)
+    u = np.zeros((3, 2))
+    traj = env.rollout(u)
+    assert traj.x.shape == (4, env.robot.mesh.n_nodes, 3)
+    with pytest.raises(NotImplementedError, match="box has no sensitivities"):
+        env.rollout(u, dudz=np.ones((3, 2, 1)))
+    with pytest.raises(NotImplementedError, match="box has no sensitivities"):
+        env.rollout_parameters(u, ["youngs_modulus"])
+
+
+def test_the_paper_law_carries_and_pushes_too():
+    """Both ground laws act on the box: the ids take contact="paper"."""
+    for env_id in ("SoftTripodCarry-v0", "SoftTripodPushBox-v0"):
+        env = gym.make(env_id, contact="paper")
+        env.reset(seed=0)
+        for k in range(5):
+            _, _, terminated, _, info = env.step(_gait(env, k))
+            assert not terminated and "sim_failure" not in info
+        assert env.unwrapped.contact_model == "paper"
