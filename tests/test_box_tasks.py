@@ -24,13 +24,11 @@ def _gait(env, k):
 
 @pytest.mark.parametrize("env_id", BOX_IDS)
 def test_the_box_is_in_the_observation_and_the_robot_measures_leave_it_out(env_id):
-    env = gym.make(env_id, reset_noise_scale=0.0)
-    obs, info = env.reset(seed=0)
-    u = env.unwrapped
-    s = u.observation_structure
+    u = gym.make(env_id, reset_noise_scale=0.0).unwrapped
+    obs, info = u.reset(seed=0)
+    s, robot = u.observation_structure, u.robot
     assert list(s)[-3:] == list(BOX_PARTS) and obs.size == sum(s.values())
     at = sum(s.values()) - sum(BOX_PARTS.values())
-    robot = u.robot
     box = u.box_center()
     np.testing.assert_allclose(obs[at:at + 3], box - u.com(), atol=1e-12)
     np.testing.assert_allclose(obs[at + 3:at + 6], 0.0, atol=1e-9)                # at rest
@@ -116,7 +114,7 @@ def test_the_levels_set_the_box():
                 assert env.box.friction_coefficient == LEVELS["carry"][lv]["friction_coefficient"]
         assert masses == sorted(masses)
     assert L == pytest.approx(0.14)
-    with pytest.raises(ValueError, match="drop_penalty must be"):
+    with pytest.raises(ValueError, match="drop_penalty must be a finite number in \\[0, inf\\]"):
         CarryEnv("tripod", drop_penalty=-1.0)
     with pytest.raises(ValueError, match="push_distance_bl must be"):
         PushBoxEnv("tripod", push_distance_bl=0)

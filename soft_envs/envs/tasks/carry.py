@@ -11,13 +11,12 @@ y axis tilts more than ``fall_tilt_deg`` from +y; that ends the episode (``termi
 """
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
 from ...sim import Box, Robot
-from ..arguments import is_number
+from ..arguments import number_in
 from .box_task import BoxTaskEnv
 from .docs import TASK_DOCS, task_docstring
 
@@ -35,14 +34,9 @@ class CarryEnv(BoxTaskEnv):
 
     def __init__(self, robot="tripod", *, drop_penalty: float = 10.0, fall_height_fraction: float = 0.5,
                  fall_tilt_deg: float = 60.0, **kwargs: Any):
-        for name, value, lo, hi in (("drop_penalty", drop_penalty, 0.0, math.inf),
-                                    ("fall_height_fraction", fall_height_fraction, 0.0, 1.0),
-                                    ("fall_tilt_deg", fall_tilt_deg, 0.0, 180.0)):
-            if not (is_number(value) and lo <= value <= hi and math.isfinite(value)):
-                raise ValueError(f"{name} must be a number in [{lo:g}, {hi:g}], got {value!r}")
-        self.drop_penalty = float(drop_penalty)
-        self.fall_height_fraction = float(fall_height_fraction)
-        self.fall_tilt_deg = float(fall_tilt_deg)
+        self.drop_penalty = number_in("drop_penalty", drop_penalty, 0.0)
+        self.fall_height_fraction = number_in("fall_height_fraction", fall_height_fraction, 0.0, 1.0)
+        self.fall_tilt_deg = number_in("fall_tilt_deg", fall_tilt_deg, 0.0, 180.0)
         super().__init__(robot, **kwargs)
 
     def _make_box(self, robot: Robot, lv: dict[str, Any]) -> Box:

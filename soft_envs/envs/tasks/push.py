@@ -10,13 +10,12 @@ has moved ``push_distance_bl`` body lengths along +x.
 """
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
 from ...sim import Box, Robot
-from ..arguments import is_number
+from ..arguments import number_in
 from .box_task import BoxTaskEnv
 from .docs import TASK_DOCS, task_docstring
 
@@ -34,12 +33,8 @@ class PushBoxEnv(BoxTaskEnv):
 
     def __init__(self, robot="tripod", *, push_distance_bl: float = 0.5, forward_reward_weight: float = 10.0,
                  **kwargs: Any):
-        if not (is_number(push_distance_bl) and math.isfinite(push_distance_bl) and push_distance_bl > 0):
-            raise ValueError(f"push_distance_bl must be a positive number [body lengths], got {push_distance_bl!r}")
-        if not (is_number(forward_reward_weight) and math.isfinite(forward_reward_weight)):
-            raise ValueError(f"forward_reward_weight must be a finite number, got {forward_reward_weight!r}")
-        self.push_distance_bl = float(push_distance_bl)
-        self._push_weight = float(forward_reward_weight)
+        self.push_distance_bl = number_in("push_distance_bl", push_distance_bl, positive=True, what="[body lengths]")
+        self._push_weight = number_in("forward_reward_weight", forward_reward_weight)
         super().__init__(robot, **kwargs)
 
     def _make_box(self, robot: Robot, lv: dict[str, Any]) -> Box:
