@@ -98,7 +98,8 @@ def test_box_contact_gradient_and_hessian_match_central_differences(case):
 def test_face_normal_second_derivatives_match_central_differences():
     """``d n / dy`` and ``d^2 n / dy^2`` of a warped face (the geometry every Hessian uses)."""
     rng = np.random.default_rng(5)
-    F = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)[None] * 0.02 + rng.normal(scale=1e-3, size=(1, 4, 3))
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)[None] * 0.02
+    F = square + rng.normal(scale=1e-3, size=(1, 4, 3))
     n, Dn, D2n = face_normal(F)
     for _ in range(4):
         d = rng.normal(size=15)[3:]

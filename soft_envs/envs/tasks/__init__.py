@@ -15,7 +15,8 @@ from .push import PushBoxEnv
 from .terrain import ClimbStepEnv, CrossTrenchEnv, RoughTerrainEnv
 
 __all__ = ["TaskEnv", "WalkEnv", "TurnEnv", "SlopeUpEnv", "SlopeDownEnv", "RoughTerrainEnv", "ClimbStepEnv",
-           "CrossTrenchEnv", "ReachGoalEnv", "BoxTaskEnv", "CarryEnv", "PushBoxEnv", "TASK_CLASSES", "DIFFICULTIES", "DEFAULT_DIFFICULTY", "LEVELS",
+           "CrossTrenchEnv", "ReachGoalEnv", "BoxTaskEnv", "CarryEnv", "PushBoxEnv",
+           "TASK_CLASSES", "DIFFICULTIES", "DEFAULT_DIFFICULTY", "LEVELS",
            "check_difficulty"]
 
 #: task key (of :data:`~.difficulty.LEVELS`) -> its class

@@ -68,7 +68,8 @@ class BoxTaskEnv(TaskEnv):
     def box_axes(self, x: np.ndarray | None = None) -> np.ndarray:
         """(2, 3): the box's x and y axes (unit vectors from its -x to its +x face, -y to +y)."""
         c = (self._x if x is None else x)[self.robot.box_nodes]
-        axes = np.stack([c[_HIGH_X].mean(axis=0) - c[_LOW_X].mean(axis=0), c[_HIGH_Y].mean(axis=0) - c[_LOW_Y].mean(axis=0)])
+        axes = np.stack([c[_HIGH_X].mean(axis=0) - c[_LOW_X].mean(axis=0),
+                         c[_HIGH_Y].mean(axis=0) - c[_LOW_Y].mean(axis=0)])
         return axes / np.linalg.norm(axes, axis=1, keepdims=True)
 
     def box_tilt_deg(self) -> float:

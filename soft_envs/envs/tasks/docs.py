@@ -128,8 +128,9 @@ TASK_DOCS = {
     "carry": TaskDoc(
         "carry", "Carry", "Walk along +x carrying a payload, a stiff box resting on the robot's top (0.6 x 0.1 body "
         "lengths, 1.1 times the robot's width across; a second body in the same implicit solve, held by contact "
-        "and Coulomb friction with the robot's nodes), without dropping it. `env.unwrapped.box` is the box. The gradient hooks (`rollout` with `dudz`, "
-        "`rollout_parameters`) raise NotImplementedError: the box's contact has no sensitivities yet.",
+        "and Coulomb friction with the robot's nodes), without dropping it. `env.unwrapped.box` is the box. The "
+        "gradient hooks (`rollout` with `dudz`, `rollout_parameters`) raise NotImplementedError: the box's contact "
+        "has no sensitivities yet.",
         _WALK, _per_level("carry", lambda v: f"payload {v['mass_fraction']:g} of the robot's mass, friction "
                           f"coefficient {v['friction_coefficient']:g} on the robot"),
         ("task", "target_heading_deg"), _BOX_PARTS,
@@ -217,6 +218,10 @@ def task_docstring(t: TaskDoc) -> str:
         args.append(("`success_reward`, `terminate_on_success`", "**float**, **bool**", "`10`, `True`",
                      "accepted for a common signature; unused (no success)"))
     owned = ", ".join(f"`{k}`" for k in t.owned)
+    extra_term = f" + {t.extra_reward[0]}" if t.extra_reward[0] else ""
+    extra_bullet = f"\n- {t.extra_reward[1]}" if t.extra_reward[1] else ""
+    ends = ("\n- Success, with `terminate_on_success` (default True)." if t.success else "") + \
+        (f"\n- {t.termination}" if t.termination else "")
     return f"""## Description
 {t.description}
 
@@ -241,12 +246,12 @@ two columns are each part's entries.
 `info` holds the robot environment's entries, the reward terms and `is_success`{_info_entries(t.key)}.
 
 ## Rewards
-***reward*** *= healthy_reward + forward_reward - ctrl_cost + success_reward{" + " + t.extra_reward[0] if t.extra_reward[0] else ""}*
+***reward*** *= healthy_reward + forward_reward - ctrl_cost + success_reward{extra_term}*
 
 - *forward_reward* (`info["reward_forward"]`): `forward_reward_weight` (10) times {t.forward}.
 - *ctrl_cost* (`info["reward_ctrl"]` = -ctrl_cost): `ctrl_cost_weight` (0.01) times the sum of
   ((a + 1) / 2)^2, the commanded contraction as a fraction of its range.
-- *healthy_reward* (`info["reward_survive"]`): `healthy_reward` (0.1) in every healthy step.{success}{chr(10) + "- " + t.extra_reward[1] if t.extra_reward[1] else ""}
+- *healthy_reward* (`info["reward_survive"]`): `healthy_reward` (0.1) in every healthy step.{success}{extra_bullet}
 
 ## Starting State
 The robot at rest on the task's ground, with `reset_noise_scale` noise on the positions; the
@@ -259,7 +264,7 @@ task's draws (physical parameters, terrain, goal) come from `self.np_random` too
   `healthy_tilt_deg` (60) from the ground's normal, or the COM's height above the ground under
   it falls below `healthy_height_fraction` (0.5) of its height at rest, measured the same way
   (`soft_envs.envs.ground_reference`).
-- The simulation fails (`info["sim_failure"]`, reward 0).{"" if not t.success else chr(10) + "- Success, with `terminate_on_success` (default True)."}{"" if not t.termination else chr(10) + "- " + t.termination}
+- The simulation fails (`info["sim_failure"]`, reward 0).{ends}
 
 ### Truncation
 `gymnasium.make`'s `TimeLimit`: 300 steps (`soft_envs.MAX_EPISODE_STEPS`, 10 s).
