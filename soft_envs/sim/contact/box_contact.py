@@ -28,8 +28,8 @@ robot up to ``tan a = mu_b`` and slides it beyond, with no creep.
 Derivatives: per pair (node, face) the energy is a function of 15 coordinates ``y = (p, a, b, c,
 d)``; ``dn/dy = (I - n n^T) / |w| dw/dy`` and ``d^2 n / dy^2`` follow from ``w`` being
 bilinear in the corners, and the gradient and Hessian of ``delta`` and of ``t`` follow by the
-chain rule (:func:`face_normal`). The energy is C2 within a face's region and, at the switch of
-the nearest face, continuous with a gradient that jumps (a convex box has edges). The Hessian
+chain rule (:mod:`.box_geometry`, numba kernels). The energy is C2 within a face's region and,
+at the switch of the nearest face, continuous with a gradient that jumps (a box has edges). The Hessian
 is exact; the Newton solver's projected fallback clamps each pair's negative eigenvalues
 (:meth:`BoxContact.assemble_projected`). Not modelled: the box's corners and edges against the
 robot's faces (only robot nodes are tested against the box), and the derivatives the
@@ -42,71 +42,19 @@ import numpy as np
 
 from ..box import BOX_FACES
 from ..terms import EnergyTerm
+from .box_geometry import bilinear, box_assemble, face_geometry, face_planes
 from .penalty import one_sided_quadratic
 
-__all__ = ["BoxContact", "face_normal", "bristle", "NO_SENSITIVITIES"]
+__all__ = ["BoxContact", "NO_SENSITIVITIES"]
 
 NO_SENSITIVITIES = ("the contact between the robot and a box has no sensitivities yet (d grad / d x_prev, the "
                     "anchors' derivatives): rollouts with derivatives, gradient hooks, calibration and trajopt are "
                     "not available for a robot with a box")
 
-_EPS = np.zeros((3, 3, 3))
-_EPS[0, 1, 2] = _EPS[1, 2, 0] = _EPS[2, 0, 1] = 1.0
-_EPS[0, 2, 1] = _EPS[2, 1, 0] = _EPS[1, 0, 2] = -1.0
 
-
-def _select(j: int) -> np.ndarray:
-    """(3, 15): the coordinates of point j of ``y = (p, a, b, c, d)``."""
-    s = np.zeros((3, 15))
-    s[:, 3 * j:3 * j + 3] = np.eye(3)
-    return s
-
-
-_SEL = np.stack([_select(j) for j in range(5)])                  # (5, 3, 15)
-_E1 = _SEL[3] - _SEL[1]                                          # d(c - a)/dy
-_E2 = _SEL[4] - _SEL[2]                                          # d(d - b)/dy
-_T = np.einsum("klm,li,mj->kij", _EPS, _E1, _E2)
-_D2W = _T + _T.transpose(0, 2, 1)                                # d^2 w_k / dy^2 (constant: w is bilinear)
-_DR = _SEL[0] - _SEL[1:].mean(axis=0)                            # d(p - o)/dy
-
-
-def face_normal(F: np.ndarray, second: bool = True):
-    """``(n (P, 3), dn/dy (P, 3, 15), d^2 n/dy^2 (P, 3, 15, 15))`` of faces ``F`` (P, 4, 3)
-    (corners a, b, c, d): ``n = w / |w|``, ``w = (c - a) x (d - b)``, ``dn = J dw`` with ``J =
-    (I - n n^T) / |w|`` and ``d^2 n_k / dw_i dw_j = -(n_i P_kj + n_j P_ki + n_k P_ij) / |w|^2``
-    (None unless ``second``)."""
-    e1, e2 = F[:, 2] - F[:, 0], F[:, 3] - F[:, 1]
-    w = np.cross(e1, e2)
-    L = np.linalg.norm(w, axis=1)
-    n = w / L[:, None]
-    Dw = np.einsum("klm,li,pm->pki", _EPS, _E1, e2) + np.einsum("klm,pl,mi->pki", _EPS, e1, _E2)
-    P = np.eye(3)[None] - n[:, :, None] * n[:, None, :]
-    J = P / L[:, None, None]
-    Dn = np.einsum("pkm,pmi->pki", J, Dw)
-    if not second:
-        return n, Dn, None
-    Hn = -(np.einsum("pi,pkj->pkij", n, P) + np.einsum("pj,pki->pkij", n, P)
-           + np.einsum("pk,pij->pkij", n, P)) / (L * L)[:, None, None, None]
-    D2n = np.einsum("pkm,mij->pkij", J, _D2W) + np.einsum("pkab,pai,pbj->pkij", Hn, Dw, Dw)
-    return n, Dn, D2n
-
-
-def bristle(r: np.ndarray, rs: float):
-    """``(G, w = G'/r, c = w'/r)`` of the Coulomb law's bristle potential
-    (:func:`.coulomb.bristle_potential`) for arrays ``r``."""
-    rho = r / rs
-    inside = r < rs
-    safe = np.where(r > 0, r, 1.0)
-    G = np.where(inside, rs * rho * rho * (1.0 - rho / 3.0), r - rs / 3.0)
-    w = np.where(inside, (2.0 - rho) / rs, 1.0 / safe)
-    c = np.where(inside, np.where(r > 0, -1.0 / (rs * rs * safe), 0.0), -1.0 / safe**3)
-    return G, w, c
-
-
-def _bilinear(xi, eta) -> np.ndarray:
-    """(P, 4) the weights of corners a, b, c, d at ``(xi, eta)``: ``q = (1-xi)(1-eta) a +
-    xi (1-eta) b + xi eta c + (1-xi) eta d``."""
-    return np.stack([(1 - xi) * (1 - eta), xi * (1 - eta), xi * eta, (1 - xi) * eta], axis=1)
+def _weights(xi, eta) -> np.ndarray:
+    """(P, 4) the bilinear weights (:func:`.box_geometry.bilinear`) of every ``(xi, eta)``."""
+    return np.array([bilinear(a, b) for a, b in zip(xi, eta)]).reshape(-1, 4)
 
 
 def _project(F: np.ndarray, pts: np.ndarray):
@@ -116,7 +64,7 @@ def _project(F: np.ndarray, pts: np.ndarray):
     eta = np.full(len(pts), 0.5)
     a, b, c, d = F[:, 0], F[:, 1], F[:, 2], F[:, 3]
     for _ in range(4):
-        q = np.einsum("pj,pjk->pk", _bilinear(xi, eta), F)
+        q = np.einsum("pj,pjk->pk", _weights(xi, eta), F)
         dxi = (1 - eta)[:, None] * (b - a) + eta[:, None] * (c - d)
         deta = (1 - xi)[:, None] * (d - a) + xi[:, None] * (c - b)
         Jm = np.stack([dxi, deta], axis=2)                                 # (P, 3, 2)
@@ -142,7 +90,8 @@ class BoxContact(EnergyTerm):
         boundary = robot.mesh.boundary_nodes
         self.nodes = np.setdiff1d(boundary[boundary < robot.n_robot_nodes], robot.fixed_nodes).astype(np.int64)
         self.box_nodes = robot.box_nodes
-        self.faces = self.box_nodes[BOX_FACES]                          # (6, 4) global corner nodes
+        self.faces = np.ascontiguousarray(self.box_nodes[BOX_FACES])    # (6, 4) global corner nodes
+        self._scratch = np.zeros(1)
         # each pair's 15 local indices into the node's 27-dof block (its 3, then the box's 24)
         self._local = np.concatenate([np.tile(np.arange(3), (6, 1)),
                                       (3 + 3 * BOX_FACES[:, :, None] + np.arange(3)).reshape(6, 12)], axis=1)
@@ -153,15 +102,13 @@ class BoxContact(EnergyTerm):
 
     def bind(self, slots, diag_slots) -> None:
         super().bind(slots, diag_slots)
-        self.slots = slots[0].reshape(len(self.nodes), 27, 27)
+        self.slots = np.ascontiguousarray(slots[0].reshape(len(self.nodes), 27, 27))
 
     # ------------------------------------------------------------------ geometry
     def _distances(self, x: np.ndarray) -> np.ndarray:
         """(c, 6) ``delta_f`` of every contact node from every face's plane."""
-        F = x[self.faces]                                                   # (6, 4, 3)
-        w = np.cross(F[:, 2] - F[:, 0], F[:, 3] - F[:, 1])
-        n = w / np.linalg.norm(w, axis=1)[:, None]
-        return (x[self.nodes] @ n.T) - np.einsum("fk,fk->f", F.mean(axis=1), n)[None]
+        n, o = face_planes(x, self.faces)
+        return x[self.nodes] @ n.T - np.einsum("fk,fk->f", o, n)[None]
 
     def _lagged(self, x_prev: np.ndarray):
         """``(opposite face (c,), N_{k-1} (c,))`` at ``x_prev``, kept while ``x_prev`` is the same
@@ -188,91 +135,23 @@ class BoxContact(EnergyTerm):
         """``N_i = Q_b'(s_i)`` of every contact node [N] (the nearest face's depth)."""
         return self._lagged(x)[1]
 
-    def _pairs(self, x, x_prev, hist):
-        """The active pairs: ``(normal (node idx, face, s), friction (node idx, face, xi, eta,
-        mu N_{k-1}))``."""
-        s, f = self.depths(x, x_prev)
-        on = np.flatnonzero(s > 0)
-        a = self.mu * self.normal_forces(x_prev)
-        face = hist[:, 0].astype(np.int64)
-        fr = np.flatnonzero((face >= 0) & (a > 0))
-        return (on, f[on], s[on]), (fr, face[fr], hist[fr, 1], hist[fr, 2], a[fr])
-
-    def _normal(self, x, idx, face, want_hess):
-        """Energy, per-pair gradients (P, 15) and Hessians (P, 15, 15) of ``Q_b(-delta)``."""
-        F = x[self.faces[face]]
-        n, Dn, D2n = face_normal(F, want_hess)
-        r = x[self.nodes[idx]] - F.mean(axis=1)
-        d = np.einsum("pk,pk->p", n, r)
-        Dd = np.einsum("pk,pki->pi", r, Dn) + n @ _DR
-        q, dq, d2q = one_sided_quadratic(-d, self.k, self.eps)
-        g = -dq[:, None] * Dd
-        if not want_hess:
-            return q.sum(), g, None
-        M = np.einsum("pki,kj->pij", Dn, _DR)
-        D2d = np.einsum("pk,pkij->pij", r, D2n) + M + M.transpose(0, 2, 1)
-        return q.sum(), g, d2q[:, None, None] * Dd[:, :, None] * Dd[:, None, :] - dq[:, None, None] * D2d
-
-    def _friction(self, x, idx, face, xi, eta, a, want_hess):
-        """Energy, per-pair gradients and Hessians of ``mu N_{k-1} G(|t|)``."""
-        F = x[self.faces[face]]
-        n, Dn, D2n = face_normal(F, want_hess)
-        phi = _bilinear(xi, eta)
-        v = x[self.nodes[idx]] - np.einsum("pj,pjk->pk", phi, F)
-        V = _SEL[0][None] - np.einsum("pj,jki->pki", phi, _SEL[1:])
-        al = np.einsum("pk,pk->p", n, v)
-        Dal = np.einsum("pk,pki->pi", v, Dn) + np.einsum("pk,pki->pi", n, V)
-        t = v - al[:, None] * n
-        Dt = V - n[:, :, None] * Dal[:, None, :] - al[:, None, None] * Dn
-        r = np.linalg.norm(t, axis=1)
-        G, w, c = bristle(r, self.rs)
-        tDt = np.einsum("pk,pki->pi", t, Dt)
-        g = (a * w)[:, None] * tDt
-        if not want_hess:
-            return float((a * G).sum()), g, None
-        M = np.einsum("pki,pkj->pij", Dn, V)
-        D2al = np.einsum("pk,pkij->pij", v, D2n) + M + M.transpose(0, 2, 1)
-        C = np.einsum("pi,pkj->pkij", Dal, Dn)
-        D2t = (-n[:, :, None, None] * D2al[:, None] - C - C.transpose(0, 1, 3, 2)
-               - al[:, None, None, None] * D2n)
-        H = (w[:, None, None] * (np.einsum("pki,pkj->pij", Dt, Dt) + np.einsum("pk,pkij->pij", t, D2t))
-             + c[:, None, None] * tDt[:, :, None] * tDt[:, None, :])
-        return float((a * G).sum()), g, a[:, None, None] * H
-
-    def _contributions(self, x, x_prev, hist, want_hess):
-        (on, fn, _), (fr, ff, xi, eta, a) = self._pairs(x, x_prev, hist)
-        e1, g1, H1 = self._normal(x, on, fn, want_hess)
-        e2, g2, H2 = self._friction(x, fr, ff, xi, eta, a, want_hess)
-        return (e1 + e2, np.concatenate([on, fr]), np.concatenate([fn, ff]), np.concatenate([g1, g2]),
-                None if not want_hess else np.concatenate([H1, H2]))
-
-    def _scatter(self, idx, face, g, H, grad, hdata):
-        loc = self._local[face]                                             # (P, 15)
-        dofs = np.concatenate([3 * self.nodes[idx][:, None] + np.arange(3),
-                               (3 * self.faces[face][:, :, None] + np.arange(3)).reshape(-1, 12)], axis=1)
-        np.add.at(grad, dofs.ravel(), g.ravel())
-        if H is not None:
-            slots = self.slots[idx[:, None, None], loc[:, :, None], loc[:, None, :]]
-            np.add.at(hdata, slots.ravel(), H.ravel())
+    def _run(self, x, x_prev, hist, grad, hdata, want_grad, want_hess, project=False) -> float:
+        opposite, N = self._lagged(x_prev)
+        return box_assemble(x, self.nodes, self.faces, opposite, self.mu * N, np.asarray(hist, dtype=np.float64),
+                            self.k, self.eps, self.rs, grad, hdata, self.slots, self._local, want_grad, want_hess,
+                            project)
 
     # ------------------------------------------------------------------ the term
     def energy(self, x, x_prev, u, hist=None) -> float:
         hist = self.initial_history(x_prev) if hist is None else hist
-        return self._contributions(x, x_prev, hist, False)[0]
+        return self._run(x, x_prev, hist, self._scratch, self._scratch, False, False)
 
     def assemble(self, x, x_prev, u, hist, grad, hdata, want_hess) -> float:
-        e, idx, face, g, H = self._contributions(x, x_prev, hist, want_hess)
-        self._scatter(idx, face, g, H, grad, hdata)
-        return e
+        return self._run(x, x_prev, hist, grad, hdata, True, want_hess)
 
     def assemble_projected(self, x, x_prev, u, hist, grad, hdata) -> float:
         """Each pair's Hessian with its negative eigenvalues set to 0."""
-        e, idx, face, g, H = self._contributions(x, x_prev, hist, True)
-        if len(H):
-            lam, Q = np.linalg.eigh(H)
-            H = np.einsum("pik,pk,pjk->pij", Q, np.maximum(lam, 0.0), Q)
-        self._scatter(idx, face, g, H, grad, hdata)
-        return e
+        return self._run(x, x_prev, hist, grad, hdata, True, True, True)
 
     # ------------------------------------------------------------------ anchors
     def _anchor(self, x, sel, face, pts):
@@ -300,8 +179,8 @@ class BoxContact(EnergyTerm):
         fr = np.flatnonzero(active)
         if len(fr):
             F = x[self.faces[face[fr]]]
-            n, _, _ = face_normal(F, False)
-            q = np.einsum("pj,pjk->pk", _bilinear(out[fr, 1], out[fr, 2]), F)
+            n = np.array([face_geometry(f, False)[0] for f in F])
+            q = np.einsum("pj,pjk->pk", _weights(out[fr, 1], out[fr, 2]), F)
             v = x[self.nodes[fr]] - q
             t = v - np.einsum("pk,pk->p", n, v)[:, None] * n
             r = np.linalg.norm(t, axis=1)
