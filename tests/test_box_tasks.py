@@ -154,3 +154,25 @@ def test_the_paper_law_carries_and_pushes_too():
             _, _, terminated, _, info = env.step(_gait(env, k))
             assert not terminated and "sim_failure" not in info
         assert env.unwrapped.contact_model == "paper"
+
+
+def test_a_box_task_pickles_and_steps_as_the_original():
+    import pickle
+    env = gym.make("SoftPuppyCarry-v0").unwrapped
+    env.reset(seed=2)
+    env.step(np.full(8, 0.5))
+    copy = pickle.loads(pickle.dumps(env))
+    a = np.linspace(-1, 1, 8)
+    np.testing.assert_array_equal(env.step(a)[0], copy.step(a)[0])
+    assert copy.robot.box == env.robot.box
+
+
+def test_domain_randomisation_scales_the_robot_and_keeps_the_box_mass():
+    env = gym.make("SoftTripodPushBox-v0", domain_randomization={"youngs_modulus": (0.8, 0.8), "density": (1.2, 1.2)})
+    env.reset(seed=0)
+    robot = env.unwrapped.robot
+    box = robot.box_nodes
+    np.testing.assert_allclose(robot.node_masses[box], env.unwrapped.box.mass / 8, rtol=1e-15)
+    E_box = robot.youngs_modulus * robot.element_modulus_scale[-5:]
+    np.testing.assert_allclose(E_box, 0.8 * env.unwrapped.box.youngs_modulus, rtol=1e-12)
+    assert not env.step(np.zeros(2))[2]
