@@ -1,7 +1,8 @@
 """A second body (soft_envs.sim.box, issue #39's carry and push tasks): the box's model, its
 contact with the robot (soft_envs.sim.contact.box_contact) against central finite differences,
 its ground contact under both laws, friction that holds a payload on a tilt and lets it slide
-beyond, a push, the refusal of sensitivities, and nothing changed for a robot without a box."""
+beyond, a push, the sensitivities (every product and whole rollouts against central
+differences), and nothing changed for a robot without a box."""
 from __future__ import annotations
 
 import dataclasses
@@ -16,6 +17,8 @@ from soft_envs.sim.contact.box_geometry import face_geometry
 from soft_envs.sim.parameters import node_mass_jacobian
 
 from .conftest import small_robot
+from .gradcheck import rollout_jacobian_errors
+from .test_energy_derivatives import check_every_term
 
 RTOL = 1e-6          # the project's bound on every derivative against central differences
 H = 1e-7             # the finite-difference step [m]
@@ -185,7 +188,6 @@ def test_without_a_box_the_terms_and_the_masses_are_the_old_ones():
     sim = Simulator(r)
     assert [t.name for t in sim.system.terms] == ["elastic", "cables", "contact", "gravity"]
     assert r.body_node_masses is r.node_masses and r.box is None and r.box_nodes.size == 0
-    assert sim.system.differentiable
     rb = _robot()
     assert [t.name for t in Simulator(rb).system.terms][-1] == "box_contact"
 
@@ -253,28 +255,60 @@ def test_a_moving_robot_pushes_the_box():
     assert moved > 1e-3
 
 
-def test_sensitivities_are_refused_with_a_clear_error():
-    """The box term has no sensitivities yet: every rollout with derivatives refuses it
-    (NotImplementedError naming what is missing) instead of giving wrong ones; a plain rollout
-    runs. A failed Newton step is a SimulationError."""
-    rb = _robot()
-    sim = Simulator(rb)
-    assert not sim.system.differentiable
-    u = np.zeros((3, 1))
-    traj = sim.rollout(u)
-    assert traj.x.shape == (4, rb.mesh.n_nodes, 3)
-    with pytest.raises(NotImplementedError, match="box has no sensitivities"):
-        sim.rollout(u, dudz=np.ones((3, 1, 1)))
-    with pytest.raises(NotImplementedError, match="box has no sensitivities"):
-        sim.rollout(u, params=["youngs_modulus"])
-    with pytest.raises(NotImplementedError, match="box has no sensitivities"):
-        sim.rollout_gradient(u, np.zeros(traj.x.shape))
-    with pytest.raises(NotImplementedError, match="box has no sensitivities"):
-        sim.rest_sensitivity(["youngs_modulus"])
+@pytest.mark.parametrize("case", ["stick", "slide", "fresh"])
+def test_every_derivative_of_the_box_term_matches_central_differences(case):
+    """The project's check of every term (tests/test_energy_derivatives.py: gradient, Hessian,
+    d grad / d x_prev and d grad / d anchors with their transposes, the anchors' update and its
+    transpose; relative error <= 1e-6, h = 1e-7) at a state with the box pressed into the bar:
+    anchors sticking (0.2 mm from the nodes), sliding (6 cm) and fresh (the nodes re-anchored
+    at their projections on the faces)."""
+    rng = np.random.default_rng(3)
+    robot = _robot()
+    sim = Simulator(robot)
+    x = _pressed_state(robot, rng, 1.5e-3)
+    x_prev = x + rng.normal(scale=1e-4, size=x.shape)
+    x_prev[robot.box_nodes, 1] += 2e-4
+    history = list(sim.system.initial_history(x_prev))
+    h = history[-1].copy()
+    anchored = h[:, 0] >= 0
+    h[anchored, 1] += {"stick": 2e-4, "slide": 2e-3, "fresh": 0.0}[case] / 0.03 * rng.choice([-1.0, 1.0],
+                                                                                           size=anchored.sum())
+    if case == "fresh":
+        h[:, 0] = -1.0
+    history[-1] = h
     term = sim.system.terms[-1]
-    with pytest.raises(NotImplementedError, match="box has no sensitivities"):
-        term.add_prev_product(traj.x[1], traj.x[0], u[0], traj.info["history"][-1], np.zeros((traj.x[0].size, 1)),
-                              np.zeros((traj.x[0].size, 1)))
+    new = term.next_history(x, x_prev, h)
+    kept = np.all(new[anchored] == h[anchored], axis=1)
+    assert anchored.sum() >= 3 and {"stick": kept.sum() >= 2, "slide": not kept.any(),
+                                     "fresh": (new[:, 0] >= 0).sum() >= 3}[case]
+    check_every_term(sim, x, x_prev, np.zeros(1), rng, tuple(history))
+
+
+@pytest.mark.parametrize("law", ["coulomb", "paper"])
+def test_rollout_jacobians_with_a_box_match_central_differences(law):
+    """12 steps of the bar's cable lifting its box (the box held by friction, moving 0.07-0.4
+    mm): dx/dz, dCOM/dz and dGamma/dz against central differences (h = 1e-7; measured <= 4e-7)
+    and the adjoint gradient of the box's position against forward mode (measured 3e-10 -
+    3e-8)."""
+    robot = _robot(law)
+    sim = Simulator(robot, newton=NewtonOptions(tol=1e-11))
+    K = 12
+    t = np.arange(K) * sim.dt
+    u0 = (0.004 * (1 - np.cos(2 * np.pi * t / 0.4)))[:, None]
+    dudz = np.stack([np.ones(K), np.sin(10 * t), t], axis=1)[:, None, :]
+    err = rollout_jacobian_errors(sim, u0, dudz, n_dirs=2, h=1e-7)
+    assert max(err.values()) <= 1e-6, err
+    traj = sim.rollout(u0, dudz=dudz, store_dxdz=True)
+    assert (traj.info["history"][-1][:, 0] >= 0).sum() >= 3
+    w = np.zeros(traj.x.shape)
+    w[1:, robot.box_nodes, 0], w[1:, robot.box_nodes, 1] = 1.0, 0.5
+    forward = np.einsum("ki,kiz->z", w.reshape(K + 1, -1), traj.dxdz)
+    adjoint = sim.rollout_gradient(u0, w, dudz=dudz, traj=traj)
+    assert np.linalg.norm(adjoint - forward) <= 1e-7 * np.linalg.norm(forward)
+
+
+def test_a_failed_step_is_a_simulation_error():
+    rb = _robot()
     stiff = Simulator(rb, newton=NewtonOptions(max_iter=1))
     state = stiff.rest_state()
     with pytest.raises(SimulationError):

@@ -57,7 +57,7 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
     if params:      # its own solver for the exact Hessians: the relaxation's path stays that of rest_state
         exact = NewtonSolver(system, 1.0, solver.options)
         dx0, dh0 = placement_sensitivity(sim, system, params)
-        sens = ForwardSensitivities(exact, sim.robot.node_masses, np.zeros((max_iter, sim.n_motors, 0)),
+        sens = ForwardSensitivities(exact, sim.robot.body_node_masses, np.zeros((max_iter, sim.n_motors, 0)),
                                     params=params, x0=x, dx0dtheta=dx0, dhistory0dtheta=dh0)
     cache = FactorCache()
     for j in range(max_iter):

@@ -165,7 +165,6 @@ class Simulator:
         :data:`~soft_envs.sim.parameters.PARAMETERS`): the rest state is the end of the
         relaxation's implicit steps, differentiated through the same recurrence as rollouts
         (:class:`~.sensitivity.ForwardSensitivities`, each step starting at rest)."""
-        self.system.require_sensitivities()
         return self._rest.sensitivity(self._parameters(params), u, tol, max_iter)
 
     def _parameters(self, params):
@@ -286,8 +285,6 @@ class Simulator:
         itself is included (:meth:`rest_sensitivity`); from a given ``x0`` pass its derivative
         ``dx0dtheta`` (default 0) and that of the history, ``dhistory0dtheta``.
         """
-        if dudz is not None or params:
-            self.system.require_sensitivities()         # a box: no derivatives yet (NotImplementedError)
         u = self._check_u(u, K=len(np.asarray(u)), check_bounds=check_bounds)
         K = len(u)
         params = self._parameters(params) if params else ()
@@ -296,7 +293,7 @@ class Simulator:
             start = self._start_state(x_rest, x_prev0, rest_h if history0 is None else history0)
         else:
             start = self._start_state(x0, x_prev0, history0)
-        sens = forward_sensitivities(self.newton, self.robot.node_masses, dudz, K, self.n_motors, self.substeps,
+        sens = forward_sensitivities(self.newton, self.robot.body_node_masses, dudz, K, self.n_motors, self.substeps,
                                      store_dxdz=store_dxdz, params=params, dx0dtheta=dx0dtheta,
                                      dhistory0dtheta=dhistory0dtheta, x0=start.x)
         traj = run_rollout(self.newton, self.robot, start, u, self.substeps, sens, want_z=dudz is not None,
@@ -316,7 +313,6 @@ class Simulator:
         sub-steps it must hold them, ``rollout(..., keep_substeps=True)``, else the rollout is
         simulated again). With sub-steps the adjoint runs over every physics step and its
         gradient is carried back to the control steps (:func:`~.substeps.control_step_gradient`)."""
-        self.system.require_sensitivities()
         u = self._check_u(u, K=len(np.asarray(u)))
         n = self.substeps
         if traj is None or (n > 1 and "substep_x" not in traj.info):

@@ -16,7 +16,7 @@ import scipy.sparse as sp
 
 from .cables import Cables, CableTensions
 from .contact import contact_term
-from .contact.box_contact import NO_SENSITIVITIES, BoxContact
+from .contact.box_contact import BoxContact
 from .elastic import Elastic
 from .gravity import Gravity
 from .parameters import MASS_PARAMETERS, check_parameters, node_mass_jacobian
@@ -121,17 +121,6 @@ class EnergySystem:
             term.bind(slots[start:start + len(bs)], diag_slots)
             start += len(bs)
         self._no_hess = np.zeros(1)          # placeholder for gradient-only assembly
-
-    @property
-    def differentiable(self) -> bool:
-        """Whether every term gives the sensitivities' products (not yet the box contact's)."""
-        return all(getattr(term, "differentiable", True) for term in self.terms)
-
-    def require_sensitivities(self) -> None:
-        """NotImplementedError (naming what is missing) unless :attr:`differentiable`: rollouts
-        with derivatives refuse a system whose derivatives would be wrong."""
-        if not self.differentiable:
-            raise NotImplementedError(f"{self.robot.source} (robot {self.robot.name!r}): {NO_SENSITIVITIES}")
 
     # ------------------------------------------------------------------ history (lagged state)
     @property

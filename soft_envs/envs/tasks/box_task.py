@@ -10,10 +10,8 @@ the level (:meth:`BoxTaskEnv._make_box`) and appends the box's parts to the obse
 ``box_offset`` (its centre minus the robot's COM), ``box_velocity`` (over the last physics step)
 and ``box_axes`` (its x and y axes in the world frame).
 
-The box's contact has no sensitivities yet: the gradient hooks (``rollout`` with ``dudz``,
-``rollout_parameters``) raise NotImplementedError naming what is missing
-(:meth:`soft_envs.sim.system.EnergySystem.require_sensitivities`); a rollout without
-derivatives works.
+The gradient hooks (``rollout`` with ``dudz``, ``rollout_parameters``) differentiate through the
+box too (:mod:`soft_envs.sim.contact.box_sensitivity`).
 """
 from __future__ import annotations
 

@@ -128,9 +128,8 @@ TASK_DOCS = {
     "carry": TaskDoc(
         "carry", "Carry", "Walk along +x carrying a payload, a stiff box resting on the robot's top (0.6 x 0.1 body "
         "lengths, 1.1 times the robot's width across; a second body in the same implicit solve, held by contact "
-        "and Coulomb friction with the robot's nodes), without dropping it. `env.unwrapped.box` is the box. The "
-        "gradient hooks (`rollout` with `dudz`, `rollout_parameters`) raise NotImplementedError: the box's contact "
-        "has no sensitivities yet.",
+        "and Coulomb friction with the robot's nodes), without dropping it. `env.unwrapped.box` is the box; the "
+        "gradient hooks (`rollout` with `dudz`) differentiate through it.",
         _WALK, _per_level("carry", lambda v: f"payload {v['mass_fraction']:g} of the robot's mass, friction "
                           f"coefficient {v['friction_coefficient']:g} on the robot"),
         ("task", "target_heading_deg"), _BOX_PARTS,
@@ -147,8 +146,7 @@ TASK_DOCS = {
         "push_box", "PushBox", "Push a stiff box (0.25 x 0.25 body lengths, 1.2 times the robot's width across) "
         "standing on the ground 0.1 body lengths ahead of the robot's front along +x: a second body in the same "
         "implicit solve, sliding on the ground under the robot's contact law, pushed by the robot's nodes. "
-        "`env.unwrapped.box` is the box. The gradient hooks (`rollout` with `dudz`, "
-        "`rollout_parameters`) raise NotImplementedError: the box's contact has no sensitivities yet.",
+        "`env.unwrapped.box` is the box; the gradient hooks (`rollout` with `dudz`) differentiate through it.",
         "the box's speed along +x (its centre's displacement over the step, in body lengths per second)",
         _per_level("push_box", lambda v: f"box {v['mass_fraction']:g} of the robot's mass"),
         ("task", "target_heading_deg"), _BOX_PARTS,

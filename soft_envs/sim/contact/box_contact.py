@@ -31,10 +31,10 @@ bilinear in the corners, and the gradient and Hessian of ``delta`` and of ``t`` 
 chain rule (:mod:`.box_geometry`, numba kernels). The energy is C2 within a face's region and,
 at the switch of the nearest face, continuous with a gradient that jumps (a box has edges). The Hessian
 is exact; the Newton solver's projected fallback clamps each pair's negative eigenvalues
-(:meth:`BoxContact.assemble_projected`). Not modelled: the box's corners and edges against the
-robot's faces (only robot nodes are tested against the box), and the derivatives the
-sensitivities need (d grad / d x_prev, the anchors' tangent): a rollout with sensitivities
-refuses a robot with a box (:attr:`BoxContact.differentiable`).
+(:meth:`BoxContact.assemble_projected`). The sensitivities' products (``d grad / d x_prev``
+through ``N_{k-1}``, ``d grad / d anchors``, the anchors' update and their transposes) are
+:mod:`.box_sensitivity`'s kernels. Not modelled: the box's corners and edges against the
+robot's faces (only robot nodes are tested against the box).
 """
 from __future__ import annotations
 
@@ -43,13 +43,14 @@ import numpy as np
 from ..box import BOX_FACES
 from ..terms import EnergyTerm
 from .box_geometry import bilinear, box_assemble, face_geometry, face_planes
+from .box_sensitivity import anchor_tangent, history_product, prev_product
 from .penalty import one_sided_quadratic
 
-__all__ = ["BoxContact", "NO_SENSITIVITIES"]
+__all__ = ["BoxContact"]
 
-NO_SENSITIVITIES = ("the contact between the robot and a box has no sensitivities yet (d grad / d x_prev, the "
-                    "anchors' derivatives): rollouts with derivatives, gradient hooks, calibration and trajopt are "
-                    "not available for a robot with a box")
+def _faces(hist) -> np.ndarray:
+    """(c,) the anchors' faces (:func:`.box_geometry.face_index`)."""
+    return np.floor(np.asarray(hist)[:, 0] + 0.5).astype(np.int64)
 
 
 def _weights(xi, eta) -> np.ndarray:
@@ -81,8 +82,6 @@ class BoxContact(EnergyTerm):
 
     name = "box_contact"
     has_history = True
-    #: whether the sensitivities' products exist (:data:`NO_SENSITIVITIES`)
-    differentiable = False
 
     def __init__(self, robot):
         box = robot.box
@@ -172,8 +171,9 @@ class BoxContact(EnergyTerm):
     def next_history(self, x, x_prev, hist) -> np.ndarray:
         """The anchors' update of the module docstring."""
         out = np.array(hist, dtype=np.float64)
-        face = out[:, 0].astype(np.int64)
-        active = (face >= 0) & (self.normal_forces(x_prev) > 0)
+        face = _faces(hist)
+        out[:, 0] = face
+        active = self._active(x_prev, hist)
         fresh = self.initial_history(x, x_prev)
         out[~active] = fresh[~active]
         fr = np.flatnonzero(active)
@@ -191,9 +191,42 @@ class BoxContact(EnergyTerm):
                 out[sel, 1], out[sel, 2] = _project(F[slide], target)
         return out
 
-    # ------------------------------------------------------------------ no sensitivities (yet)
-    def _refuse(self, *args, **kwargs):
-        raise NotImplementedError(NO_SENSITIVITIES)
+    # ------------------------------------------------------------------ sensitivities
+    def _active(self, x_prev, hist) -> np.ndarray:
+        """Whether each node's friction is on during the step from ``x_prev`` (anchored, N > 0)."""
+        return (_faces(hist) >= 0) & (self.normal_forces(x_prev) > 0)
 
-    add_prev_product = add_prev_product_T = add_history_product = add_history_product_T = _refuse
-    history_tangent = history_tangent_T = add_parameter_jacobian = _refuse
+    def add_prev_product(self, x, x_prev, u, hist, S, out) -> None:
+        prev_product(x, x_prev, self.nodes, self.faces, np.asarray(hist), self.k, self.eps, self.mu, self.rs, S, out,
+                     False)
+
+    def add_prev_product_T(self, x, x_prev, u, hist, lam, out) -> None:
+        tmp = np.zeros((len(out), 1))
+        prev_product(x, x_prev, self.nodes, self.faces, np.asarray(hist), self.k, self.eps, self.mu, self.rs,
+                     np.ascontiguousarray(lam).reshape(-1, 1), tmp, True)
+        out += tmp[:, 0]
+
+    def add_history_product(self, x, x_prev, u, hist, P, out) -> None:
+        history_product(x, self.nodes, self.faces, np.asarray(hist), self.mu * self.normal_forces(x_prev), self.rs,
+                        np.ascontiguousarray(P), out, False)
+
+    def add_history_product_T(self, x, x_prev, u, hist, lam, out) -> None:
+        tmp = np.zeros((out.shape[0], 1))
+        history_product(x, self.nodes, self.faces, np.asarray(hist), self.mu * self.normal_forces(x_prev), self.rs,
+                        np.ascontiguousarray(lam).reshape(-1, 1), tmp, True)
+        out += tmp[:, 0]
+
+    def history_tangent(self, x, x_prev, hist, S, P) -> np.ndarray:
+        out = np.zeros_like(P)
+        anchor_tangent(x, self.nodes, self.faces, np.asarray(hist), self.next_history(x, x_prev, hist),
+                       self._active(x_prev, hist), self.rs, np.ascontiguousarray(S), np.ascontiguousarray(P), out,
+                       False)
+        return out
+
+    def history_tangent_T(self, x, x_prev, hist, m, out_x, out_h) -> None:
+        sx = np.zeros((len(out_x), 1))
+        oh = np.zeros((len(out_h), 1))
+        anchor_tangent(x, self.nodes, self.faces, np.asarray(hist), self.next_history(x, x_prev, hist),
+                       self._active(x_prev, hist), self.rs, sx, np.ascontiguousarray(m).reshape(-1, 1), oh, True)
+        out_x += sx[:, 0]
+        out_h += oh[:, 0]

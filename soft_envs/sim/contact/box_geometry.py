@@ -13,6 +13,8 @@ b, c, d)``, with exact gradient and Hessian.
   :func:`.coulomb.bristle_potential`) of the tangential offset ``t = v - (n . v) n`` from the
   anchor ``q = sum_j phi_j(xi, eta) x_j`` (``v = p - q``): ``grad = a w t^T dt``, ``Hess = a [w
   (dt^T dt + t_k d^2 t_k) + c (dt^T t)(t^T dt)]``.
+* :func:`friction_anchor_jacobian`: ``d g / d (xi, eta)`` of that gradient (the sensitivities,
+  :mod:`.box_sensitivity`).
 * :func:`box_assemble`: the term's energy over every contact node, its gradient and Hessian
   scattered into the system's (optionally each pair's Hessian clamped to its non-negative
   eigenvalues: the Newton solver's projected fallback).
@@ -25,7 +27,8 @@ from numba import njit
 from .coulomb import bristle_potential
 from .penalty import Q, d2Q, dQ
 
-__all__ = ["face_planes", "face_geometry", "normal_pair", "friction_pair", "box_assemble", "bilinear"]
+__all__ = ["face_index", "face_planes", "face_geometry", "depth", "normal_pair", "anchor_offset", "anchor_weights",
+           "friction_pair", "friction_anchor_jacobian", "box_assemble", "bilinear", "pair_dofs"]
 
 _LEVI = np.zeros((3, 3, 3))
 _LEVI[0, 1, 2] = _LEVI[1, 2, 0] = _LEVI[2, 0, 1] = 1.0
@@ -38,6 +41,12 @@ _E2 = _SEL[4] - _SEL[2]                         # d(d - b)/dy
 _T = np.einsum("klm,li,mj->kij", _LEVI, _E1, _E2)
 _D2W = _T + _T.transpose(0, 2, 1)               # d^2 w_k / dy^2
 _DR = _SEL[0] - _SEL[1:].mean(axis=0)           # d(p - o)/dy
+
+
+@njit(cache=True)
+def face_index(h):
+    """The face of a history entry ``h`` (a float; -1: none), rounded to the nearest integer."""
+    return int(np.floor(h + 0.5))
 
 
 @njit(cache=True)
@@ -87,21 +96,31 @@ def face_geometry(F, second):
 
 
 @njit(cache=True)
+def depth(p, F, second):
+    """``(s, d delta/dy (15,), d^2 delta/dy^2 (15, 15))``: node ``p``'s depth ``s = -delta``
+    below face ``F``'s plane, ``delta = n . (p - o)`` (the last zeros unless ``second``)."""
+    n, Dn, D2n = face_geometry(F, second)
+    r = p - (F[0] + F[1] + F[2] + F[3]) / 4.0
+    Dd = r @ Dn + n @ _DR
+    D2d = np.zeros((15, 15))
+    if second:
+        M = Dn.T @ _DR
+        D2d += M + M.T
+        for c in range(3):
+            D2d += r[c] * D2n[c]
+    return -(n @ r), Dd, D2d
+
+
+@njit(cache=True)
 def normal_pair(p, F, k, eps, want_hess, g, H):
     """The penalty of node ``p`` below face ``F``: returns ``Q_b(-delta)``, writes its gradient
     ``g`` (15,) and, with ``want_hess``, its Hessian ``H`` (15, 15)."""
-    n, Dn, D2n = face_geometry(F, want_hess)
-    r = p - (F[0] + F[1] + F[2] + F[3]) / 4.0
-    s = -(n @ r)
-    Dd = r @ Dn + n @ _DR
-    q, dq = Q(s, k, eps), dQ(s, k, eps)
+    s, Dd, D2d = depth(p, F, want_hess)
+    dq = dQ(s, k, eps)
     g[:] = -dq * Dd
     if want_hess:
-        M = Dn.T @ _DR
-        H[:, :] = d2Q(s, k, eps) * np.outer(Dd, Dd) - dq * (M + M.T)
-        for c in range(3):
-            H -= dq * r[c] * D2n[c]
-    return q
+        H[:, :] = d2Q(s, k, eps) * np.outer(Dd, Dd) - dq * D2d
+    return Q(s, k, eps)
 
 
 @njit(cache=True)
@@ -112,10 +131,10 @@ def bilinear(xi, eta):
 
 
 @njit(cache=True)
-def friction_pair(p, F, xi, eta, a, rs, want_hess, g, H):
-    """The friction of node ``p`` anchored at ``(xi, eta)`` on face ``F`` with weight ``a = mu_b
-    N_{k-1}``: returns ``a G(|t|)``, writes ``g`` and (``want_hess``) ``H``."""
-    n, Dn, D2n = face_geometry(F, want_hess)
+def anchor_offset(p, F, xi, eta, second):
+    """The tangential offset of node ``p`` from its anchor ``(xi, eta)`` on face ``F``: ``(t,
+    dt/dy (3, 15), n, dn/dy, d^2 n/dy^2, v = p - q, dv/dy, alpha = n . v, d alpha/dy)``."""
+    n, Dn, D2n = face_geometry(F, second)
     phi = bilinear(xi, eta)
     V = _SEL[0].copy()
     v = p.copy()
@@ -126,6 +145,20 @@ def friction_pair(p, F, xi, eta, a, rs, want_hess, g, H):
     Dal = v @ Dn + n @ V
     t = v - al * n
     Dt = V - np.outer(n, Dal) - al * Dn
+    return t, Dt, n, Dn, D2n, v, V, al, Dal
+
+
+@njit(cache=True)
+def anchor_weights(xi, eta):
+    """(2, 4) ``d phi / d xi`` and ``d phi / d eta`` of :func:`bilinear`."""
+    return np.array([[-(1 - eta), 1 - eta, eta, -eta], [-(1 - xi), -xi, xi, 1 - xi]])
+
+
+@njit(cache=True)
+def friction_pair(p, F, xi, eta, a, rs, want_hess, g, H):
+    """The friction of node ``p`` anchored at ``(xi, eta)`` on face ``F`` with weight ``a = mu_b
+    N_{k-1}``: returns ``a G(|t|)``, writes ``g`` and (``want_hess``) ``H``."""
+    t, Dt, n, Dn, D2n, v, V, al, Dal = anchor_offset(p, F, xi, eta, want_hess)
     G, w, c = bristle_potential(np.sqrt(t @ t), rs)
     tDt = t @ Dt
     g[:] = a * w * tDt
@@ -143,12 +176,46 @@ def friction_pair(p, F, xi, eta, a, rs, want_hess, g, H):
 
 
 @njit(cache=True)
+def friction_anchor_jacobian(p, F, xi, eta, a, rs):
+    """(15, 2) ``d g / d(xi, eta)`` of :func:`friction_pair`'s gradient ``g = a w t^T dt``: with
+    ``v_xi = -sum_j phi_j,xi x_j``, ``t_xi = v_xi - (n . v_xi) n`` and ``dt_xi`` alike, ``g_xi =
+    a (c (t . t_xi) t^T dt + w (t_xi^T dt + t^T dt_xi))``."""
+    t, Dt, n, Dn, D2n, v, V, al, Dal = anchor_offset(p, F, xi, eta, False)
+    G, w, c = bristle_potential(np.sqrt(t @ t), rs)
+    tDt = t @ Dt
+    dphi = anchor_weights(xi, eta)
+    out = np.zeros((15, 2))
+    for e in range(2):
+        v_e = np.zeros(3)
+        V_e = np.zeros((3, 15))
+        for j in range(4):
+            v_e -= dphi[e, j] * F[j]
+            V_e -= dphi[e, j] * _SEL[j + 1]
+        al_e = n @ v_e
+        Dal_e = v_e @ Dn + n @ V_e
+        t_e = v_e - al_e * n
+        Dt_e = V_e - np.outer(n, Dal_e) - al_e * Dn
+        out[:, e] = a * (c * (t @ t_e) * tDt + w * (t_e @ Dt + t @ Dt_e))
+    return out
+
+
+@njit(cache=True)
+def pair_dofs(node, face, faces):
+    """(15,) the dofs of the pair (``node``, ``face``): the node's, then the face's corners'."""
+    out = np.empty(15, dtype=np.int64)
+    for j in range(5):
+        idx = node if j == 0 else faces[face, j - 1]
+        for d in range(3):
+            out[3 * j + d] = 3 * idx + d
+    return out
+
+
+@njit(cache=True)
 def _scatter(node, face, faces, c, g, H, grad, hdata, slots, local, want_grad, want_hess, project):
     if want_grad:
-        for j in range(5):
-            idx = node if j == 0 else faces[face, j - 1]
-            for d in range(3):
-                grad[3 * idx + d] += g[3 * j + d]
+        dofs = pair_dofs(node, face, faces)
+        for i in range(15):
+            grad[dofs[i]] += g[i]
     if want_hess:
         if project:
             lam, vec = np.linalg.eigh(H)
@@ -183,7 +250,7 @@ def box_assemble(x, nodes, faces, opposite, weight, hist, k, eps, rs, grad, hdat
         if best < 0.0:
             total += normal_pair(p, x[faces[fb]], k, eps, want_hess, g, H)
             _scatter(node, fb, faces, c, g, H, grad, hdata, slots, local, want_grad, want_hess, project)
-        fa = int(hist[c, 0])
+        fa = face_index(hist[c, 0])
         if fa >= 0 and weight[c] > 0.0:
             total += friction_pair(p, x[faces[fa]], hist[c, 1], hist[c, 2], weight[c], rs, want_hess, g, H)
             _scatter(node, fa, faces, c, g, H, grad, hdata, slots, local, want_grad, want_hess, project)
