@@ -82,7 +82,9 @@ EXPECTED = {
                            r"20 task ids made at difficulty 'medium'"],
     "carry_and_push.py": [r"SoftTripodCarry-v0 +easy +: robot +[+-]\d+\.\d mm, payload \d+\.\d g \(mu 0\.8\) moved "
                           r"+[+-]\d+\.\d mm, tilt +\d+\.\d deg; return +[+-]\d+\.\d+; ran 10 steps",
-                          r"SoftTripodPushBox-v0 +easy +: robot +[+-]\d+\.\d mm, box \d+\.\d g pushed +[+-]\d+\.\d mm"],
+                          r"SoftTripodPushBox-v0 +easy +: robot +[+-]\d+\.\d mm, box \d+\.\d g pushed +[+-]\d+\.\d mm",
+                          r"d\(box x after 0\.20 s\) / d amplitude: [+-]\d+\.\d+ mm exact; central differences "
+                          r"[+-]\d+\.\d+ mm \(h = 1e-4\)"],
     "robot_from_surface.py": [r"meshed quadruped\.obj: \d+ nodes, \d+ tets",
                               r"mass +body \d+\.\d g \+ payload \d+\.\d g on \d+ top nodes",
                               r"picture: results/quadruped_quick/quadruped\.png", r"iteration 1: objective \S+ -> \S+",
