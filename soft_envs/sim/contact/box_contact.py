@@ -28,9 +28,9 @@ robot up to ``tan a = mu_b`` and slides it beyond, with no creep.
 Derivatives: per pair (node, face) the energy is a function of 15 coordinates ``y = (p, a, b, c,
 d)``; ``dn/dy = (I - n n^T) / |w| dw/dy`` and ``d^2 n / dy^2`` follow from ``w`` being
 bilinear in the corners, and the gradient and Hessian of ``delta`` and of ``t`` follow by the
-chain rule (:mod:`.box_geometry`, numba kernels). The energy is C2 within a face's region and,
-at the switch of the nearest face, continuous with a gradient that jumps (a box has edges). The Hessian
-is exact; the Newton solver's projected fallback clamps each pair's negative eigenvalues
+chain rule (:mod:`.box_geometry`, numba kernels). The energy is C2 within a face's region
+and, at the switch of the nearest face, continuous with a gradient that jumps (a box has
+edges). The Hessian is exact; the Newton solver's projected fallback clamps each pair's negative eigenvalues
 (:meth:`BoxContact.assemble_projected`). The sensitivities' products (``d grad / d x_prev``
 through ``N_{k-1}``, ``d grad / d anchors``, the anchors' update and their transposes) are
 :mod:`.box_sensitivity`'s kernels. Not modelled: the box's corners and edges against the
@@ -47,6 +47,7 @@ from .box_sensitivity import anchor_tangent, history_product, prev_product
 from .penalty import one_sided_quadratic
 
 __all__ = ["BoxContact"]
+
 
 def _faces(hist) -> np.ndarray:
     """(c,) the anchors' faces (:func:`.box_geometry.face_index`)."""
