@@ -19,6 +19,7 @@ Then ``trajopt mesh`` (the commands are in docs/robots.md) tetrahedralises them 
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -65,7 +66,9 @@ def write_obj(path: Path, name: str, points: np.ndarray, tris: np.ndarray) -> No
     lines = [f"# {name} foam body, millimetres, +Z up, +X forward (assets/make_surfaces.py)"]
     lines += [f"v {x:g} {y:g} {z:g}" for x, y, z in points]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in tris]
-    path.write_text("\n".join(lines) + "\n")
+    tmp = path.with_name(f".{path.name}.tmp")            # atomic: an interrupted run leaves the old file whole
+    tmp.write_text("\n".join(lines) + "\n")
+    os.replace(tmp, path)
 
 
 if __name__ == "__main__":

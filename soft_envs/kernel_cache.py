@@ -8,23 +8,28 @@ numba's cache at ``soft_envs/__pycache__/numba-<hash>/`` (or, when the package f
 writable, ``$XDG_CACHE_HOME/soft_envs/numba-<hash>/``), the hash over every source file of
 :mod:`soft_envs.sim`: any change there starts an empty cache, and an unchanged checkout keeps its
 compiled kernels. A ``NUMBA_CACHE_DIR`` set by the user is left as it is (its kernels are then
-the user's to clear). Folders of older sources are not removed (a process of the older sources
-may still be using one).
+the user's to clear). Each use touches the folder; folders of other sources beside it that no
+process has used for :data:`STALE_DAYS` days are removed (:func:`prune_stale_caches`: a folder in
+use by a running process of older sources is younger than that).
 """
 from __future__ import annotations
 
 import hashlib
 import os
+import shutil
 import sys
 import tempfile
+import time
 from pathlib import Path
 
-__all__ = ["kernel_sources_hash", "kernel_cache_dir", "use_source_keyed_cache"]
+__all__ = ["kernel_sources_hash", "kernel_cache_dir", "use_source_keyed_cache", "prune_stale_caches", "STALE_DAYS"]
 
 PACKAGE = Path(__file__).resolve().parent
 #: the environment variable that says ``NUMBA_CACHE_DIR`` was set here (a child process of
 #: another checkout, e.g. a benchmark's, computes its own folder instead of inheriting ours)
 MARKER = "SOFT_ENVS_KERNEL_CACHE"
+#: a kernel cache folder of other sources unused for this many days is removed
+STALE_DAYS = 14.0
 
 
 def kernel_sources_hash(root: Path = PACKAGE / "sim") -> str:
@@ -71,4 +76,27 @@ def use_source_keyed_cache() -> Path | None:
     if "numba" in sys.modules:
         from numba.core import config
         config.CACHE_DIR = str(folder)
+    prune_stale_caches(folder)
     return folder
+
+
+def prune_stale_caches(folder: Path, max_age_days: float = STALE_DAYS) -> list[Path]:
+    """Touch ``folder`` (in use now) and remove the other ``numba-*`` folders beside it whose
+    last modification is more than ``max_age_days`` old; returns those removed. A folder that
+    cannot be removed (another process removing it too, permissions) is left, silently."""
+    folder = Path(folder)
+    try:
+        os.utime(folder)
+    except OSError:
+        return []
+    removed = []
+    cutoff = time.time() - 86400.0 * max_age_days
+    for other in folder.parent.glob("numba-*"):
+        try:
+            if other == folder or not other.is_dir() or other.stat().st_mtime > cutoff:
+                continue
+            shutil.rmtree(other)
+            removed.append(other)
+        except OSError:
+            continue
+    return removed

@@ -33,16 +33,16 @@ from matplotlib.figure import Figure
 
 from . import render_overlays as overlays
 from .animation import write_animation
+from .render_ground import SKY as _SKY
+from .render_ground import Relief, goal_ring, ground_tiles
 from .sim.mesh import boundary_faces
 
 __all__ = ["Renderer", "surface_triangles", "write_animation"]
 
-_SKY = np.array([0.93, 0.95, 0.98])
-_TILE_A = np.array([0.80, 0.80, 0.78])
-_TILE_B = np.array([0.68, 0.68, 0.66])
 _SHADOW = np.array([0.42, 0.42, 0.42])
 _SLACK = (0.55, 0.55, 0.55, 1.0)
 _TRAIL = (0.85, 0.2, 0.1, 1.0)
+_GOAL = (0.1, 0.6, 0.25, 1.0)
 _CABLE_WIDTH, _TRAIL_WIDTH = 2.2, 1.6
 _UP = np.array([0.0, 1.0, 0.0])
 
@@ -55,8 +55,9 @@ class Renderer:
 
     One Agg figure is created at construction and reused for every frame.
     Drawn back to front: checkered ground (tiles fixed in world coordinates,
-    so motion is visible), the robot's shadow (upward-facing triangles
-    projected vertically onto the ground), the COM trail on the ground, the
+    so motion is visible; on a relief, shaded quads on the ground's surface:
+    :mod:`soft_envs.render_ground`), the robot's shadow (upward-facing triangles
+    projected vertically onto the ground), the COM trail and a goal's ring on the ground, the
     Lambert-shaded surface (back faces culled, depth-sorted), and the cables
     *on top* of the body (x-ray style, so embedded cables stay visible),
     coloured by tension (grey when slack); then the overlays asked for.
@@ -148,6 +149,9 @@ class Renderer:
         self.backface_culling = backface_culling
         self.tile_size = self.body_length / 2.0
         self.ground_extent = 8.0 * self.body_length
+        #: quads per tile side on a relief (:mod:`soft_envs.render_ground`)
+        self.ground_subdivisions = 4
+        self._relief: Relief | None = None
         self._build_figure()
 
     # ------------------------------------------------------------------ setup
@@ -163,9 +167,11 @@ class Renderer:
         self._ground = PolyCollection([], zorder=0, edgecolors="face", linewidths=0.3)
         self._shadow = PolyCollection([], zorder=1, facecolors=_SHADOW, edgecolors=_SHADOW, linewidths=0.6)
         self._trail = LineCollection([], zorder=2, colors=[_TRAIL], linewidths=_TRAIL_WIDTH)
+        self._goal = LineCollection([], zorder=2, colors=[_GOAL], linewidths=_TRAIL_WIDTH)
+        self._pole = LineCollection([], zorder=2, colors=[_GOAL], linewidths=_TRAIL_WIDTH)
         self._body = PolyCollection([], zorder=3, linewidths=0.25 if self.edges else 0.5)
         self._cables = LineCollection([], zorder=4, linewidths=_CABLE_WIDTH, capstyle="round")
-        for coll in (self._ground, self._shadow, self._trail, self._body, self._cables):
+        for coll in (self._ground, self._shadow, self._trail, self._goal, self._pole, self._body, self._cables):
             ax.add_collection(coll)
         self._gravity = ax.annotate(
             "", xy=(0, 0), xytext=(0, 0), xycoords="axes fraction", textcoords="axes fraction",
@@ -233,25 +239,26 @@ class Renderer:
 
     # ----------------------------------------------------------------- layers
     def _update_ground(self, target: np.ndarray, gy: float) -> None:
-        s, r = self.tile_size, self.ground_extent
-        i = np.arange(np.floor((target[0] - r) / s), np.ceil((target[0] + r) / s))
-        k = np.arange(np.floor((target[2] - r) / s), np.ceil((target[2] + r) / s))
-        ii, kk = (a.ravel() for a in np.meshgrid(i, k, indexing="ij"))
-        corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
-        xs = (ii[:, None] + corners[None, :, 0]) * s
-        zs = (kk[:, None] + corners[None, :, 1]) * s
-        quads = np.stack([xs, np.full_like(xs, gy), zs], axis=-1)
+        quads, cols = ground_tiles(target, self.tile_size, self.ground_extent, height=gy, relief=self._relief,
+                                   subdivisions=self.ground_subdivisions, light=self._light)
         pix, depth = self.project(quads, target)
         keep = self._drawable(pix, depth)
-        parity = (ii + kk).astype(np.int64) % 2
-        base = np.where(parity[:, None] == 0, _TILE_A, _TILE_B)
-        centre = quads.mean(axis=1)
-        dist = np.hypot(centre[:, 0] - target[0], centre[:, 2] - target[2])
-        fade = np.clip(dist / r, 0.0, 1.0)[:, None] ** 2
-        cols = (1.0 - fade) * base + fade * _SKY
         order = np.argsort(-depth.mean(axis=1)[keep], kind="stable")
         self._ground.set_verts(pix[keep][order])
         self._ground.set_facecolor(cols[keep][order])
+
+    def _on_ground(self, pts: np.ndarray, gy: float, lift: float) -> np.ndarray:
+        """``pts`` (..., 3) moved vertically onto the ground, ``lift`` [m] above it."""
+        out = np.array(pts, dtype=float)
+        out[..., 1] = (gy if self._relief is None else self._relief.at(out[..., 0], out[..., 2])) + lift
+        return out
+
+    def _set_relief(self, ground) -> None:
+        """The relief to draw (None: the plane): a new ground gets a new lattice of heights."""
+        if ground is None:
+            self._relief = None
+        elif self._relief is None or self._relief.ground is not ground:
+            self._relief = Relief(ground, self.tile_size / self.ground_subdivisions)
 
     def _update_body(self, x: np.ndarray, target: np.ndarray, gy: float) -> None:
         p = x[self.tris]  # (m, 3, 3)
@@ -263,8 +270,7 @@ class Renderer:
         facing = np.einsum("ij,ij->i", normal, self.camera_position(target) - centroid)
         # Shadow: vertical projection of upward-facing triangles.
         up = finite & (normal[:, 1] > 0)
-        flat = p[up].copy()
-        flat[..., 1] = gy + 1e-4 * self.body_length
+        flat = self._on_ground(p[up], gy, 1e-4 * self.body_length)
         spix, sdepth = self.project(flat, target)
         self._shadow.set_verts(spix[self._drawable(spix, sdepth)])
         # Body: Lambert shading, back-face culling, painter's order.
@@ -315,9 +321,22 @@ class Renderer:
         trail = np.array(com_trail, dtype=float)
         if trail.ndim != 2 or trail.shape[1] != 3:
             raise ValueError(f"com_trail must be (t, 3), got {trail.shape}")
-        trail[:, 1] = gy + 2e-4 * self.body_length
+        trail = self._on_ground(trail, gy, 2e-4 * self.body_length)
         seg, _ = self._segments(trail, target)
         self._trail.set_segments(seg)
+
+    def _update_goal(self, goal, radius: float | None, target: np.ndarray, gy: float) -> None:
+        if goal is None:
+            self._goal.set_segments([])
+            self._pole.set_segments([])
+            return
+        r = 0.25 * self.body_length if radius is None else float(radius)
+        ring, pole = goal_ring(goal, r, 0.5 * self.body_length, height=gy, relief=self._relief,
+                               lift=2e-4 * self.body_length)
+        self._goal.set_segments(self._segments(ring, target)[0])
+        self._pole.set_segments(self._segments(pole, target)[0])
+        # painter's order: the pole hides the body when it stands nearer the camera than the body's centre
+        self._pole.set_zorder(3.5 if self.project(pole[:1], target)[1][0] < self.distance else 2)
 
     def _update_gravity(self, gravity: Sequence[float] | None, target: np.ndarray) -> None:
         g = None if gravity is None else np.asarray(gravity, dtype=float).reshape(3)
@@ -345,6 +364,9 @@ class Renderer:
         gravity: Sequence[float] | None = None,
         title: str | None = None,
         look_at: np.ndarray | None = None,
+        ground=None,
+        goal: np.ndarray | None = None,
+        goal_radius: float | None = None,
     ) -> np.ndarray:
         """Render one frame.
 
@@ -354,11 +376,18 @@ class Renderer:
             cables: list of ``(points (p, 3), tension)``; coloured by tension,
                 grey when slack.
             com_trail: ``(t, 3)`` centre-of-mass history, drawn on the ground.
-            ground_height: ``y`` of the ground plane.
+            ground_height: ``y`` of the ground plane (without ``ground``).
             gravity: optional gravity vector, shown as an arrow in the top-left
                 corner (projected direction).
             title: optional text at the top.
             look_at: override the camera target (default: mean of ``x``).
+            ground: a relief to draw instead of the plane: any object with a
+                vectorised ``height(x, z)`` [m] (a
+                :class:`~soft_envs.sim.ground.HeightField`); the shadow, the
+                trail and the goal lie on it.
+            goal: a goal position ``(x, y, z)`` [m]: a green ring of
+                ``goal_radius`` (default a quarter body length) on the
+                ground around ``(x, z)`` and a pole half a body length tall.
 
         Returns:
             ``(height, width, 3)`` uint8 RGB image.
@@ -370,9 +399,11 @@ class Renderer:
             raise ValueError(f"x has {x.shape[0]} nodes but surface_tris references node {self.tris.max()}")
         target = self.camera_target(x) if look_at is None else np.asarray(look_at, dtype=float).reshape(3)
         gy = float(ground_height)
+        self._set_relief(ground)
         self._update_ground(target, gy)
         self._update_body(x, target, gy)
         self._update_trail(com_trail, target, gy)
+        self._update_goal(goal, goal_radius, target, gy)
         self._update_cables(cables, target)
         self._update_gravity(gravity, target)
         self._title.set_text(title or "")

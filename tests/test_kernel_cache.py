@@ -3,6 +3,7 @@ a kernel compiled with a function of another module must not survive a change of
 from __future__ import annotations
 
 import os
+import time
 import subprocess
 import sys
 from pathlib import Path
@@ -49,3 +50,21 @@ def test_importing_soft_envs_points_numba_at_the_folder_of_these_sources():
     out = subprocess.run([sys.executable, "-c", "import soft_envs.sim.materials, numba; print(numba.config.CACHE_DIR)"],
                          env=env, capture_output=True, text=True, check=True).stdout.strip()
     assert Path(out).name == f"numba-{kernel_sources_hash(ROOT / 'soft_envs' / 'sim')}"
+
+
+def test_folders_of_other_sources_unused_for_two_weeks_are_removed(tmp_path):
+    from soft_envs.kernel_cache import STALE_DAYS, prune_stale_caches
+    now = time.time()
+    made = {}
+    for name, age_days in (("numba-current", 60), ("numba-old", STALE_DAYS + 1), ("numba-recent", STALE_DAYS - 1),
+                           ("other-old", 60)):
+        folder = tmp_path / name
+        (folder / "sim").mkdir(parents=True)
+        (folder / "sim" / "kernel.nbi").write_bytes(b"x")
+        os.utime(folder, (now - 86400 * age_days,) * 2)
+        made[name] = folder
+    removed = prune_stale_caches(made["numba-current"])
+    assert removed == [made["numba-old"]]
+    assert not made["numba-old"].exists()
+    assert all(made[n].exists() for n in ("numba-current", "numba-recent", "other-old"))
+    assert made["numba-current"].stat().st_mtime > now - 60          # touched: in use now

@@ -42,9 +42,11 @@ class EnvViewer:
         self._window = None
 
     def frame(self, x: np.ndarray, *, cables: Sequence[tuple[np.ndarray, float]],
-              com_trail: np.ndarray, gravity: np.ndarray, title: str) -> np.ndarray:
-        """A uint8 (height, width, 3) RGB frame."""
-        return self.renderer.render(x, cables=cables, com_trail=com_trail, gravity=gravity, title=title)
+              com_trail: np.ndarray, gravity: np.ndarray, title: str, **scene: Any) -> np.ndarray:
+        """A uint8 (height, width, 3) RGB frame; ``scene``: the ground and goal keywords of
+        :meth:`soft_envs.render.Renderer.render` (``ground``, ``ground_height``, ``goal``,
+        ``goal_radius``)."""
+        return self.renderer.render(x, cables=cables, com_trail=com_trail, gravity=gravity, title=title, **scene)
 
     def show(self, frame: np.ndarray) -> None:
         """Show ``frame`` in a matplotlib window (created on first use) and let it refresh."""
@@ -107,7 +109,18 @@ class RenderingMixin:
         cables = cable_polylines(self.robot, self._x, self._sim.cable_tension(self._x, self._u))
         return self._viewer.frame(self._x, cables=cables, com_trail=np.array(self._trail),
                                   gravity=self._gravity,
-                                  title=f"{self.robot.name}  t = {self._n_sub * self.timestep:.2f} s")
+                                  title=f"{self.robot.name}  t = {self._n_sub * self.timestep:.2f} s",
+                                  **self._render_scene())
+
+    def _render_scene(self) -> dict[str, Any]:
+        """The ground and the task's marks drawn under the robot: the robot's ground (a
+        relief, or the height of a flat one) and whatever the task adds (a goal: its override)."""
+        ground = self._base_robot.ground
+        if ground is None:
+            return {}
+        if ground.is_flat:
+            return {"ground_height": float(ground.heights.flat[0])}
+        return {"ground": ground}
 
     def close(self) -> None:
         if self._viewer is not None:

@@ -67,5 +67,8 @@ class ReachGoalEnv(TaskEnv):
         success = bool(self.goal_distance() <= self.goal_radius_bl * self._body_length and self.is_healthy)
         return {"reward_forward": self._goal_weight * progress}, success
 
+    def _render_scene(self) -> dict[str, Any]:
+        return {**super()._render_scene(), "goal": self._goal.copy(), "goal_radius": self.goal_radius_bl * self._body_length}
+
     def _task_info(self) -> dict[str, Any]:
         return {"goal": self._goal.copy(), "goal_distance": self.goal_distance()}
