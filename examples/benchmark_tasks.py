@@ -3,7 +3,7 @@
 Run:  python examples/benchmark_tasks.py          (about 20 s)
 
 What it shows: each task (walk, turn, slope up and down, rough terrain, climb a step, cross a
-trench, reach a goal; docs/tasks.md) is a Gymnasium id per robot, made with ``gymnasium.make``
+trench, reach a goal, carry a payload, push a box; docs/tasks.md) is a Gymnasium id per robot, made with ``gymnasium.make``
 and a ``difficulty``; its observation is the robot's plus the task's parts
 (``observation_structure``), and its reward is the sum of the terms in ``info`` (``reward_forward``,
 ``reward_ctrl``, ``reward_survive``, ``reward_success``). Random actions walk nowhere: the
@@ -37,7 +37,8 @@ for env_id in sorted(soft_envs.TASK_ENV_IDS, key=lambda i: (i.startswith("SoftPu
         for k in TERMS:
             sums[k] += info[k]
         if terminated or truncated:
-            ended = " (success)" if info["is_success"] else " (ended: unhealthy or failed)"
+            ended = (" (success)" if info["is_success"] else " (payload fell)" if info.get("payload_fell")
+                     else " (ended: unhealthy or failed)")
             break
     extra = [k for k in env.unwrapped.observation_structure if k not in ROBOT_PARTS]
     terms = "  ".join(f"{k[7:]} {v:+7.3f}" for k, v in sums.items())

@@ -77,7 +77,8 @@ LATEST_ENV_IDS = {robot: f"{name}-{LATEST_VERSION}" for robot, name in {**_ENV_N
 TASKS = {"walk": ("Walk", "WalkEnv"), "turn": ("Turn", "TurnEnv"), "slope_up": ("SlopeUp", "SlopeUpEnv"),
          "slope_down": ("SlopeDown", "SlopeDownEnv"), "rough_terrain": ("RoughTerrain", "RoughTerrainEnv"),
          "climb_step": ("ClimbStep", "ClimbStepEnv"), "cross_trench": ("CrossTrench", "CrossTrenchEnv"),
-         "reach_goal": ("ReachGoal", "ReachGoalEnv")}
+         "reach_goal": ("ReachGoal", "ReachGoalEnv"), "carry": ("Carry", "CarryEnv"),
+         "push_box": ("PushBox", "PushBoxEnv")}
 #: Each task id's entry point and keywords (its robot): ``{id: (entry point, kwargs)}``.
 TASK_ENV_IDS = {f"{name}{stem}-v0": (f"soft_envs.envs.tasks:{cls}", {"robot": robot})
                 for robot, name in _ENV_NAMES.items() for stem, cls in TASKS.values()}

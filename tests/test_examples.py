@@ -78,7 +78,13 @@ EXPECTED = {
                            r"+[+-]\d+\.\d+ +ctrl +-\d+\.\d+ +survive +\+\d\.\d+ +success",
                            r"SoftPuppyRoughTerrain-v0 +obs 41, act 8, task parts \['terrain'\]",
                            r"SoftTripodReachGoal-v0 +obs 22, act 2, task parts \['goal_offset'\]",
-                           r"16 task ids made at difficulty 'medium'"],
+                           r"SoftPuppyCarry-v0 +obs 50, act 8, task parts \['box_offset', 'box_velocity', 'box_axes'\]",
+                           r"20 task ids made at difficulty 'medium'"],
+    "carry_and_push.py": [r"SoftTripodCarry-v0 +easy +: robot +[+-]\d+\.\d mm, payload \d+\.\d g \(mu 0\.8\) moved "
+                          r"+[+-]\d+\.\d mm, tilt +\d+\.\d deg; return +[+-]\d+\.\d+; ran 10 steps",
+                          r"SoftTripodPushBox-v0 +easy +: robot +[+-]\d+\.\d mm, box \d+\.\d g pushed +[+-]\d+\.\d mm",
+                          r"d\(box x after 0\.20 s\) / d amplitude: [+-]\d+\.\d+ mm exact; central differences "
+                          r"[+-]\d+\.\d+ mm \(h = 1e-4\)"],
     "robot_from_surface.py": [r"meshed quadruped\.obj: \d+ nodes, \d+ tets",
                               r"mass +body \d+\.\d g \+ payload \d+\.\d g on \d+ top nodes",
                               r"picture: results/quadruped_quick/quadruped\.png", r"iteration 1: objective \S+ -> \S+",

@@ -28,7 +28,7 @@ REWARD_TERMS = ("reward_forward", "reward_ctrl", "reward_survive", "reward_succe
 
 
 def test_the_ids_are_registered_and_the_robot_ids_kept():
-    assert len(TASK_IDS) == 16 and len(TASK_CLASSES) == 8
+    assert len(TASK_IDS) == 20 and len(TASK_CLASSES) == 10
     for task, by_robot in soft_envs.TASK_IDS_BY_TASK.items():
         for robot, env_id in by_robot.items():
             spec = gym.spec(env_id)

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..sim.motors import check_motor_model
 
-__all__ = ["check_env_arguments", "is_number", "RENDER_MODES"]
+__all__ = ["check_env_arguments", "is_number", "number_in", "RENDER_MODES"]
 
 RENDER_MODES = ("human", "rgb_array")
 
@@ -20,6 +20,18 @@ RENDER_MODES = ("human", "rgb_array")
 def is_number(v: Any) -> bool:
     """A real number (Python or NumPy), not a bool."""
     return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+def number_in(name: str, value: Any, low: float = -math.inf, high: float = math.inf, *, positive: bool = False,
+              what: str = "") -> float:
+    """``value`` as a float if it is a finite number in [low, high] (and > 0 with ``positive``),
+    else a ValueError ``<name> must be a <positive|finite> number[ in [low, high]][ what], got ...``."""
+    ok = is_number(value) and math.isfinite(value) and low <= value <= high and (value > 0 or not positive)
+    if not ok:
+        bounds = "" if (low, high) == (-math.inf, math.inf) else f" in [{low:g}, {high:g}]"
+        raise ValueError(f"{name} must be a {'positive' if positive else 'finite'} number{bounds}"
+                         f"{' ' + what if what else ''}, got {value!r}")
+    return float(value)
 
 
 def _is_integer(v: Any) -> bool:

@@ -235,7 +235,7 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
                         substeps=self._substeps)
         x_rest = sim.rest_state(robot.u_rest).x
         self._sim, self._domain = sim, factors
-        self._frame = BodyFrame(x_rest, robot.node_masses)
+        self._frame = BodyFrame(x_rest, robot.body_node_masses)     # the robot's own body (a box left out)
         com_rest = self._frame.com(x_rest)
         self._rest_com_height = float(com_rest[1]) - self._ground_ref.height_under(com_rest)
 
@@ -328,12 +328,16 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         # truncation is left to the TimeLimit wrapper added by gymnasium.make
         return self._get_obs(), reward, terminated, False, info
 
+    def _has_terminated(self) -> bool:
+        """Whether the last step returned ``terminated=True`` (a failed simulation step, or
+        unhealthy with ``terminate_when_unhealthy``; a task may add its own ends)."""
+        return (getattr(self, "_failed_state", None) is self._state
+                or (self._n_sub > 0 and self._task.terminate_when_unhealthy and not self._healthy))
+
     def _warn_if_stepping_after_termination(self) -> None:
         """Warn (once per episode, as Gymnasium's own environments do) when :meth:`step` follows
         a step that returned ``terminated=True`` (unhealthy, or a failed simulation step)."""
-        terminated = (getattr(self, "_failed_state", None) is self._state
-                      or (self._n_sub > 0 and self._task.terminate_when_unhealthy and not self._healthy))
-        if not terminated:
+        if not self._has_terminated():
             return
         if self._steps_beyond_terminated == 0:
             logger.warn("You are calling 'step()' even though this environment has already returned terminated = "

@@ -5,7 +5,8 @@ This layer imports numpy, scipy, numba, meshio and cvxopt only: no Gymnasium, no
 :class:`Robot`, :func:`load_robot`, :class:`Simulator`, :class:`Trajectory`,
 :class:`State`, :class:`SimulationError`, :class:`NewtonOptions`, :class:`FactorCache`,
 :class:`TetMesh`, :func:`load_mesh`, :func:`incline_gravity`, :class:`HeightField` (a ground that
-is not flat, ``Robot.ground``), :data:`DEFAULT_DT` (the paper's time
+is not flat, ``Robot.ground``), :class:`Box` and :func:`with_box` (a second body,
+``Robot.box``), :data:`DEFAULT_DT` (the paper's time
 step, 0.033 s) and :data:`GAIT_CYCLE_STEPS` (its gait cycle, 72 steps).
 
 Structure: a :class:`Robot` is static data (mesh, material, payload, cables, motors, contact);
@@ -51,6 +52,7 @@ appendix A, tension control            :class:`.cables.CableTensions`
 
 The optimisation side (eqs. 5, 12, 13 and the zero-slack post-processing) is in ``trajopt``.
 """
+from .box import Box, with_box
 from .gravity import incline_gravity
 from .ground import HeightField
 from .integrator import NewtonOptions, SimulationError
@@ -66,7 +68,7 @@ from .timing import DEFAULT_DT, GAIT_CYCLE_STEPS
 __all__ = ["Robot", "Tendon", "Motor", "ContactParams", "Marker", "MarkerSet", "Simulator", "Trajectory", "State",
            "RolloutStopped",
            "SimulationError", "NewtonOptions", "FactorCache", "TetMesh", "load_mesh", "incline_gravity", "HeightField",
-           "load_robot",
+           "Box", "with_box", "load_robot",
            "DEFAULT_DT", "GAIT_CYCLE_STEPS"]
 
 

@@ -80,7 +80,8 @@ def shape_gradients(points: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, n
 class TetMesh:
     """A validated linear tetrahedral mesh (SI units, metres): finite coordinates, every node in
     a tet, no degenerate or inverted element, no two nodes at one place (a crack: the elements
-    on either side would not be joined), and one connected body (nodes shared between tets).
+    on either side would not be joined), and one connected body (nodes shared between tets), or
+    exactly ``bodies`` of them (a robot with a second body, :mod:`soft_envs.sim.box`).
 
     Attributes
     ----------
@@ -91,11 +92,13 @@ class TetMesh:
     surface : (f, 3) outward boundary triangles.
     boundary_nodes : sorted indices of the nodes on the surface.
     source : where the mesh came from (file name), used in error messages.
+    bodies : the number of connected bodies (1 for a robot; 2 with a second body).
     """
 
     points: np.ndarray
     tets: np.ndarray
     source: str = "<mesh>"
+    bodies: int = 1
     dN: np.ndarray = field(init=False, repr=False)
     volumes: np.ndarray = field(init=False, repr=False)
     surface: np.ndarray = field(init=False, repr=False)
@@ -104,7 +107,7 @@ class TetMesh:
     def __post_init__(self) -> None:
         points = np.ascontiguousarray(self.points, dtype=np.float64)
         tets = np.ascontiguousarray(self.tets, dtype=np.int64)
-        _validate(points, tets, self.source)
+        _validate(points, tets, self.source, self.bodies)
         dN, vol = shape_gradients(points, tets)
         _check_orientation(points, tets, vol, self.source)
         surface = boundary_faces(tets)
@@ -177,7 +180,7 @@ def load_mesh(source: str | Path | meshio.Mesh) -> TetMesh:
     return TetMesh(points, tets, source=name)
 
 
-def _validate(points: np.ndarray, tets: np.ndarray, name: str) -> None:
+def _validate(points: np.ndarray, tets: np.ndarray, name: str, bodies: int = 1) -> None:
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"{name}: points must have shape (n, 3), got {points.shape}")
     if tets.ndim != 2 or tets.shape[1] != 4 or len(tets) == 0:
@@ -195,11 +198,11 @@ def _validate(points: np.ndarray, tets: np.ndarray, name: str) -> None:
     if not used.all():
         idx = np.flatnonzero(~used)
         raise ValueError(f"{name}: {idx.size} unreferenced nodes (not in any tet), e.g. {idx[:10].tolist()}")
-    _check_one_body(points, tets, name)
+    _check_one_body(points, tets, name, bodies)
 
 
-def _check_one_body(points: np.ndarray, tets: np.ndarray, name: str) -> None:
-    """No coincident nodes (a crack) and a single connected component."""
+def _check_one_body(points: np.ndarray, tets: np.ndarray, name: str, bodies: int = 1) -> None:
+    """No coincident nodes (a crack) and a single connected component (``bodies`` of them)."""
     h = float(np.linalg.norm(points[tets[:, 1:]] - points[tets[:, :1]], axis=2).mean())
     pairs = cKDTree(points).query_pairs(COINCIDENT_RTOL * h, output_type="ndarray")
     if len(pairs):
@@ -210,6 +213,10 @@ def _check_one_body(points: np.ndarray, tets: np.ndarray, name: str) -> None:
     n = len(points)
     graph = coo_matrix((np.ones(3 * len(tets)), (np.repeat(tets[:, 0], 3), tets[:, 1:].ravel())), shape=(n, n))
     n_parts, labels = connected_components(graph, directed=False)
+    if bodies != 1:
+        if n_parts != bodies:
+            raise ValueError(f"{name}: the mesh is {n_parts} connected bodies, {bodies} expected")
+        return
     if n_parts > 1:
         sizes = np.bincount(labels)
         main = int(np.argmax(sizes))

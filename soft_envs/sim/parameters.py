@@ -161,6 +161,7 @@ def node_mass_jacobian(robot, names: Sequence[str]) -> np.ndarray:
     for j, n in enumerate(names):
         if n == "density":
             out[:, j] = robot.mesh.lumped_masses(1.0)
+            out[robot.box_nodes, j] = 0.0           # a box's mass is its own
         elif n == "payload_mass" and robot.payload_nodes.size:
             out[robot.payload_nodes, j] = 1.0 / robot.payload_nodes.size
     return out

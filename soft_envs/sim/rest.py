@@ -45,7 +45,7 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
     the controls, gravity and the material (so that a unit mistake shows), when a step fails or
     the body does not settle in ``max_iter``."""
     g = sim.gravity
-    anchored = sim.system.has_history
+    anchored = sim.system.contact.has_history        # the ground law holds the feet (Coulomb)
     relax_g = g if (anchored or sim.robot.fixed_nodes.size) else np.array([0.0, g[1], 0.0])
     robot = _held_on_ground(sim.robot, anchored, params)
     system = EnergySystem(robot, gravity=relax_g, control=sim.control)
@@ -57,7 +57,7 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
     if params:      # its own solver for the exact Hessians: the relaxation's path stays that of rest_state
         exact = NewtonSolver(system, 1.0, solver.options)
         dx0, dh0 = placement_sensitivity(sim, system, params)
-        sens = ForwardSensitivities(exact, sim.robot.node_masses, np.zeros((max_iter, sim.n_motors, 0)),
+        sens = ForwardSensitivities(exact, sim.robot.body_node_masses, np.zeros((max_iter, sim.n_motors, 0)),
                                     params=params, x0=x, dx0dtheta=dx0, dhistory0dtheta=dh0)
     cache = FactorCache()
     for j in range(max_iter):

@@ -17,6 +17,7 @@ from typing import Any, Iterable, Mapping
 import meshio
 import numpy as np
 
+from .box import BOX_NODES, BOX_TETS, Box
 from .contact import CONTACT_LAWS, ContactParams
 from .ground import HeightField
 from .drive import (DEFAULT_MAX_SPEED_RPM, DEFAULT_MAX_TORQUE, DEFAULT_STALL_TORQUE, MOTOR_DEFAULTS, CableData, Motor,
@@ -74,6 +75,8 @@ class Robot:
         ground (HeightField | None): the ground the robot stands on
             (:class:`~soft_envs.sim.ground.HeightField`, ``robot.toml``'s ``[ground]``); None
             (default) for the plane ``y = 0``.
+        box (Box | None): a second body (:class:`~soft_envs.sim.box.Box`, the last 8 nodes and 5
+            tets of ``mesh``: :func:`~soft_envs.sim.box.with_box` adds one), or None (default).
     """
 
     name: str
@@ -93,9 +96,11 @@ class Robot:
     markers: tuple[Marker, ...] = ()
     modulus_scale: np.ndarray | None = None
     ground: HeightField | None = None
+    box: Box | None = None
 
     def __post_init__(self):
         lame_parameters(self.youngs_modulus, self.poisson_ratio)   # validates
+        self._check_box()
         if self.ground is not None and not isinstance(self.ground, HeightField):
             raise ValueError(f"{self.source}: ground must be a HeightField or None, got {type(self.ground).__name__}")
         if self.modulus_scale is not None:
@@ -139,6 +144,19 @@ class Robot:
         check_drive(self)
         _ = self._binding         # binds the tendons' points now, so errors surface at construction
         _ = self.marker_set       # binds the markers now, so errors surface at construction
+
+    def _check_box(self) -> None:
+        """A box is the mesh's second body, its last 8 nodes at the box's corners."""
+        bodies = getattr(self.mesh, "bodies", 1)
+        if self.box is None:
+            if bodies != 1:
+                raise ValueError(f"{self.source}: a mesh of {bodies} bodies needs a box (soft_envs.sim.box.with_box)")
+            return
+        if not isinstance(self.box, Box):
+            raise ValueError(f"{self.source}: box must be a Box or None, got {type(self.box).__name__}")
+        if bodies != 2 or not np.allclose(self.mesh.points[-BOX_NODES:], self.box.corners(), rtol=0, atol=1e-12):
+            raise ValueError(f"{self.source}: the box must be the mesh's second body, its last {BOX_NODES} nodes "
+                             "(soft_envs.sim.box.with_box adds one)")
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -255,24 +273,51 @@ class Robot:
     @cached_property
     def node_masses(self) -> np.ndarray:
         """Lumped masses [kg]: density * volume / 4 per tet node plus the payload spread evenly
-        over ``payload_nodes`` (the motor assembly on the top nodes, paper II-A)."""
+        over ``payload_nodes`` (the motor assembly on the top nodes, paper II-A); a box's nodes
+        carry an eighth of its mass each."""
         m = self.mesh.lumped_masses(self.density)
         if self.payload_mass > 0:
             m[self.payload_nodes] += self.payload_mass / len(self.payload_nodes)
+        if self.box is not None:
+            m[self.box_nodes] = self.box.mass / BOX_NODES
+        m.setflags(write=False)
+        return m
+
+    @property
+    def box_nodes(self) -> np.ndarray:
+        """(8,) the box's nodes (the mesh's last), or (0,) without a box."""
+        n = self.mesh.n_nodes
+        return np.arange(n - BOX_NODES if self.box is not None else n, n, dtype=np.int64)
+
+    @property
+    def n_robot_nodes(self) -> int:
+        """Nodes of the robot's own body (all but a box's)."""
+        return self.mesh.n_nodes - len(self.box_nodes)
+
+    @cached_property
+    def body_node_masses(self) -> np.ndarray:
+        """:attr:`node_masses` of the robot's own body: a box's nodes weigh 0 (the COM, the body
+        frame); :attr:`node_masses` itself without a box."""
+        if self.box is None:
+            return self.node_masses
+        m = self.node_masses.copy()
+        m[self.box_nodes] = 0.0
         m.setflags(write=False)
         return m
 
     @property
     def body_mass(self) -> float:
-        return float(self.density * self.mesh.volumes.sum())
+        n_tets = self.mesh.n_tets - (0 if self.box is None else len(BOX_TETS))
+        return float(self.density * self.mesh.volumes[:n_tets].sum())
 
     @property
     def total_mass(self) -> float:
-        return float(self.node_masses.sum())
+        """The robot's mass [kg], payload included, a box not."""
+        return float(self.body_node_masses.sum())
 
     def com(self, x: np.ndarray) -> np.ndarray:
-        """Mass-weighted centre of mass of positions ``x`` (..., n, 3)."""
-        return np.einsum("...ni,n->...i", x, self.node_masses) / self.total_mass
+        """Mass-weighted centre of mass of positions ``x`` (..., n, 3) (of the robot's own body)."""
+        return np.einsum("...ni,n->...i", x, self.body_node_masses) / self.total_mass
 
     def element_lame(self) -> tuple[np.ndarray, np.ndarray]:
         """Per-tet Lame parameters ``(mu, lam)``: those of ``youngs_modulus`` times

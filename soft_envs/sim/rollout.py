@@ -110,7 +110,7 @@ def run_rollout(newton, robot, start: State, u: np.ndarray, substeps: int, sens:
             gam[k + 1] = cables.deformation(state.x, u[k])
             if stop is not None and stop(k + 1, robot.com(state.x), gam[k + 1]):
                 raise RolloutStopped(k + 1)
-    masses = robot.node_masses
+    masses = robot.body_node_masses          # the robot's own COM (a box left out)
     com = np.einsum("kni,n->ki", xs, masses) / masses.sum()
     traj = Trajectory(x=xs, com=com, cable_deformation=gam, u=u, newton_iterations=iters,
                       info={"history": state.history, "state": state, "start": start, "substeps": substeps})

@@ -293,7 +293,7 @@ class Simulator:
             start = self._start_state(x_rest, x_prev0, rest_h if history0 is None else history0)
         else:
             start = self._start_state(x0, x_prev0, history0)
-        sens = forward_sensitivities(self.newton, self.robot.node_masses, dudz, K, self.n_motors, self.substeps,
+        sens = forward_sensitivities(self.newton, self.robot.body_node_masses, dudz, K, self.n_motors, self.substeps,
                                      store_dxdz=store_dxdz, params=params, dx0dtheta=dx0dtheta,
                                      dhistory0dtheta=dhistory0dtheta, x0=start.x)
         traj = run_rollout(self.newton, self.robot, start, u, self.substeps, sens, want_z=dudz is not None,

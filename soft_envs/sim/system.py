@@ -16,6 +16,7 @@ import scipy.sparse as sp
 
 from .cables import Cables, CableTensions
 from .contact import contact_term
+from .contact.box_contact import BoxContact
 from .elastic import Elastic
 from .gravity import Gravity
 from .parameters import MASS_PARAMETERS, check_parameters, node_mass_jacobian
@@ -82,7 +83,9 @@ class EnergySystem:
     [m], paper eq. 3: :class:`~.cables.Cables`) or ``"tension"`` (u = cable tension [N] >= 0,
     paper appendix A: :class:`~.cables.CableTensions`). ``terms`` lists the terms in the order
     they are summed: elastic, cables, contact (the law of ``robot.contact.model``, from
-    :data:`~.contact.CONTACT_LAWS`), gravity. Terms may keep a history (lagged state
+    :data:`~.contact.CONTACT_LAWS`), gravity, and with a box (``robot.box``,
+    :mod:`~soft_envs.sim.box`) the contact between the robot and the box last
+    (:class:`~.contact.box_contact.BoxContact`; absent otherwise). Terms may keep a history (lagged state
     beyond x_prev, the Coulomb law's stick anchors): the methods take ``history``, a tuple
     aligned with the terms."""
 
@@ -109,6 +112,8 @@ class EnergySystem:
         self._mass_jacobian = dict(zip(masses, node_mass_jacobian(robot, masses).T))
         self.terms: list[EnergyTerm] = [self.elastic, self.cables, self.contact,
                                         Gravity(robot.node_masses, g, self._mass_jacobian)]
+        if robot.box is not None:
+            self.terms.append(BoxContact(robot))
         blocks = [term.hessian_blocks() for term in self.terms]
         self.pattern, slots, diag_slots = build_pattern(self.n_dof, self.free, [b for bs in blocks for b in bs])
         start = 0

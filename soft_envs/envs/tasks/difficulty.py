@@ -37,6 +37,10 @@ LEVELS: dict[str, dict[str, dict[str, Any]]] = {
     "reach_goal": {"easy": {"distance_bl": 0.5, "half_angle_deg": 30.0},
                    "medium": {"distance_bl": 1.0, "half_angle_deg": 90.0},
                    "hard": {"distance_bl": 1.5, "half_angle_deg": 180.0}},
+    "carry": {"easy": {"mass_fraction": 0.1, "friction_coefficient": 0.8},
+              "medium": {"mass_fraction": 0.25, "friction_coefficient": 0.6},
+              "hard": {"mass_fraction": 0.5, "friction_coefficient": 0.4}},
+    "push_box": {"easy": {"mass_fraction": 0.1}, "medium": {"mass_fraction": 0.25}, "hard": {"mass_fraction": 0.5}},
 }
 
 #: per task, what ``difficulty`` scales (one line, for the documentation)
@@ -49,6 +53,8 @@ SCALES = {
     "climb_step": "the step's height",
     "cross_trench": "the trench's length along the heading",
     "reach_goal": "the goal's distance and the range of its direction",
+    "carry": "the payload's mass (a fraction of the robot's) and its friction coefficient on the robot",
+    "push_box": "the box's mass (a fraction of the robot's)",
 }
 
 

@@ -23,8 +23,9 @@ class TaskDoc:
     middle: ``SoftTripod<stem>-v0``), ``description``, ``observation`` (rows ``(part, size, what,
     unit)`` appended after the robot's), ``forward`` (what the forward reward measures),
     ``success`` (when the task succeeds, or "" for none), ``levels`` (difficulty -> what it sets,
-    in words), ``arguments`` (rows of the task's own keywords) and ``owned`` (the robot keywords
-    the task sets)."""
+    in words), ``arguments`` (rows of the task's own keywords), ``owned`` (the robot keywords
+    the task sets), ``termination`` (an end of the task's own, or "") and ``extra_reward`` (a reward
+    term of the task's own: its name in the formula and its bullet, or empty)."""
 
     key: str
     stem: str
@@ -35,6 +36,8 @@ class TaskDoc:
     observation: tuple[tuple[str, int, str, str], ...] = ()
     success: str = ""
     arguments: tuple[tuple[str, str, str, str], ...] = ()
+    termination: str = ""
+    extra_reward: tuple[str, str] = ("", "")
 
 
 def _dr(v) -> str:
@@ -56,6 +59,9 @@ def _in_mm(length_bl: float, digits: int) -> str:
             f"{1e3 * length_bl * PUPPY.body_length_m:.{digits}f} mm)")
 
 
+_BOX_PARTS = (("box_offset", 3, "the box's centre minus the COM (world frame)", "position (m)"),
+              ("box_velocity", 3, "the box centre's velocity over the last physics step", "velocity (m/s)"),
+              ("box_axes", 6, "the box's x axis, then its y axis, in the world frame", "unit vector"))
 _WALK = "the COM's speed along the target heading (`target_heading_deg`, 0 = +x) in body lengths per second"
 _SUCCESS_ARGS = (("`success_reward`", "**float**", "`10`", "reward of the step that first succeeds"),
                  ("`terminate_on_success`", "**bool**", "`True`", "a success ends the episode (`terminated=True`)"))
@@ -119,6 +125,35 @@ TASK_DOCS = {
         (("`goal_radius_bl`", "**float**", "`0.25`", "success radius [body lengths]"),
          ("`forward_reward_weight`", "**float**", "`10`", "weight of *forward_reward* (progress towards the goal)"),
          *_SUCCESS_ARGS)),
+    "carry": TaskDoc(
+        "carry", "Carry", "Walk along +x carrying a payload, a stiff box resting on the robot's top (0.6 x 0.1 body "
+        "lengths, 1.1 times the robot's width across; a second body in the same implicit solve, held by contact "
+        "and Coulomb friction with the robot's nodes), without dropping it. `env.unwrapped.box` is the box; the "
+        "gradient hooks (`rollout` with `dudz`) differentiate through it.",
+        _WALK, _per_level("carry", lambda v: f"payload {v['mass_fraction']:g} of the robot's mass, friction "
+                          f"coefficient {v['friction_coefficient']:g} on the robot"),
+        ("task", "target_heading_deg"), _BOX_PARTS,
+        arguments=(("`drop_penalty`", "**float**", "`10`", "subtracted in the step the payload falls "
+                    "(`info[\"reward_drop\"]`)"),
+                   ("`fall_height_fraction`", "**float**", "`0.5`", "the payload falls when its centre's height "
+                    "above the ground drops below this fraction of its height at rest"),
+                   ("`fall_tilt_deg`", "**float**", "`60`", "... or when its y axis tilts more than this from +y")),
+        extra_reward=("drop_reward", "*drop_reward* (`info[\"reward_drop\"]`): `-drop_penalty` (-10) in the step "
+                      "the payload falls, else 0."),
+        termination="The payload falls (`info[\"payload_fell\"]`, `fall_height_fraction`, `fall_tilt_deg`), "
+        "whatever `terminate_when_unhealthy` says; its step adds `-drop_penalty`."),
+    "push_box": TaskDoc(
+        "push_box", "PushBox", "Push a stiff box (0.25 x 0.25 body lengths, 1.2 times the robot's width across) "
+        "standing on the ground 0.1 body lengths ahead of the robot's front along +x: a second body in the same "
+        "implicit solve, sliding on the ground under the robot's contact law, pushed by the robot's nodes. "
+        "`env.unwrapped.box` is the box; the gradient hooks (`rollout` with `dudz`) differentiate through it.",
+        "the box's speed along +x (its centre's displacement over the step, in body lengths per second)",
+        _per_level("push_box", lambda v: f"box {v['mass_fraction']:g} of the robot's mass"),
+        ("task", "target_heading_deg"), _BOX_PARTS,
+        "the box has moved `push_distance_bl` body lengths along +x since the reset and the robot is healthy",
+        (("`push_distance_bl`", "**float**", "`0.5`", "how far the box must move along +x [body lengths]"),
+         ("`forward_reward_weight`", "**float**", "`10`", "weight of *forward_reward* (the box's speed)"),
+         *_SUCCESS_ARGS)),
 }
 #: task key -> id stem
 TASK_STEMS = {key: doc.stem for key, doc in TASK_DOCS.items()}
@@ -181,6 +216,10 @@ def task_docstring(t: TaskDoc) -> str:
         args.append(("`success_reward`, `terminate_on_success`", "**float**, **bool**", "`10`, `True`",
                      "accepted for a common signature; unused (no success)"))
     owned = ", ".join(f"`{k}`" for k in t.owned)
+    extra_term = f" + {t.extra_reward[0]}" if t.extra_reward[0] else ""
+    extra_bullet = f"\n- {t.extra_reward[1]}" if t.extra_reward[1] else ""
+    ends = ("\n- Success, with `terminate_on_success` (default True)." if t.success else "") + \
+        (f"\n- {t.termination}" if t.termination else "")
     return f"""## Description
 {t.description}
 
@@ -205,12 +244,12 @@ two columns are each part's entries.
 `info` holds the robot environment's entries, the reward terms and `is_success`{_info_entries(t.key)}.
 
 ## Rewards
-***reward*** *= healthy_reward + forward_reward - ctrl_cost + success_reward*
+***reward*** *= healthy_reward + forward_reward - ctrl_cost + success_reward{extra_term}*
 
 - *forward_reward* (`info["reward_forward"]`): `forward_reward_weight` (10) times {t.forward}.
 - *ctrl_cost* (`info["reward_ctrl"]` = -ctrl_cost): `ctrl_cost_weight` (0.01) times the sum of
   ((a + 1) / 2)^2, the commanded contraction as a fraction of its range.
-- *healthy_reward* (`info["reward_survive"]`): `healthy_reward` (0.1) in every healthy step.{success}
+- *healthy_reward* (`info["reward_survive"]`): `healthy_reward` (0.1) in every healthy step.{success}{extra_bullet}
 
 ## Starting State
 The robot at rest on the task's ground, with `reset_noise_scale` noise on the positions; the
@@ -223,7 +262,7 @@ task's draws (physical parameters, terrain, goal) come from `self.np_random` too
   `healthy_tilt_deg` (60) from the ground's normal, or the COM's height above the ground under
   it falls below `healthy_height_fraction` (0.5) of its height at rest, measured the same way
   (`soft_envs.envs.ground_reference`).
-- The simulation fails (`info["sim_failure"]`, reward 0).{"" if not t.success else chr(10) + "- Success, with `terminate_on_success` (default True)."}
+- The simulation fails (`info["sim_failure"]`, reward 0).{ends}
 
 ### Truncation
 `gymnasium.make`'s `TimeLimit`: 300 steps (`soft_envs.MAX_EPISODE_STEPS`, 10 s).
@@ -253,7 +292,9 @@ except those the task sets: {owned} (a ValueError names it).
 _INFO = {"walk": (), "turn": (), "slope_up": ("incline_deg",), "slope_down": ("incline_deg",),
          "rough_terrain": ("height_above_ground", "terrain_seed", "terrain_draws"),
          "climb_step": ("height_above_ground",), "cross_trench": ("height_above_ground",),
-         "reach_goal": ("goal", "goal_distance")}
+         "reach_goal": ("goal", "goal_distance"),
+         "carry": ("box_position", "box_displacement", "box_tilt_deg", "payload_fell", "payload_height"),
+         "push_box": ("box_position", "box_displacement", "box_tilt_deg", "box_pushed")}
 
 
 def _info_entries(key: str) -> str:

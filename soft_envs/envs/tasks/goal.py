@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ...sim import Robot
-from ..arguments import is_number
+from ..arguments import number_in
 from .base import TaskEnv
 from .docs import TASK_DOCS, task_docstring
 
@@ -28,12 +28,8 @@ class ReachGoalEnv(TaskEnv):
 
     def __init__(self, robot="tripod", *, goal_radius_bl: float = 0.25, forward_reward_weight: float = 10.0,
                  success_reward: float = 10.0, **kwargs: Any):
-        if not (is_number(goal_radius_bl) and math.isfinite(goal_radius_bl) and goal_radius_bl > 0):
-            raise ValueError(f"goal_radius_bl must be a positive number [body lengths], got {goal_radius_bl!r}")
-        if not (is_number(forward_reward_weight) and math.isfinite(forward_reward_weight)):
-            raise ValueError(f"forward_reward_weight must be a finite number, got {forward_reward_weight!r}")
-        self.goal_radius_bl = float(goal_radius_bl)
-        self._goal_weight = float(forward_reward_weight)
+        self.goal_radius_bl = number_in("goal_radius_bl", goal_radius_bl, positive=True, what="[body lengths]")
+        self._goal_weight = number_in("forward_reward_weight", forward_reward_weight)
         self._goal = np.zeros(3)
         super().__init__(robot, success_reward=success_reward, **kwargs)
 
