@@ -73,7 +73,8 @@ class Renderer:
             towards ``+x`` (3/4 front view).
         distance: camera-to-target distance (m); default ``3 * body_length``.
         fov: vertical field of view (degrees).
-        color: RGB body colour in [0, 1].
+        color: RGB body colour in [0, 1], or ``(m, 3)``: one per triangle
+            (a second body, such as a box, in its own colour).
         light_dir: direction *towards* the light (world frame).
         tension_max: tension (N) mapped to the top of the colormap; ``None``
             normalises by the largest tension of each frame.
@@ -137,6 +138,8 @@ class Renderer:
         self._focal = 0.5 * self.height / np.tan(np.radians(fov) / 2.0)
         self._near = 1e-3 * self.distance
         self.color = np.asarray(color, dtype=float)
+        if self.color.shape not in ((3,), (len(tris), 3)):
+            raise ValueError(f"color must be one RGB triple or one per triangle ({len(tris)}, 3), got {self.color.shape}")
         light = np.asarray(light_dir, dtype=float)
         self._light = light / np.linalg.norm(light)
         self.tension_max = tension_max
@@ -280,7 +283,7 @@ class Renderer:
             keep &= facing > 0
         normal = normal * np.where(facing >= 0, 1.0, -1.0)[:, None]
         shade = 0.35 + 0.65 * np.clip(normal @ self._light, 0.0, 1.0)
-        rgb = np.clip(self.color[None, :] * shade[:, None], 0.0, 1.0)
+        rgb = np.clip(np.atleast_2d(self.color) * shade[:, None], 0.0, 1.0)
         order = np.argsort(-depth.mean(axis=1)[keep], kind="stable")
         self._body.set_verts(pix[keep][order])
         self._body.set_facecolor(rgb[keep][order])

@@ -186,3 +186,18 @@ def test_domain_randomisation_scales_the_robot_and_keeps_the_box_mass():
     E_box = robot.youngs_modulus * robot.element_modulus_scale[-5:]
     np.testing.assert_allclose(E_box, 0.8 * env.unwrapped.box.youngs_modulus, rtol=1e-12)
     assert not env.step(np.zeros(2))[2]
+
+
+def test_frames_draw_the_box_in_its_own_colour():
+    from soft_envs.envs.viewer import BOX_COLOUR
+    env = gym.make("SoftTripodCarry-v0", render_mode="rgb_array", width=240, height=180)
+    try:
+        env.reset(seed=0)
+        frame = env.render().astype(int)
+        colours = np.asarray(env.unwrapped._viewer.renderer.color)
+        box = np.isin(env.unwrapped._base_robot.mesh.surface, env.unwrapped._base_robot.box_nodes).all(axis=1)
+        assert box.any() and np.allclose(colours[box], BOX_COLOUR) and not np.allclose(colours[~box], BOX_COLOUR)
+        orange = (frame[..., 0] > frame[..., 2] + 60) & (frame[..., 1] > frame[..., 2] + 20)
+        assert orange.sum() > 200                    # the plate on the robot's top is seen
+    finally:
+        env.close()

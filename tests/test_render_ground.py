@@ -143,3 +143,13 @@ def test_task_environments_draw_their_ground_and_goal(env_id, key):
         assert frame.shape == (H, W, 3)
     finally:
         env.close()
+
+
+def test_one_colour_per_triangle_or_a_clear_error(block):
+    pts, tris = block
+    colours = np.tile([0.45, 0.70, 0.92], (len(tris), 1))
+    colours[: len(tris) // 2] = [0.85, 0.62, 0.35]
+    frame = Renderer(tris, width=W, height=H, body_length=0.1, color=colours).render(pts)
+    assert frame.shape == (H, W, 3)
+    with pytest.raises(ValueError, match="one per triangle"):
+        Renderer(tris, width=W, height=H, body_length=0.1, color=colours[:-1])
