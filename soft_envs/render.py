@@ -22,7 +22,7 @@ mesh) and :func:`write_animation` (GIF via Pillow, MP4 via imageio-ffmpeg; from
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 from matplotlib import colormaps
@@ -43,6 +43,10 @@ _TILE_B = np.array([0.68, 0.68, 0.66])
 _SHADOW = np.array([0.42, 0.42, 0.42])
 _SLACK = (0.55, 0.55, 0.55, 1.0)
 _TRAIL = (0.85, 0.2, 0.1, 1.0)
+_MARKER = (0.1, 0.45, 0.85, 1.0)
+#: a relief's tile is cut into this many quads along each side (a step's edge of 0.07 body
+#: lengths across tiles of half a body length)
+_RELIEF_CUTS = 8
 _CABLE_WIDTH, _TRAIL_WIDTH = 2.2, 1.6
 _UP = np.array([0.0, 1.0, 0.0])
 
@@ -165,8 +169,10 @@ class Renderer:
         self._trail = LineCollection([], zorder=2, colors=[_TRAIL], linewidths=_TRAIL_WIDTH)
         self._body = PolyCollection([], zorder=3, linewidths=0.25 if self.edges else 0.5)
         self._cables = LineCollection([], zorder=4, linewidths=_CABLE_WIDTH, capstyle="round")
-        for coll in (self._ground, self._shadow, self._trail, self._body, self._cables):
+        self._markers = LineCollection([], zorder=2, colors=[_MARKER], linewidths=2.0)
+        for coll in (self._ground, self._shadow, self._trail, self._markers, self._body, self._cables):
             ax.add_collection(coll)
+        self._marker_heads = ax.scatter(np.zeros(0), np.zeros(0), s=60, marker=">", color=_MARKER, zorder=2)
         self._gravity = ax.annotate(
             "", xy=(0, 0), xytext=(0, 0), xycoords="axes fraction", textcoords="axes fraction",
             arrowprops=dict(arrowstyle="-|>", lw=2.0, color="0.15"), zorder=5,
@@ -232,19 +238,32 @@ class Renderer:
         return ok & ~off
 
     # ----------------------------------------------------------------- layers
-    def _update_ground(self, target: np.ndarray, gy: float) -> None:
+    def _update_ground(self, target: np.ndarray, gy: float, relief: Any = None) -> None:
         s, r = self.tile_size, self.ground_extent
         i = np.arange(np.floor((target[0] - r) / s), np.ceil((target[0] + r) / s))
         k = np.arange(np.floor((target[2] - r) / s), np.ceil((target[2] + r) / s))
         ii, kk = (a.ravel() for a in np.meshgrid(i, k, indexing="ij"))
+        parity = (ii + kk).astype(np.int64) % 2
         corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
-        xs = (ii[:, None] + corners[None, :, 0]) * s
-        zs = (kk[:, None] + corners[None, :, 1]) * s
-        quads = np.stack([xs, np.full_like(xs, gy), zs], axis=-1)
+        if relief is not None:        # each tile cut into _RELIEF_CUTS^2 quads that follow the surface
+            n = _RELIEF_CUTS
+            a, b = (c.ravel() for c in np.meshgrid(np.arange(n), np.arange(n), indexing="ij"))
+            i0 = (n * ii[:, None] + a[None, :]).ravel()          # in sub-tiles of s / n
+            k0 = (n * kk[:, None] + b[None, :]).ravel()
+            parity, s = np.repeat(parity, n * n), s / n
+        else:
+            i0, k0 = ii, kk
+        xs = (i0[:, None] + corners[None, :, 0]) * s
+        zs = (k0[:, None] + corners[None, :, 1]) * s
+        ys = np.full_like(xs, gy) if relief is None else gy + np.asarray(relief.height(xs, zs), dtype=float)
+        quads = np.stack([xs, ys, zs], axis=-1)
         pix, depth = self.project(quads, target)
         keep = self._drawable(pix, depth)
-        parity = (ii + kk).astype(np.int64) % 2
         base = np.where(parity[:, None] == 0, _TILE_A, _TILE_B)
+        if relief is not None:        # shaded by the light, as the body is
+            normal = np.cross(quads[:, 2] - quads[:, 0], quads[:, 1] - quads[:, 3])
+            normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+            base = base * (0.35 + 0.65 * np.clip(np.abs(normal @ self._light), 0.0, 1.0))[:, None]
         centre = quads.mean(axis=1)
         dist = np.hypot(centre[:, 0] - target[0], centre[:, 2] - target[2])
         fade = np.clip(dist / r, 0.0, 1.0)[:, None] ** 2
@@ -319,6 +338,15 @@ class Renderer:
         seg, _ = self._segments(trail, target)
         self._trail.set_segments(seg)
 
+    def _update_markers(self, markers: Sequence[Sequence[float]] | None, target: np.ndarray) -> None:
+        pts = np.asarray(markers if markers is not None else np.zeros((0, 3)), dtype=float).reshape(-1, 3)
+        poles = np.stack([pts, pts + np.array([0.0, 0.35 * self.body_length, 0.0])], axis=1)
+        pix, depth = self.project(poles.reshape(-1, 3), target)
+        pix, depth = pix.reshape(-1, 2, 2), depth.reshape(-1, 2)
+        ok = np.all(depth > 0, axis=1) & np.all(np.isfinite(pix), axis=(1, 2))
+        self._markers.set_segments(pix[ok])
+        self._marker_heads.set_offsets(pix[ok, 1] if ok.any() else np.zeros((0, 2)))
+
     def _update_gravity(self, gravity: Sequence[float] | None, target: np.ndarray) -> None:
         g = None if gravity is None else np.asarray(gravity, dtype=float).reshape(3)
         visible = g is not None and bool(np.linalg.norm(g) > 0)
@@ -345,6 +373,8 @@ class Renderer:
         gravity: Sequence[float] | None = None,
         title: str | None = None,
         look_at: np.ndarray | None = None,
+        relief: Any = None,
+        markers: Sequence[Sequence[float]] | None = None,
     ) -> np.ndarray:
         """Render one frame.
 
@@ -359,6 +389,11 @@ class Renderer:
                 corner (projected direction).
             title: optional text at the top.
             look_at: override the camera target (default: mean of ``x``).
+            relief: a ground that is not flat, any object with ``height(x, z)``
+                (a :class:`~soft_envs.sim.ground.HeightField`): the tiles follow
+                ``ground_height + height(x, z)``, shaded.
+            markers: points ``(3,)`` drawn as flags standing on the ground
+                (a goal).
 
         Returns:
             ``(height, width, 3)`` uint8 RGB image.
@@ -370,7 +405,8 @@ class Renderer:
             raise ValueError(f"x has {x.shape[0]} nodes but surface_tris references node {self.tris.max()}")
         target = self.camera_target(x) if look_at is None else np.asarray(look_at, dtype=float).reshape(3)
         gy = float(ground_height)
-        self._update_ground(target, gy)
+        self._update_ground(target, gy, relief)
+        self._update_markers(markers, target)
         self._update_body(x, target, gy)
         self._update_trail(com_trail, target, gy)
         self._update_cables(cables, target)

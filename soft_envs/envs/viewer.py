@@ -42,9 +42,12 @@ class EnvViewer:
         self._window = None
 
     def frame(self, x: np.ndarray, *, cables: Sequence[tuple[np.ndarray, float]],
-              com_trail: np.ndarray, gravity: np.ndarray, title: str) -> np.ndarray:
-        """A uint8 (height, width, 3) RGB frame."""
-        return self.renderer.render(x, cables=cables, com_trail=com_trail, gravity=gravity, title=title)
+              com_trail: np.ndarray, gravity: np.ndarray, title: str, relief: Any = None,
+              markers: Sequence[np.ndarray] | None = None) -> np.ndarray:
+        """A uint8 (height, width, 3) RGB frame (``relief``: a height field the ground follows;
+        ``markers``: points drawn as flags)."""
+        return self.renderer.render(x, cables=cables, com_trail=com_trail, gravity=gravity, title=title,
+                                    relief=relief, markers=markers)
 
     def show(self, frame: np.ndarray) -> None:
         """Show ``frame`` in a matplotlib window (created on first use) and let it refresh."""
@@ -106,8 +109,13 @@ class RenderingMixin:
                                      camera_config=self._camera_config)
         cables = cable_polylines(self.robot, self._x, self._sim.cable_tension(self._x, self._u))
         return self._viewer.frame(self._x, cables=cables, com_trail=np.array(self._trail),
-                                  gravity=self._gravity,
+                                  gravity=self._gravity, relief=self._base_robot.ground,
+                                  markers=self._render_markers(),
                                   title=f"{self.robot.name}  t = {self._n_sub * self.timestep:.2f} s")
+
+    def _render_markers(self) -> list[np.ndarray]:
+        """Points drawn as flags in the frames (a task's goal); none here."""
+        return []
 
     def close(self) -> None:
         if self._viewer is not None:

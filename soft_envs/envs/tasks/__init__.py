@@ -9,10 +9,10 @@ from .base import TaskEnv
 from .difficulty import DEFAULT_DIFFICULTY, DIFFICULTIES, LEVELS, check_difficulty
 from .goal import ReachGoalEnv
 from .locomotion import SlopeDownEnv, SlopeUpEnv, TurnEnv, WalkEnv
-from .terrain import ClimbStepEnv, CrossTrenchEnv, RoughTerrainEnv
+from .terrain import ClimbStepEnv, CrossTrenchEnv, RoughTerrainEnv, task_ground, task_keywords
 
 __all__ = ["TaskEnv", "WalkEnv", "TurnEnv", "SlopeUpEnv", "SlopeDownEnv", "RoughTerrainEnv", "ClimbStepEnv",
-           "CrossTrenchEnv", "ReachGoalEnv", "TASK_CLASSES", "DIFFICULTIES", "DEFAULT_DIFFICULTY", "LEVELS",
+           "CrossTrenchEnv", "ReachGoalEnv", "TASK_CLASSES", "task_ground", "task_keywords", "DIFFICULTIES", "DEFAULT_DIFFICULTY", "LEVELS",
            "check_difficulty"]
 
 #: task key (of :data:`~.difficulty.LEVELS`) -> its class

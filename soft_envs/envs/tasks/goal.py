@@ -52,6 +52,9 @@ class ReachGoalEnv(TaskEnv):
         d = lv["distance_bl"] * self._body_length
         self._goal = np.array([self._com[0] + d * math.cos(angle), 0.0, self._com[2] + d * math.sin(angle)])
 
+    def _render_markers(self) -> list[np.ndarray]:
+        return [self._goal.copy()]
+
     def _offset(self, com: np.ndarray) -> np.ndarray:
         return np.array([self._goal[0] - com[0], self._goal[2] - com[2]])
 
