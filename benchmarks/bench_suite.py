@@ -36,16 +36,20 @@ ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 
 from soft_envs import TASK_IDS_BY_TASK, TASKS  # noqa: E402
+from soft_envs.envs.tasks.docs import TASK_DOCS  # noqa: E402
 from trajopt.results.files import atomic_write_bytes  # noqa: E402
 from trajopt.rl.envs import robot_name, task_of  # noqa: E402
 from trajopt.sweep import load_spec, read_status, run_sweep  # noqa: E402
 from trajopt.tasks.registry import get_task  # noqa: E402
-from trajopt.tasks.scores import SCORES  # noqa: E402
+from trajopt.tasks.scores import SCORES, default_episodes  # noqa: E402
 
 SPEC = ROOT / "examples" / "suite.toml"
 SWEEP_DIR = ROOT / "results" / "sweeps" / "suite"
 REPORT = HERE / "results" / "suite.md"
 IMAGES = HERE / "results" / "suite"
+DOCS = ROOT / "docs" / "tasks.md"
+TABLE_HEAD = ["| task | robot | method | score | success | seeds | sim steps | wall time / run |",
+              "|---|---|---|---|---|---|---|---|"]
 ROBOTS = ("tripod", "puppy")
 METHODS = {"trajopt": "trajopt (open loop)", "ppo": "PPO", "sac": "SAC"}
 #: the runs of the quick mode (CI): PPO on every id, SAC on two, trajopt on one terrain task
@@ -156,22 +160,22 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
         budgets.setdefault(group_of(run)[2], run.params.get("timesteps", run.params.get("iterations", 10)))
     rel = os.path.relpath(sweep_dir, ROOT) if str(sweep_dir).startswith(str(ROOT)) else str(sweep_dir)
     made = sum(len(g["done"]) for g in groups.values())
+    n_ep = default_episodes()
     lines = [f"# The task suite{' (quick: tiny budgets, no result)' if quick else ''}", "",
              f"Made by `python benchmarks/bench_suite.py{' --quick' if quick else ''}` on {platform.node()}, "
              f"{time.strftime('%Y-%m-%d')}; the runs of `examples/suite.toml` in `{rel}/` ({made} of "
              f"{len(spec.runs)} made). Every run is scored on its task's Gymnasium id (difficulty medium, "
-             "the registered 300-step episodes, 3 episodes, seeds 0-2) with the task's own score "
-             "(`trajopt.tasks.scores`):", ""]
+             f"the registered 300-step episodes, {n_ep} episode{'s' * (n_ep > 1)}, seeds 0-{n_ep - 1}) with the "
+             "task's own score (`trajopt.tasks.scores`):", ""]
     for task in TASKS:
         sc = SCORES[task]
         lines.append(f"- {task}: **{sc.name}** [{sc.unit}], {sc.description}")
     lines += ["", f"Budgets: PPO and SAC {budgets.get('ppo')} / {budgets.get('sac')} environment steps per run "
-              f"(3 seeds); trajopt {budgets.get('trajopt')} Gauss-Newton iterations (one run; its ± is over the "
-              "3 evaluation episodes, RL's over the seeds). Simulation steps: RL's training steps, trajopt's "
+              f"(3 seeds); trajopt {budgets.get('trajopt')} Gauss-Newton iterations (one run; its ± is over its "
+              "evaluation episodes, RL's over the seeds). Simulation steps: RL's training steps, trajopt's "
               "optimisation steps (rollouts, Jacobians, line searches); wall time per run includes the "
               "evaluation.", "",
-              "| task | robot | method | score | success | seeds | sim steps | wall time / run |",
-              "|---|---|---|---|---|---|---|---|"]
+              *TABLE_HEAD]
     missing = []
     for task in TASKS:
         for robot in ROBOTS:
@@ -184,7 +188,7 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
                     missing.append((task, robot, method, g))
                 unit = SCORES[task].unit
                 row = [task, robot.capitalize(), label, f"{_fmt(c)} {unit}" if c else "not run",
-                       f"{c['success']:.0%}" if c else "", f"{c['n']}/{c['planned']}" if c else f"0/{len(g['planned'])}",
+                       (f"{c['success']:.0%}" if TASK_DOCS[task].success else "–") if c else "", f"{c['n']}/{c['planned']}" if c else f"0/{len(g['planned'])}",
                        f"{c['sim_steps']:,.0f}" if c else "", f"{c['wall']:.0f} s" if c else ""]
                 lines.append("| " + " | ".join(row) + " |")
     lines += ["", "## Open loop or closed loop", "",
@@ -220,6 +224,20 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
     return text
 
 
+def update_docs(report_text: str, docs: Path = DOCS) -> None:
+    """Each task's rows of the report into its section of docs/tasks.md (between the lines
+    ``<!-- baselines TASK -->`` and ``<!-- /baselines TASK -->``), atomically."""
+    text = docs.read_text()
+    for task in TASKS:
+        start, end = f"<!-- baselines {task} -->", f"<!-- /baselines {task} -->"
+        if start not in text or end not in text:
+            raise ValueError(f"{docs}: no '{start}' ... '{end}' block for the task {task!r}")
+        rows = [line for line in report_text.splitlines() if line.startswith(f"| {task} | ")]
+        a, b = text.index(start) + len(start), text.index(end)
+        text = text[:a] + "\n" + "\n".join(TABLE_HEAD + rows) + "\n" + text[b:]
+    atomic_write_bytes(docs, text.encode())
+
+
 def _pattern(names: list[str]) -> str:
     """A shell pattern matching ``names`` (their common prefix, ``*``)."""
     prefix = os.path.commonprefix(names)
@@ -243,9 +261,21 @@ def main(argv: list[str] | None = None) -> str:
     sweep_dir = args.sweep_dir or (Path(tempfile.mkdtemp(prefix="suite_quick_")) if quick else SWEEP_DIR)
     report_path = args.report or (sweep_dir / "suite.md" if quick else REPORT)
     spec = load_spec(args.spec, sweep_dir, quick=quick)
+    saved = os.environ.get("SOFT_ENVS_QUICK")
+    if quick:
+        os.environ["SOFT_ENVS_QUICK"] = "1"             # one evaluation episode per run (trajopt.tasks.scores)
+    try:
+        return _run(args, spec, sweep_dir, report_path, quick)
+    finally:
+        if saved is None:
+            os.environ.pop("SOFT_ENVS_QUICK", None)
+        else:
+            os.environ["SOFT_ENVS_QUICK"] = saved
+
+
+def _run(args, spec, sweep_dir: Path, report_path: Path, quick: bool) -> str:
+    """The sweep (unless ``--report-only``), the rates, the pictures, the report (and the docs)."""
     if not args.report_only:
-        if quick:
-            os.environ["SOFT_ENVS_QUICK"] = "1"         # one evaluation episode per run (trajopt.tasks.scores)
         sweep_dir.mkdir(parents=True, exist_ok=True)
         only = args.only or (QUICK_ONLY if quick else None)
         outcome = run_sweep(spec.only(only), sweep_dir, workers=args.workers, serial=args.serial)
@@ -255,6 +285,9 @@ def main(argv: list[str] | None = None) -> str:
     pictures = render_pictures(sweep_dir / "images" if quick else IMAGES, *((160, 120) if quick else (480, 320)))
     text = report(spec, sweep_dir, rates, pictures, report_path, quick)
     print(f"wrote {report_path}")
+    if not quick and args.report is None:
+        update_docs(text)
+        print(f"wrote each task's rows into {DOCS}")
     return text
 
 

@@ -174,3 +174,16 @@ def test_rl_zoo3_loads_every_id_with_its_own_loader(algo, tmp_path):
             assert hp.pop("clip_range")(1.0) == want["clip_range"]
         assert hp == {k: v for k, v in want.items() if k not in ("policy_kwargs", "learning_rate", "clip_range")}
         assert (em.env_kwargs == {}) == (env_id in TASK_ENV_IDS), env_id
+
+
+def test_docs_show_each_task_s_picture_and_its_rows_of_the_report():
+    """docs/tasks.md's rows under each task are benchmarks/results/suite.md's (bench_suite.py
+    writes both), and the pictures it links exist."""
+    report = (ROOT / "benchmarks" / "results" / "suite.md").read_text().splitlines()
+    docs = (ROOT / "docs" / "tasks.md").read_text()
+    for task in TASKS:
+        block = docs.split(f"<!-- baselines {task} -->")[1].split(f"<!-- /baselines {task} -->")[0]
+        rows = [line for line in block.splitlines() if line.startswith(f"| {task} | ")]
+        assert rows and rows == [line for line in report if line.startswith(f"| {task} | ")], task
+        assert f"](../benchmarks/results/suite/{task}.png)" in docs
+        assert (ROOT / "benchmarks" / "results" / "suite" / f"{task}.png").is_file()

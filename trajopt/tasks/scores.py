@@ -59,7 +59,8 @@ SCORES: dict[str, Score] = {
     "rough_terrain": _SPEED,
     "climb_step": Score("advance", "BL", "the COM's advance along +x over the episode (success: past the finish)"),
     "cross_trench": Score("advance", "BL", "the COM's advance along +x over the episode (success: past the finish)"),
-    "reach_goal": Score("approach", "BL", "the horizontal distance to the goal gained over the episode"),
+    "reach_goal": Score("approach", "BL", "the horizontal distance to the goal gained over the episode (success: "
+                        "within goal_radius_bl of it)"),
 }
 
 
