@@ -66,7 +66,8 @@ def test_rl_takes_a_task_id_and_refuses_what_does_not_fit(tmp_path):
     env = make_env("SoftTripodReachGoal-v0", max_episode_steps=300, env_kwargs={"difficulty": "easy"})
     assert env.unwrapped.difficulty == "easy" and "goal_offset" in env.unwrapped.observation_structure
     env.close()
-    with pytest.raises(ValueError, match="or a task id"):
+    import argparse
+    with pytest.raises(argparse.ArgumentTypeError, match=r"or a task id SoftPuppyClimbStep-v0 \.\.\.\), got 'SoftTripodWalk-v9'"):
         rl_target("SoftTripodWalk-v9")
     from trajopt.rl.options import train_with_options
     with pytest.raises(ValueError, match="--difficulty applies to a task id .*, not to 'tripod'"):

@@ -141,4 +141,7 @@ def difficulty_level(text: str) -> str:
     """A benchmark task's level (``easy``, ``medium``, ``hard``: :data:`soft_envs.envs.tasks.DIFFICULTIES`);
     a ValueError naming the levels otherwise."""
     from soft_envs.envs.tasks.difficulty import check_difficulty
-    return check_difficulty(text)
+    try:
+        return check_difficulty(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None

@@ -63,8 +63,13 @@ def task_of(ref: str) -> str | None:
 
 def rl_target(text: str) -> str:
     """``text`` when the RL baseline can train on it (a robot or a task id, :func:`robot_name`);
-    the ValueError of :func:`robot_name` otherwise (the command line's and a sweep's check)."""
-    robot_name(text)
+    the message of :func:`robot_name`'s ValueError otherwise (an ``argparse.ArgumentTypeError``: the
+    command line's and a sweep's check)."""
+    import argparse
+    try:
+        robot_name(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
     return text
 
 
