@@ -37,6 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 from soft_envs import TASK_IDS_BY_TASK, TASKS  # noqa: E402
 from soft_envs.envs.tasks.docs import TASK_DOCS  # noqa: E402
+from trajopt.optim.optimize import DEFAULT_SPEED  # noqa: E402
 from trajopt.results.files import atomic_write_bytes  # noqa: E402
 from trajopt.rl.envs import robot_name, task_of  # noqa: E402
 from trajopt.sweep import load_spec, read_status, run_sweep  # noqa: E402
@@ -196,6 +197,17 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
               "turn, the slopes, rough terrain, the step and the trench on the task's own slope or ground, reach "
               "a goal as the walk along `--heading`. Where an open-loop gait falls short of the task as posed:", ""]
     lines += [f"- {task}: {why}" for task, why in CLOSED_LOOP_ONLY.items()]
+    speeds = ", ".join(f"{DEFAULT_SPEED[r]:g} BL/min for the {r.capitalize()}" for r in ROBOTS if r in DEFAULT_SPEED)
+    lines += ["", "trajopt's objective is the walk's of `trajopt optimize` as shipped: it tracks a COM path at the "
+              f"robot's default target speed ({speeds}), not the fastest walk (`--speed max`, "
+              "benchmarks/results/headline.md); RL maximises the task's reward."]
+    turns = [cell(groups[("turn", "tripod", m)]) for m in METHODS if ("turn", "tripod", m) in groups]
+    turns = [c for c in turns if c is not None]
+    if turns and max(abs(c["mean"]) for c in turns) < 1.0:
+        lines += ["", "The Tripod's two motors bend its middle leg forward and backward in its plane of symmetry "
+                  "(assets/tripod/robot.toml): no control yaws it, and every method made on it turns it by "
+                  f"{max(abs(c['mean']) for c in turns):.2f} degrees at most over an episode. The turn is the "
+                  "Puppy's task."]
     lines += ["", "## Cost", "", "Simulation steps per second of each id (random actions, one process; measured "
               "by this script on this machine, shared with other jobs):", "",
               "| id | steps/s | RL runs' cost at the budget (6 runs) |", "|---|---|---|"]
