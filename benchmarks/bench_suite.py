@@ -58,8 +58,8 @@ QUICK_ONLY = ["*_ppo_seed0", "SoftTripodWalk-v0_sac_seed0", "SoftPuppyClimbStep-
 #: why an open-loop gait cannot do a task as it is posed (docs/tasks.md says the same)
 CLOSED_LOOP_ONLY = {
     "reach_goal": "the goal's direction is drawn at each reset (within +-90 degrees at medium): a gait walks "
-                  "one heading (+x here), so it gains only the cosine of the angle to the goal; the task needs "
-                  "the goal in the observation, i.e. a policy",
+                  "one heading (+x here) whatever the goal, and walks away from goals off to the side; the task "
+                  "needs the goal in the observation, i.e. a policy",
     "rough_terrain": "a new terrain at each reset: the gait is optimised on the terrain of seed 0 and played "
                      "unchanged on others (allowed, but it cannot adapt to them)",
 }
