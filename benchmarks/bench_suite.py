@@ -200,7 +200,9 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
     speeds = ", ".join(f"{DEFAULT_SPEED[r]:g} BL/min for the {r.capitalize()}" for r in ROBOTS if r in DEFAULT_SPEED)
     lines += ["", "trajopt's objective is the walk's of `trajopt optimize` as shipped: it tracks a COM path at the "
               f"robot's default target speed ({speeds}), not the fastest walk (`--speed max`, "
-              "benchmarks/results/headline.md); RL maximises the task's reward."]
+              "benchmarks/results/headline.md), and every optimisation starts from its own random seeds (the "
+              "README's Puppy turn is warm-started from its walk, `--warm-start results/puppy_walk.npz`); RL "
+              "maximises the task's reward."]
     turns = [cell(groups[("turn", "tripod", m)]) for m in METHODS if ("turn", "tripod", m) in groups]
     turns = [c for c in turns if c is not None]
     if turns and max(abs(c["mean"]) for c in turns) < 1.0:
