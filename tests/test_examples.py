@@ -41,6 +41,8 @@ EXPECTED = {
                             r"30/30 steps sent in \d+\.\d+ s; .*motors confirmed stopped: front, back",
                             r"aborted: motor 'front' .*: tracking error \d+ counts",
                             r"(?m)^motors confirmed stopped: front, back$"],
+    "task_suite.py": [r"trajopt, open loop +: advance [+-]\d+\.\d+ BL on SoftTripodClimbStep-v0 \(1 episodes, success \d+%",
+                      r"PPO, 128 steps +: advance [+-]\d+\.\d+ BL on SoftTripodClimbStep-v0 \(1 episodes"],
     "rl_baseline.py": [r"trained 64 steps in \d+ s", r"PPO     : +[+-]?\d+\.\d+ BL/min, upright: (True|False)",
                        r"compared against: nothing here \(pass a trajopt result .*\); the headline "
                        r"\(benchmarks/results/rl_vs_trajopt_coulomb\.md\) compares PPO and SAC with the fastest gait "
@@ -99,6 +101,7 @@ WRITES = {
     "gait_robustness.py": ["results/robustness_example_quick/report.json", "results/robustness_example_quick/samples.csv",
                            "results/robustness_example_quick/robustness.png"],
     "rl_baseline.py": ["results/tripod_ppo_example_quick.npz"],
+    "task_suite.py": ["results/tripod_climb_step_example_quick.npz", "results/runs/climb_step_ppo_example_quick/model.zip"],
     "motor_line.py": ["results/motor_line_example_quick.png"],
     "credible_gait.py": ["results/tripod_credible_example_quick.npz", "results/tripod_credible_example_quick.json"],
     "fastest_gait.py": ["results/tripod_fastest_example_quick.npz", "results/tripod_fastest_example_quick.search.csv",
@@ -113,7 +116,7 @@ WRITES = {
                               "results/quadruped_quick/quadruped_walk.json"],
 }
 #: modules an example needs beyond the core install (skipped with a reason when missing)
-NEEDS = {"rl_baseline.py": "stable_baselines3", "play_on_emulator.py": "serial", "robot_from_surface.py": "gmsh"}
+NEEDS = {"rl_baseline.py": "stable_baselines3", "task_suite.py": "stable_baselines3", "play_on_emulator.py": "serial", "robot_from_surface.py": "gmsh"}
 
 
 def test_every_example_is_covered():

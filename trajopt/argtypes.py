@@ -15,7 +15,8 @@ from typing import Callable
 from .results.files import check_output_dir
 
 __all__ = ["contact_law", "integer", "positive_int", "nonnegative_int", "number", "positive_float", "nonnegative_float",
-           "slope_deg", "speed", "file_name", "frame_size", "output_dir", "output_file", "cycles", "steps"]
+           "slope_deg", "speed", "file_name", "frame_size", "output_dir", "output_file", "cycles", "steps",
+           "difficulty_level"]
 
 
 def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
@@ -134,3 +135,13 @@ def contact_law(text: str) -> str:
         raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from "
                                          f"{', '.join(map(repr, CONTACT_LAWS))})")
     return text
+
+
+def difficulty_level(text: str) -> str:
+    """A benchmark task's level (``easy``, ``medium``, ``hard``: :data:`soft_envs.envs.tasks.DIFFICULTIES`);
+    a ValueError naming the levels otherwise."""
+    from soft_envs.envs.tasks.difficulty import check_difficulty
+    try:
+        return check_difficulty(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None

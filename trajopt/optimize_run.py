@@ -30,7 +30,7 @@ from .optim.optimize import optimize_gait
 from .results.reservation import lock_path, reserve
 from .results.robot_match import robot_reference
 from .results.result import Result, partial_path, result_path, robot_file_name
-from .tasks.registry import get_task
+from .tasks.registry import ENV_TASKS, get_task
 
 __all__ = ["OptimizeRun", "run_optimization", "OPTIMIZE_OPTIONS"]
 
@@ -43,7 +43,8 @@ class OptimizeRun:
     (shipped name or robot.toml path), the task (:data:`trajopt.tasks.TASKS`), its target speed
     [BL/min] (None: the robot's default; ``"max"``: the fastest walk within the motors' limit,
     :mod:`trajopt.fastest`, with its search table beside the result), heading [deg], turn side, slope ``angle`` [deg] (a task
-    on a slope), contact law (None: the task's, else the robot file's), physics ``substeps`` per
+    on a slope), ``difficulty`` (a benchmark task's level, :attr:`trajopt.tasks.Task.env_task`: its slope or
+    ground; None: the task's default), contact law (None: the task's, else the robot file's), physics ``substeps`` per
     control step (None: the contact law's default), the ``ensemble`` of other physics the gait is
     optimised on as well (physics steps per control step, :mod:`trajopt.optim.ensemble`; an empty
     list: :data:`~trajopt.optim.ensemble.DEFAULT_ENSEMBLE`; None: none), symmetry (None: the
@@ -61,6 +62,7 @@ class OptimizeRun:
     heading: float = 0.0
     turn: str = "right"
     angle: float = 20.0
+    difficulty: str | None = None
     contact: str | None = None
     substeps: int | None = None
     ensemble: tuple[int, ...] | list[int] | None = None
@@ -334,16 +336,22 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
     if warm is not None:
         warm.settings["source"] = str(run.warm_start)
     task = get_task(run.task)
-    incline = run.angle if task.on_slope else 0.0
+    if run.difficulty is not None and task.env_task is None:
+        raise ValueError(f"--difficulty applies to the benchmark's tasks ({', '.join(ENV_TASKS.values())}), "
+                         f"not to --task {task.name}")
+    where = task.environment(run.robot, run.difficulty)     # a benchmark task's slope or ground
+    incline = run.angle if task.on_slope else where.get("incline_deg", 0.0)
     contact = run.contact or task.contact          # e.g. the turn pivots on feet that stick
     with compile_ahead(run.robot):            # first run on a machine: numba compiles meanwhile
         env = make_gradient_env(run.robot, incline_deg=incline, heading_deg=run.heading, contact=contact,
-                                substeps=run.substeps)
+                                substeps=run.substeps, ground=where.get("ground"))
     print(f"{env.robot.summary()}; task {task.name}; {env.contact_model} contact law"
           + (f" (the {task.name}'s default; --contact paper for the paper's)" if contact and not run.contact
              else " (the robot file's; --contact paper for the paper's)"
              if not run.contact and env.contact_model != "paper" else "")
-          + (f", slope {incline:g} deg" if incline else "") + f"; {_physics(env)}"
+          + (f", slope {incline:g} deg" if incline else "")
+          + (f", the {task.env_task} task's ground ({run.difficulty or 'medium'})" if "ground" in where else "")
+          + f"; {_physics(env)}"
           + f"; motors: {_MOTOR_WORDS[run.model()]} (--motor-model {run.model()})")
     print(f"writes {out} (+ .json) when it finishes; checkpoints in {partial} until then")
     done_before = len(resume.history) if resume else 0
@@ -379,6 +387,9 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
     finally:
         if progress is not None:
             progress.close()
+    if task.env_task is not None:              # replays rebuild its ground (trajopt.replay)
+        from soft_envs.envs.tasks import DEFAULT_DIFFICULTY
+        res.settings.update(env_task=task.env_task, difficulty=run.difficulty or DEFAULT_DIFFICULTY)
     path = _finish_files(res, out, partial)
     from .search.table import search_table_paths
     for table in search_table_paths(out):      # an earlier --speed max result's: not this result's search

@@ -21,7 +21,7 @@ from .optim.parameterization import GaitParameterization
 from .results.result import Result
 from .results.robot_match import check_robot, fingerprint_of, locate_robot
 
-__all__ = ["env_for_result", "result_substeps", "result_parameterization", "result_controls", "replay",
+__all__ = ["env_for_result", "result_ground", "result_substeps", "result_parameterization", "result_controls", "replay",
            "RobotMismatchWarning"]
 
 
@@ -37,15 +37,27 @@ def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False, substeps
     is not the one ``res`` was made for raises :class:`~trajopt.results.robot_match.RobotMismatchError`
     (a ValueError), or warns with ``ignore_robot_mismatch``."""
     s = res.settings
-    env = make_gradient_env(locate_robot(res), incline_deg=float(s.get("incline_deg", 0.0)),
+    robot = locate_robot(res)
+    env = make_gradient_env(robot, incline_deg=float(s.get("incline_deg", 0.0)),
                             heading_deg=float(s.get("heading_deg", 0.0)), timestep=res.dt,
                             contact=s.get("contact", "paper"),
-                            substeps=result_substeps(res) if substeps is None else substeps)
+                            substeps=result_substeps(res) if substeps is None else substeps,
+                            ground=result_ground(res, robot))
     note = check_robot(res, fingerprint_of(env.robot), list(env.robot.motor_names),
                        src=res.path or "the result", ignore=ignore_robot_mismatch)
     if note is not None:
         warnings.warn(note, RobotMismatchWarning, stacklevel=2)
     return env
+
+
+def result_ground(res: Result, robot: Any):
+    """The ground a benchmark task's gait was optimised on (``settings["env_task"]`` at its
+    ``difficulty``: :meth:`trajopt.tasks.Task.environment`), or None (the robot file's)."""
+    s = res.settings
+    if not s.get("env_task"):
+        return None
+    from soft_envs.envs.tasks import DEFAULT_DIFFICULTY, task_keywords
+    return task_keywords(s["env_task"], robot, s.get("difficulty") or DEFAULT_DIFFICULTY).get("ground")
 
 
 def result_substeps(res: Result) -> int:

@@ -203,6 +203,12 @@ class SoftRobotEnv(GradientHooksMixin, RenderingMixin, gym.Env[np.ndarray, np.nd
         return self._actuation.model
 
     @property
+    def locomotion_task(self) -> LocomotionTask:
+        """What the robot is rewarded for (task, heading, turn side, reward weights: the keywords
+        of :class:`~soft_envs.envs.task.LocomotionTask`)."""
+        return self._task
+
+    @property
     def incline_deg(self) -> float:
         """Ground slope [deg], rising along the target heading."""
         return self._incline_deg

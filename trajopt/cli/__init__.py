@@ -33,8 +33,8 @@ import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..argtypes import (contact_law, cycles, file_name, frame_size, integer, number, output_dir, output_file,
-                       positive_float, positive_int, slope_deg, speed, steps)
+from ..argtypes import (contact_law, cycles, difficulty_level, file_name, frame_size, integer, number, output_dir,
+                       output_file, positive_float, positive_int, slope_deg, speed, steps)
 from ..results.files import RESULTS_DIR
 from ..optim.gait import DEFAULT_EVAL_CYCLES, INTERPOLATIONS, GaitSpec
 from ..optim.motor_limit import MOTOR_MODELS, TORQUE_SPEED
@@ -51,7 +51,9 @@ def _add_optimize(sub) -> None:
     p.add_argument("robot", help="shipped robot (tripod, puppy, hexapod, inchworm) or path to a robot.toml")
     p.add_argument("--task", choices=command_line_tasks(), default="walk",
                    help="what the gait does (trajopt.tasks): walk straight, turn a quarter circle, incline: walk "
-                        "up the --angle slope")
+                        "up the --angle slope; the benchmark's tasks (docs/tasks.md) slope_up, slope_down, "
+                        "rough_terrain, climb_step, cross_trench: the walk on their slope or ground at --difficulty; "
+                        "reach_goal: the walk along --heading")
     p.add_argument("--speed", type=speed, default=None,
                    help="target speed [body lengths/min], or max: the fastest walk within the motors' limits "
                         "whose speed holds within 5 %% at half, twice and four times the physics steps (searches "
@@ -60,6 +62,8 @@ def _add_optimize(sub) -> None:
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
     p.add_argument("--turn", choices=["right", "left"], default="right", help="turn direction (task turn)")
     p.add_argument("--angle", type=slope_deg, default=20.0, help="slope [deg] (task incline)")
+    p.add_argument("--difficulty", type=difficulty_level, default=None, metavar="LEVEL",
+                   help="a benchmark task's level, which sets its slope or ground: easy, medium (default) or hard")
     p.add_argument("--contact", type=contact_law, default=None, metavar="LAW",
                    help="ground contact law: coulomb (friction bounded by mu N, feet that stick) or paper "
                         "(II-C, viscous-like friction, Table I); default: the robot file's (the shipped "

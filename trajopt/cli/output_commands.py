@@ -60,6 +60,7 @@ def run_render(args) -> int:
     for k, tension in zip(steps, tensions):
         cables = [(pts, float(t)) for pts, t in zip(cable_points(robot, traj.x[k]), tension)]
         frames.append(renderer.render(traj.x[k], cables=cables, com_trail=traj.com[:k + 1], gravity=env.gravity,
+                                      ground=robot.ground,        # a benchmark task's field (None: the plane)
                                       title=f"{robot.name}, {res.task}: t = {k * env.timestep:.2f} s"))
     fps = 1.0 / (env.timestep * args.every)
     for path in outputs:

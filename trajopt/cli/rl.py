@@ -16,10 +16,10 @@ import json
 import sys
 from pathlib import Path
 
-from ..argtypes import (contact_law, cycles, file_name, integer, nonnegative_float, number, output_dir, output_file, positive_int,
+from ..argtypes import (contact_law, cycles, difficulty_level, file_name, integer, nonnegative_float, number, output_dir, output_file, positive_int,
                         slope_deg)
 from ..results.files import RESULTS_DIR, refuse_existing
-from ..rl.envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOTS, TRAIN_HORIZON
+from ..rl.envs import DEFAULT_EVAL_CYCLES, GAIT, ROBOTS, TRAIN_HORIZON, rl_target
 from ..rl.hyperparams import ALGOS
 from ..rl.options import RUNS_DIR, TRAIN_OPTIONS
 from .table import print_table
@@ -38,7 +38,9 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     rsub = rl.add_subparsers(dest="rl_command", required=True)
 
     p = rsub.add_parser("train", help="train a policy (checkpoints, TensorBoard + CSV logs)")
-    p.add_argument("robot", choices=sorted(ROBOTS), help="robot (environment SoftTripod-v2 / SoftPuppy-v2)")
+    p.add_argument("robot", type=rl_target, metavar="ROBOT",
+                   help=f"robot ({', '.join(sorted(ROBOTS))}: SoftTripod-v2 / SoftPuppy-v2) or a task id "
+                        "(SoftTripodWalk-v0 ... SoftPuppyReachGoal-v0, docs/tasks.md)")
     p.add_argument("--algo", choices=ALGOS, default="ppo")
     p.add_argument("--timesteps", type=positive_int, default=30_000, help="environment steps to train for")
     p.add_argument("--seed", type=SEED, default=0)
@@ -56,6 +58,8 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
                    help="ground contact law: coulomb (the default, feet that stick) or paper (II-C, Table I's; "
                         "made as contact=\"paper\" on the -v2 id)")
     p.add_argument("--heading", type=number(), default=0.0, help="walking direction [deg from +x to +z]")
+    p.add_argument("--difficulty", type=difficulty_level, default=None, metavar="LEVEL",
+                   help="a task id's level: easy, medium (its default) or hard")
     p.add_argument("--checkpoint-every", type=positive_int, default=None,
                    help="environment steps between checkpoints (default: a tenth of the budget)")
     p.add_argument("--hp", action="append", default=[], metavar="KEY=VALUE",
@@ -105,7 +109,12 @@ def _cmd_train(args) -> int:
         return _missing(exc)
     print(f"{run.status}: {run.timesteps} steps ({run.sim_steps} simulation steps) in "
           f"{run.wall_time_s:.1f} s; saved {run.model_path}")
-    if run.status == "done":
+    if run.status == "done" and run.config.get("task"):
+        from ..tasks.play import policy_on_task               # the task's own score
+        ev = policy_on_task(run.run_dir)
+        print(f"  {ev['score_name']}: {ev['score']:.3f} {ev['score_unit']} (the task's score, mean of "
+              f"{len(ev['episodes'])} episodes; success {ev['success_rate']:.0%})")
+    elif run.status == "done":
         from ..rl.evaluate import evaluate_policy_metric      # the figure the user came for
         ev = evaluate_policy_metric(run.run_dir, n_cycles=DEFAULT_EVAL_CYCLES)
         print(f"  speed:       {ev['speed_bl_per_min']:.2f} BL/min along the target over {DEFAULT_EVAL_CYCLES} cycles "

@@ -33,7 +33,8 @@ from gymnasium import spaces
 from ..optim.gait import DEFAULT_EVAL_CYCLES, GaitSpec
 
 __all__ = ["ROBOTS", "ROBOT_IDS", "COULOMB_IDS", "GAIT", "TRAIN_HORIZON", "DEFAULT_EVAL_CYCLES",  # noqa: F822 (module __getattr__)
-           "DropHorizontalPosition", "make_env", "robot_name", "env_id", "run_contact", "run_substeps"]
+           "DropHorizontalPosition", "make_env", "robot_name", "env_id", "task_of", "env_choices", "rl_target", "run_contact",
+           "run_substeps"]
 
 #: robots of the RL baseline: the shipped robots (their Gymnasium ids: ``soft_envs.ENV_IDS_BY_ROBOT``)
 ROBOTS = ("tripod", "puppy")
@@ -53,22 +54,53 @@ def __getattr__(name: str):
     return {robot: ENV_IDS_BY_ROBOT[robot][law] for robot in ROBOTS}
 
 
+def task_of(ref: str) -> str | None:
+    """The task key (``"climb_step"``) of a task id (``"SoftTripodClimbStep-v0"``,
+    :data:`soft_envs.TASK_ENV_IDS`); None for anything else."""
+    from soft_envs import TASK_IDS_BY_TASK
+    return next((task for task, ids in TASK_IDS_BY_TASK.items() if ref in ids.values()), None)
+
+
+def rl_target(text: str) -> str:
+    """``text`` when the RL baseline can train on it (a robot or a task id, :func:`robot_name`);
+    the message of :func:`robot_name`'s ValueError otherwise (an ``argparse.ArgumentTypeError``: the
+    command line's and a sweep's check)."""
+    import argparse
+    try:
+        robot_name(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def env_choices() -> list[str]:
+    """What the RL baseline trains on: the robots' names (their latest id) and the task ids."""
+    from soft_envs import TASK_ENV_IDS
+    return sorted(ROBOTS) + sorted(TASK_ENV_IDS)
+
+
 def robot_name(robot: str) -> str:
-    """``"tripod"`` for ``"tripod"``, ``"SoftTripod-v0"``, ``-v1`` or ``-v2`` (likewise the Puppy)."""
-    from soft_envs import ENV_ROBOTS
+    """``"tripod"`` for ``"tripod"``, ``"SoftTripod-v0"``, ``-v1``, ``-v2`` or a task id of the
+    Tripod (``"SoftTripodWalk-v0"``; likewise the Puppy)."""
+    from soft_envs import ENV_ROBOTS, TASK_ENV_IDS
     if robot in ROBOTS:
         return robot
     if ENV_ROBOTS.get(robot) in ROBOTS:
         return ENV_ROBOTS[robot]
+    if robot in TASK_ENV_IDS:
+        return TASK_ENV_IDS[robot][1]["robot"]
     all_ids = sorted(i for i, name in ENV_ROBOTS.items() if name in ROBOTS)
-    raise ValueError(f"robot must be one of {sorted(ROBOTS)} (or their ids {all_ids}), got {robot!r}")
+    raise ValueError(f"robot must be one of {sorted(ROBOTS)} (or their ids {all_ids}, or a task id "
+                     f"{sorted(TASK_ENV_IDS)[0]} ...), got {robot!r}")
 
 
 def env_id(robot: str) -> str:
-    """The registered id the RL baseline makes for ``robot``: the latest (``-v2``), under any
-    contact law given as its ``contact`` keyword (the paper's law is ``contact="paper"`` on it,
-    not ``-v0``, which Gymnasium reports out of date)."""
+    """The registered id the RL baseline makes for ``robot``: a task id as it is, else the
+    robot's latest (``-v2``), under any contact law given as its ``contact`` keyword (the
+    paper's law is ``contact="paper"`` on it, not ``-v0``, which Gymnasium reports out of date)."""
     from soft_envs import LATEST_ENV_IDS
+    if task_of(robot) is not None:
+        return robot
     return LATEST_ENV_IDS[robot_name(robot)]
 
 
@@ -119,7 +151,7 @@ def make_env(robot: str, *, frame_skip: int = 1, max_episode_steps: int | None =
              drop_com_xz: bool = True, env_kwargs: Mapping[str, Any] | None = None,
              ignore_sigint_in_worker: bool = False) -> gym.Env:
     """One environment of the RL baseline: ``gym.make(id, max_episode_steps, frame_skip,
-    **env_kwargs)``, wrapped in :class:`DropHorizontalPosition` when ``drop_com_xz``.
+    **env_kwargs)`` (``id``: :func:`env_id` of ``robot``, a robot or a task id), wrapped in :class:`DropHorizontalPosition` when ``drop_com_xz``.
 
     ``max_episode_steps`` counts environment steps (``frame_skip`` simulation steps each);
     ``None`` keeps the registered ``soft_envs.MAX_EPISODE_STEPS`` (300).

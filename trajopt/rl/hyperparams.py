@@ -46,9 +46,15 @@ import ast
 import copy
 from typing import Any
 
-__all__ = ["ALGOS", "default_hyperparams", "vecnormalize_kwargs", "parse_overrides", "jsonable"]
+__all__ = ["ALGOS", "default_hyperparams", "vecnormalize_kwargs", "parse_overrides", "jsonable", "SUITE_TIMESTEPS",
+           "SUITE_N_ENVS"]
 
 ALGOS = ("ppo", "sac")
+#: the task suite's budget per RL run (environment steps; examples/suite.toml, the rl_zoo3 files'
+#: ``n_timesteps``): PPO on the Tripod's walk learns a gait within about 3e4 steps
+SUITE_TIMESTEPS = 30_000
+#: environments stepped per RL run in the suite (in its own process, no subprocesses)
+SUITE_N_ENVS = 2
 
 _PPO = dict(
     learning_rate=3e-4,

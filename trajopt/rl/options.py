@@ -20,11 +20,13 @@ def train_with_options(robot: str, *, algo: str = "ppo", timesteps: int = 30_000
                        out: str | os.PathLike = RUNS_DIR, name: str | None = None, n_envs: int | None = None,
                        vec_env: str = "auto", frame_skip: int = 1, episode_steps: int = TRAIN_HORIZON,
                        incline: float = 0.0, contact: str | None = None, heading: float = 0.0,
+                       difficulty: str | None = None,
                        checkpoint_every: int | None = None, hp: list[str] | tuple[str, ...] = (),
                        overwrite: bool = False, no_progress: bool = False, verbose: bool = False) -> Any:
     """:func:`trajopt.rl.training.train` with the command's option names: ``incline``,
     ``contact`` and ``heading`` set up the environment, ``hp`` holds ``KEY=VALUE`` overrides of
-    the hyper-parameters, ``no_progress`` hides the progress bar (never shown when stderr is no
+    the hyper-parameters, ``difficulty`` the level of a task id (``robot`` =
+    ``"SoftTripodClimbStep-v0"``; None: the task's default), ``no_progress`` hides the progress bar (never shown when stderr is no
     terminal), ``verbose`` prints SB3's logger. Returns the :class:`~trajopt.rl.training.TrainRun`."""
     from .hyperparams import parse_overrides
     from .training import train
@@ -35,6 +37,12 @@ def train_with_options(robot: str, *, algo: str = "ppo", timesteps: int = 30_000
         env_kwargs["target_heading_deg"] = heading
     if contact:
         env_kwargs["contact"] = contact
+    if difficulty is not None:
+        from .envs import task_of
+        if task_of(robot) is None:
+            raise ValueError(f"--difficulty applies to a task id (SoftTripodWalk-v0 ...), not to {robot!r}")
+        from soft_envs.envs.tasks import check_difficulty
+        env_kwargs["difficulty"] = check_difficulty(difficulty)
     bar = not no_progress and sys.stderr.isatty()
     heartbeat = None if no_progress or bar else _Heartbeat(timesteps, algo, robot)
     try:

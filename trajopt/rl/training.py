@@ -28,7 +28,7 @@ from typing import Any
 
 from ..hardware.signals import Terminated, signal_label, signal_of
 from . import require_sb3
-from .envs import TRAIN_HORIZON, env_id, make_env, robot_name
+from .envs import TRAIN_HORIZON, env_id, make_env, robot_name, task_of
 from .hyperparams import ALGOS, default_hyperparams, jsonable, vecnormalize_kwargs
 
 __all__ = ["train", "TrainRun", "CONFIG_NAME", "MODEL_NAME", "VECNORM_NAME", "write_config",
@@ -75,7 +75,8 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
           checkpoint_every: int | None = None, progress_bar: bool = True, verbose: int = 0,
           log_stdout: bool = False, torch_threads: int | None = 1, callback=None,
           overwrite: bool = False) -> TrainRun:
-    """Train ``algo`` ("ppo" | "sac") on ``robot`` ("tripod" | "puppy") for ``timesteps``
+    """Train ``algo`` ("ppo" | "sac") on ``robot`` ("tripod" | "puppy", or a task id such as
+    ``"SoftTripodClimbStep-v0"``, whose keywords go in ``env_kwargs``: ``difficulty``) for ``timesteps``
     environment steps and save the run in ``out/name`` (see the module docstring).
 
     ``n_envs``: parallel environments (default ``os.cpu_count()``); ``vec_env``: "subproc",
@@ -94,6 +95,7 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
+    target = robot if task_of(robot) is not None else robot_name(robot)    # what make_env makes
     robot = robot_name(robot)
     algo = algo.lower()
     if algo not in ALGOS:
@@ -108,7 +110,10 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
         raise ValueError(f"vec_env must be 'auto', 'subproc' or 'dummy', got {vec_env!r}")
     use_subproc = vec_env == "subproc" or (vec_env == "auto" and n_envs > 1)
     env_kwargs = dict(env_kwargs or {})
-    env_kwargs.setdefault("task", "walk")
+    if task_of(target) is None:                     # a task id sets its own
+        env_kwargs.setdefault("task", "walk")
+    elif "task" in env_kwargs:
+        raise ValueError(f"env_kwargs: 'task' is set by the task id {target}, got task={env_kwargs['task']!r}")
     # the law is recorded explicitly, so the run replays with it whatever the default becomes
     from soft_envs import ENV_KWARGS
     from soft_envs.envs import CONTACT_LAWS
@@ -119,16 +124,16 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     hp.update(hyperparams or {})
     checkpoint_every = int(checkpoint_every or max(timesteps // 10, 1))
 
-    run_dir = Path(out) / (name or f"{robot}_{algo}_seed{seed}")
+    run_dir = Path(out) / (name or f"{robot}{'_' + task_of(target) if target != robot else ''}_{algo}_seed{seed}")
     from ..results.reservation import lock_path, reserve
     with reserve(lock_path(run_dir), f"RL run {run_dir.name}"):   # a second run of this name is refused
         ckpt_dir = _prepare_run_dir(run_dir, overwrite)
         if torch_threads is not None:
             torch.set_num_threads(int(torch_threads))
 
-        env_cfg = {"robot": robot, "frame_skip": int(frame_skip), "max_episode_steps": int(max_episode_steps),
+        env_cfg = {"robot": target, "frame_skip": int(frame_skip), "max_episode_steps": int(max_episode_steps),
                    "drop_com_xz": True, "env_kwargs": env_kwargs}
-        factory = functools.partial(make_env, robot, frame_skip=int(frame_skip),
+        factory = functools.partial(make_env, target, frame_skip=int(frame_skip),
                                     max_episode_steps=int(max_episode_steps), drop_com_xz=True,
                                     env_kwargs=env_kwargs, ignore_sigint_in_worker=use_subproc)
         venv = make_vec_env(factory, n_envs=n_envs, seed=seed, monitor_dir=str(run_dir / "monitor"),
@@ -177,7 +182,7 @@ def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_su
     from stable_baselines3.common.logger import configure
 
     config: dict[str, Any] = {
-        "robot": robot, "env_id": env_id(robot),
+        "robot": robot, "env_id": env_id(env_cfg["robot"]), "task": task_of(env_cfg["robot"]),
         "algo": algo, "timesteps": timesteps,
         "seed": int(seed), "n_envs": n_envs, "vec_env": "subproc" if use_subproc else "dummy",
         "env": env_cfg, "hyperparams": hp, "vecnormalize": vn_kwargs,

@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
-from ..argtypes import contact_law, cycles, integer, nonnegative_float, number, positive_int, slope_deg, speed, steps
+from ..argtypes import contact_law, cycles, difficulty_level, integer, nonnegative_float, number, positive_int, slope_deg, speed, steps
 from ..optim.gait import INTERPOLATIONS
 from ..optim.motor_limit import MOTOR_MODELS
-from ..rl.envs import ROBOTS
+from ..rl.envs import rl_target
 from ..rl.hyperparams import ALGOS
 from ..tasks.registry import command_line_tasks
 
@@ -114,7 +114,8 @@ _SEED = Option(integer(0, 2**32 - 1))           # what NumPy's legacy seeding ac
 #: options of ``trajopt optimize`` (:class:`trajopt.optimize_run.OptimizeRun`)
 _OPTIMIZE = {
     "task": Option(_task), "speed": Option(speed), "heading": Option(number()),
-    "turn": Option(_choice("right", "left")), "angle": Option(slope_deg), "contact": Option(contact_law),
+    "turn": Option(_choice("right", "left")), "angle": Option(slope_deg), "difficulty": Option(difficulty_level),
+    "contact": Option(contact_law),
     "substeps": Option(positive_int), "ensemble": Option(positive_int, repeatable=True), "symmetry": _BOOL, "warm_start": Option(), "no_motor_limit": _BOOL,
     "motor_model": Option(_choice(*MOTOR_MODELS)), "iterations": Option(integer(0, 100_000)),
     "keyframes": Option(steps), "interpolation": Option(_choice(*INTERPOLATIONS)), "cycle_steps": Option(steps), "prep_steps": Option(integer(0, 100_000)),
@@ -126,7 +127,8 @@ _RL_TRAIN = {
     "algo": Option(_choice(*ALGOS)), "timesteps": Option(positive_int), "seed": _SEED, "out": Option(),
     "name": Option(), "n_envs": Option(positive_int), "vec_env": Option(_choice("auto", "subproc", "dummy")),
     "frame_skip": Option(positive_int), "episode_steps": Option(positive_int), "incline": Option(slope_deg),
-    "contact": Option(contact_law), "heading": Option(number()), "checkpoint_every": Option(positive_int),
+    "contact": Option(contact_law), "heading": Option(number()), "difficulty": Option(difficulty_level),
+    "checkpoint_every": Option(positive_int),
     "hp": Option(repeatable=True), "overwrite": _BOOL, "no_progress": _BOOL, "verbose": _BOOL,
 }
 
@@ -135,7 +137,7 @@ KINDS: Mapping[str, RunKind] = MappingProxyType({
                         frozenset({"out", "name", "quiet", "resume"})),
     "rl-train": RunKind("rl-train", ("rl", "train"), "robot", MappingProxyType(_RL_TRAIN),
                         frozenset({"out", "name", "no_progress", "overwrite", "verbose"}),
-                        positional_option=Option(_choice(*sorted(ROBOTS)))),
+                        positional_option=Option(rl_target)),
     "rl-evaluate": RunKind("rl-evaluate", ("rl", "evaluate"), "model", MappingProxyType({
         "cycles": Option(cycles), "seed": _SEED, "reset_noise": Option(nonnegative_float), "json": _BOOL,
         "fidelity": _BOOL}),

@@ -29,7 +29,10 @@ list for a repeatable option (``hp = ["gamma=0.95"]``); the positional argument 
 ``[contact]`` values. Parameters whose name starts with ``_`` only fill templates (they are
 not passed to the command). ``rl-train`` blocks may set ``export = true`` (default: score the policy
 with trajopt's metric, ``trajopt rl export``) and ``evaluate_checkpoints = true`` (the
-speed-vs-steps curve). String arguments may hold ``{out}`` (the sweep directory) and the
+speed-vs-steps curve). ``rl-train`` and ``optimize`` blocks may set ``task_score = true``: the
+run is then also scored on its benchmark task's id with the task's own score
+(:mod:`trajopt.tasks.play`: an RL run trained on a task id, a gait optimised for a task of
+:data:`trajopt.tasks.TASKS` with an ``env_task``), in its metrics and ``task_score.json``. String arguments may hold ``{out}`` (the sweep directory) and the
 run's parameters, e.g. ``result = "{out}/opt_v{_speed}/opt_v{_speed}.npz"`` (in templates
 ``{robot}`` is the robot's name, also for a robot.toml path: :func:`robot_name`); evaluation runs start
 after all optimisations and trainings of the sweep. Relative paths are relative to the
@@ -54,7 +57,7 @@ from .kinds import KINDS
 __all__ = ["KINDS", "Run", "SweepSpec", "load_spec", "quick_requested"]
 
 CONTACT_PREFIX = "contact_"
-_BLOCK_KEYS = {"kind", "name", "cpus", "args", "grid", "quick", "export", "evaluate_checkpoints"}
+_BLOCK_KEYS = {"kind", "name", "cpus", "args", "grid", "quick", "export", "evaluate_checkpoints", "task_score"}
 _NAME_OK = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+=-]*$")
 
 
@@ -248,6 +251,11 @@ def _expand_block(block: Any, index: int, src: str, base: Path, quick: bool, out
             if kind != "rl-train" or not isinstance(block[key], bool):
                 raise ValueError(f"{where}.{key} must be true or false and applies to kind 'rl-train' only")
             options[key] = block[key]
+    if "task_score" in block:
+        if kind not in ("rl-train", "optimize") or not isinstance(block["task_score"], bool):
+            raise ValueError(f"{where}.task_score must be true or false and applies to kinds 'rl-train' and "
+                             f"'optimize' only")
+        options["task_score"] = block["task_score"]
     if kind == "rl-train":
         options.setdefault("export", True)
         options.setdefault("evaluate_checkpoints", False)

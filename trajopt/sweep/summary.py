@@ -31,6 +31,8 @@ def summary_rows(spec: SweepSpec, statuses: dict[str, dict]) -> list[dict[str, A
                "wall_time_s": st.get("wall_time_s")}
         row.update({p: run.params.get(p) for p in params})
         row.update({c: m.get(c) for c in METRIC_COLUMNS})
+        task = m.get("task") or {}                  # task_score = true: the score on the task's id
+        row["task_score"] = None if not task else f"{task.get('score'):.4g} {task.get('score_unit')}"
         row["reason"] = st.get("reason", "") if st.get("status") != "done" else ""
         rows.append(row)
     return rows

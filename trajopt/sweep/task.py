@@ -36,6 +36,7 @@ LOG_NAME = "log.txt"
 POLICY_RESULT = "policy.npz"          # rl-train: the policy exported as a trajopt Result
 CURVE_NAME = "curve.json"             # rl-train with evaluate_checkpoints: [[steps, BL/min], ...]
 EVALUATION_NAME = "evaluation.json"   # evaluate / rl-evaluate
+TASK_SCORE_NAME = "task_score.json"   # task_score = true: the run on its task's id (trajopt.tasks.play)
 
 
 def read_status(run_dir: Path) -> dict[str, Any] | None:
@@ -113,8 +114,10 @@ def check_run(run: Run) -> None:
         return
     import dataclasses
     from soft_envs.envs import load_robot
+    from ..rl.envs import robot_name, task_of
     try:
-        robot = load_robot(str(run.params["robot"]))
+        robot = load_robot(robot_name(str(run.params["robot"])) if task_of(str(run.params["robot"]))
+                           else str(run.params["robot"]))
         contact = run.contact()
         if contact:
             dataclasses.replace(robot.contact, **{k: (v if k == "model" else float(v)) for k, v in contact.items()})
@@ -240,7 +243,18 @@ def _metrics(run: Run, run_dir: Path) -> dict[str, Any]:
     else:                                                  # evaluate, rl-evaluate: evaluation.json
         ev = json.loads((run_dir / EVALUATION_NAME).read_text())
         m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"))
+    if run.options.get("task_score"):
+        m["task"] = _task_score(run, run_dir)
     return m
+
+
+def _task_score(run: Run, run_dir: Path) -> dict[str, Any]:
+    """The run on its benchmark task's id, with the task's own score (:mod:`trajopt.tasks.play`),
+    written to ``task_score.json``."""
+    from ..tasks.play import gait_on_task, policy_on_task
+    ev = policy_on_task(run_dir) if run.kind == "rl-train" else gait_on_task(result_path(run, run_dir))
+    atomic_write_bytes(run_dir / TASK_SCORE_NAME, json.dumps(ev, indent=1, default=float).encode())
+    return {k: v for k, v in ev.items() if k != "episodes"}
 
 
 def _checkpoint_curve(run_dir: Path, frame_skip: int) -> list[list[float]]:

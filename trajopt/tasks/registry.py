@@ -13,7 +13,16 @@ its name:
   <trajopt.optim.objectives.ObjectiveWeights.for_task>`);
 * its default contact law (:attr:`Task.contact`, None: the robot file's);
 * whether it walks on the slope ``--angle`` (:attr:`Task.on_slope`), and how its speed is
-  reported (:attr:`Task.speed_along_path`: along the COM path, for a curved target).
+  reported (:attr:`Task.speed_along_path`: along the COM path, for a curved target);
+* the benchmark task of :mod:`soft_envs.envs.tasks` it is the open-loop objective of
+  (:attr:`Task.env_task`), whose slope or ground at ``--difficulty`` it walks on
+  (:meth:`Task.environment`: :func:`soft_envs.envs.tasks.task_keywords`) and on whose Gymnasium
+  id its gait is scored (:mod:`trajopt.tasks.play`).
+
+Every benchmark task is a task here (:data:`ENV_TASKS`): walk and turn as they are, the slopes,
+rough terrain, the step and the trench as the walk on their ground, and reaching a goal as the
+walk along ``--heading`` (a goal in a fixed direction; a goal drawn anew at each reset needs a
+closed loop: docs/tasks.md).
 
 Adding a task is one subclass of :class:`Task` and one line in :data:`TASKS` (a test shows it).
 This module imports nothing heavy at import time: the command line reads the task names here.
@@ -23,8 +32,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-__all__ = ["Task", "Walk", "Turn", "Incline", "Custom", "TASKS", "get_task", "command_line_tasks", "speed_along_path",
-           "TURN_KEYFRAMES", "TURN_INTERPOLATION", "TURN_HEADING_WEIGHT"]
+__all__ = ["Task", "Walk", "Turn", "Incline", "Custom", "OnTaskGround", "TASKS", "ENV_TASKS", "get_task",
+           "command_line_tasks", "speed_along_path", "TURN_KEYFRAMES", "TURN_INTERPOLATION", "TURN_HEADING_WEIGHT"]
 
 #: keyframes per cycle of the turn (the walk and incline keep the paper's 4): with 4, a leg makes
 #: one stride per 72-step cycle, and the Puppy cannot both walk and turn a quarter circle in two
@@ -49,7 +58,8 @@ class Task:
     defaults; ``contact``: the contact law the task runs on when none is chosen (None: the robot
     file's); ``on_slope``: the environment's ground is tilted by the slope angle;
     ``speed_along_path``: the task's speed is reported along the COM path (a curved target);
-    ``needs_target``: the caller gives the target path (not offered on the command line)."""
+    ``needs_target``: the caller gives the target path (not offered on the command line);
+    ``env_task``: the benchmark task (a key of ``soft_envs.TASKS``) it is the objective of."""
 
     name: str = "walk"
     gait_defaults: Mapping[str, Any] = field(default_factory=dict)
@@ -58,6 +68,17 @@ class Task:
     on_slope: bool = False
     speed_along_path: bool = False
     needs_target: bool = False
+    env_task: str | None = None
+
+    def environment(self, robot, difficulty: str | None = None) -> dict[str, Any]:
+        """The keywords of :func:`soft_envs.envs.make_gradient_env` that put ``robot`` on this
+        task's ground at ``difficulty`` (None: the task's default level): a slope's
+        ``incline_deg``, a terrain's ``ground`` (:func:`soft_envs.envs.tasks.task_keywords`, the
+        rough terrain's of seed 0); ``{}`` on the plane."""
+        if self.env_task is None:
+            return {}
+        from soft_envs.envs.tasks import DEFAULT_DIFFICULTY, task_keywords
+        return task_keywords(self.env_task, robot, difficulty or DEFAULT_DIFFICULTY)
 
     def target_path(self, start, n_steps: int, dt: float, speed: float, heading_deg: float,
                     turn: str = "right"):
@@ -77,6 +98,14 @@ class Walk(Task):
     """Paper IV-A: a straight line at a constant speed, bilaterally symmetric gait."""
 
     name: str = "walk"
+    env_task: str | None = "walk"
+
+
+@dataclass(frozen=True)
+class OnTaskGround(Walk):
+    """The walk on a benchmark task's slope or ground (:attr:`env_task`: slope up or down, rough
+    terrain, a step, a trench; the level from ``--difficulty``), or along ``--heading`` towards a
+    goal (reach a goal): the same objective as the walk."""
 
 
 @dataclass(frozen=True)
@@ -104,6 +133,7 @@ class Turn(Task):
     weight_defaults: Mapping[str, Any] = field(default_factory=lambda: {"heading": TURN_HEADING_WEIGHT})
     contact: str | None = "coulomb"
     speed_along_path: bool = True
+    env_task: str | None = "turn"
 
     def target_path(self, start, n_steps, dt, speed, heading_deg, turn="right"):
         from .targets import quarter_circle
@@ -127,6 +157,10 @@ class Custom(Task):
 
 #: name -> task; adding a task: a subclass of Task and one line here (or ``TASKS[name] = task``)
 TASKS: dict[str, Task] = {t.name: t for t in (Walk(), Turn(), Incline(), Custom())}
+TASKS.update({name: OnTaskGround(name=name, env_task=name)
+              for name in ("slope_up", "slope_down", "rough_terrain", "climb_step", "cross_trench", "reach_goal")})
+#: benchmark task (``soft_envs.TASKS``) -> the task here that is its open-loop objective
+ENV_TASKS: dict[str, str] = {t.env_task: name for name, t in TASKS.items() if t.env_task is not None}
 
 
 def get_task(name: str) -> Task:

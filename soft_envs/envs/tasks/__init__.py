@@ -12,11 +12,11 @@ from .difficulty import DEFAULT_DIFFICULTY, DIFFICULTIES, LEVELS, check_difficul
 from .goal import ReachGoalEnv
 from .locomotion import SlopeDownEnv, SlopeUpEnv, TurnEnv, WalkEnv
 from .push import PushBoxEnv
-from .terrain import ClimbStepEnv, CrossTrenchEnv, RoughTerrainEnv
+from .terrain import ClimbStepEnv, CrossTrenchEnv, RoughTerrainEnv, task_ground, task_keywords
 
 __all__ = ["TaskEnv", "WalkEnv", "TurnEnv", "SlopeUpEnv", "SlopeDownEnv", "RoughTerrainEnv", "ClimbStepEnv",
            "CrossTrenchEnv", "ReachGoalEnv", "BoxTaskEnv", "CarryEnv", "PushBoxEnv",
-           "TASK_CLASSES", "DIFFICULTIES", "DEFAULT_DIFFICULTY", "LEVELS",
+           "TASK_CLASSES", "task_ground", "task_keywords", "DIFFICULTIES", "DEFAULT_DIFFICULTY", "LEVELS",
            "check_difficulty"]
 
 #: task key (of :data:`~.difficulty.LEVELS`) -> its class

@@ -10,16 +10,18 @@ axis): these tasks walk along +x.
 """
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-from ...sim import HeightField, Robot, SimulationError
+from ...sim import HeightField, Robot, SimulationError, load_robot
 from .base import TaskEnv
+from .difficulty import DEFAULT_DIFFICULTY, LEVELS, level
 from .docs import TASK_DOCS, task_docstring
 
-__all__ = ["RoughTerrainEnv", "ClimbStepEnv", "CrossTrenchEnv", "LOOK_AHEAD_BL", "ROUGH_WAVELENGTH_BL",
+__all__ = ["RoughTerrainEnv", "ClimbStepEnv", "CrossTrenchEnv", "task_ground", "task_keywords", "LOOK_AHEAD_BL", "ROUGH_WAVELENGTH_BL",
            "MAX_TERRAIN_DRAWS"]
 
 #: where the terrain part of the observation looks, in body lengths ahead of the COM
@@ -33,6 +35,50 @@ MAX_TERRAIN_DRAWS = 10
 EDGE_WIDTH_BL = 0.07
 #: the gap between the robot's front at rest and the foot of a step or a trench's near edge [body lengths]
 GAP_BL = 0.15
+
+
+def task_ground(task: str, level: dict[str, Any], body_length: float, front: float, seed: int = 0
+                ) -> tuple[HeightField, dict[str, float]]:
+    """The ground of a terrain task (``"rough_terrain"``, ``"climb_step"``, ``"cross_trench"``) at
+    ``level`` (:data:`~.difficulty.LEVELS`) for a robot of ``body_length`` whose front at rest is
+    at x = ``front`` [m]; ``seed``: the rough terrain's. Returns the field and the places it
+    defines [m] (``finish_x``, and ``step_position``, ``step_height`` or ``trench_start``,
+    ``trench_length``). The environments and ``trajopt optimize --task climb_step`` build their
+    ground here."""
+    L, w = float(body_length), EDGE_WIDTH_BL * float(body_length)
+    if task == "rough_terrain":
+        return HeightField.rough(amplitude=level["amplitude_bl"] * L, wavelength=ROUGH_WAVELENGTH_BL * L,
+                                 seed=int(seed), x_range=(-3.0 * L, 8.0 * L), z_range=(-4.0 * L, 4.0 * L)), {}
+    if task == "climb_step":
+        position, height = front + GAP_BL * L + 0.5 * w, level["height_bl"] * L       # the middle of the edge
+        return (HeightField.step(height=height, position=position, width=w),
+                {"step_position": position, "step_height": height, "finish_x": position + 0.5 * w + 0.5 * L})
+    if task == "cross_trench":
+        start, length = front + GAP_BL * L + 0.5 * w, level["length_bl"] * L
+        return (HeightField.trench(depth=CrossTrenchEnv.DEPTH_BL * L, start=start, length=length, width=w),
+                {"trench_start": start, "trench_length": length, "finish_x": start + length + 0.5 * w + 0.5 * L})
+    raise ValueError(f"task must be one of 'rough_terrain', 'climb_step', 'cross_trench' (a terrain task), "
+                     f"got {task!r}")
+
+
+def task_keywords(task: str, robot: str | os.PathLike | Robot, difficulty: str = DEFAULT_DIFFICULTY, *,
+                  seed: int = 0) -> dict[str, Any]:
+    """The keywords of :class:`~soft_envs.envs.base.SoftRobotEnv` (and of
+    :func:`~soft_envs.envs.make_gradient_env`) that put ``robot`` where ``task`` at
+    ``difficulty`` stands: ``{"incline_deg": ...}`` on a slope, ``{"ground": HeightField}`` on the
+    terrain tasks (``seed``: the rough terrain's), ``{}`` for the tasks on the plane (walk, turn,
+    reach a goal; their levels draw physical parameters or goals at each reset, which a fixed
+    environment does not). A ValueError names a bad task or difficulty."""
+    if task not in LEVELS:
+        raise ValueError(f"task must be one of {tuple(LEVELS)}, got {task!r}")
+    lv = level(task, difficulty)
+    if "incline_deg" in lv:
+        return {"incline_deg": float(lv["incline_deg"])}
+    if task not in ("rough_terrain", "climb_step", "cross_trench"):
+        return {}
+    if not isinstance(robot, Robot):
+        robot = load_robot(robot)
+    return {"ground": task_ground(task, lv, robot.body_length, float(robot.mesh.points[:, 0].max()), seed)[0]}
 
 
 class _TerrainEnv(TaskEnv):
@@ -78,9 +124,7 @@ class RoughTerrainEnv(_TerrainEnv):
         super().__init__(robot, **kwargs)
 
     def _make_ground(self) -> HeightField:
-        L = self._L
-        return HeightField.rough(amplitude=self.level["amplitude_bl"] * L, wavelength=ROUGH_WAVELENGTH_BL * L,
-                                 seed=self._episode_seed, x_range=(-3.0 * L, 8.0 * L), z_range=(-4.0 * L, 4.0 * L))
+        return task_ground(self.task_name, self.level, self._L, self._front, self._episode_seed)[0]
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """A new terrain (its seed drawn from ``np_random``; redrawn when the robot cannot be placed
@@ -112,11 +156,12 @@ class ClimbStepEnv(_TerrainEnv):
     task_name = "climb_step"
 
     def _make_ground(self) -> HeightField:
-        L, w = self._L, EDGE_WIDTH_BL * self._L
-        self.step_position = self._front + GAP_BL * L + 0.5 * w          # the middle of the edge [m]
-        self.step_height = self.level["height_bl"] * L
-        self.finish_x = self.step_position + 0.5 * w + 0.5 * L          # the COM half a body length on top
-        return HeightField.step(height=self.step_height, position=self.step_position, width=w)
+        ground, places = task_ground(self.task_name, self.level, self._L, self._front)
+        # step_position (the middle of the edge), step_height, finish_x (the COM half a body length
+        # on top); the trench: trench_start, trench_length, finish_x
+        for name, value in places.items():
+            setattr(self, name, value)
+        return ground
 
     def _task_terms(self, com_before: np.ndarray) -> tuple[dict[str, float], bool]:
         return {}, bool(self._com[0] >= self.finish_x and self.is_healthy)
@@ -128,11 +173,5 @@ class CrossTrenchEnv(ClimbStepEnv):
     #: the trench's depth [body lengths]
     DEPTH_BL = 0.05
 
-    def _make_ground(self) -> HeightField:
-        L, w = self._L, EDGE_WIDTH_BL * self._L
-        self.trench_start = self._front + GAP_BL * L + 0.5 * w
-        self.trench_length = self.level["length_bl"] * L
-        self.finish_x = self.trench_start + self.trench_length + 0.5 * w + 0.5 * L
-        return HeightField.trench(depth=self.DEPTH_BL * L, start=self.trench_start, length=self.trench_length, width=w)
 
 

@@ -1,0 +1,309 @@
+"""The task suite: the benchmark's 16 task ids (docs/tasks.md) against three baselines, each scored
+with the task's own score on the id itself (:mod:`trajopt.tasks.scores`).
+
+The runs are one sweep file, ``examples/suite.toml`` (``trajopt sweep``: one Ray task per run,
+a cluster runs it unchanged): per task and robot, ``trajopt optimize ROBOT --task TASK`` (the
+task's slope or ground at its level, the gait played open loop on the id) and PPO and SAC, three
+seeds each, trained on the id for one fixed budget (closed loop); every run with ``task_score =
+true``, so its score on the id (3 episodes, seeds 0-2) is in its ``status.json``. This script
+runs the sweep (runs already done in the sweep folder are skipped), measures each id's simulation
+steps per second, draws each task (:mod:`soft_envs.render`, the Tripod at the start of an episode)
+and writes the report: a table of task x robot x method (mean +- std over the seeds of the task's
+score, success, simulation steps, wall time), runs not made marked "not run" with the command
+that makes them.
+
+Run:  python benchmarks/bench_suite.py                      (every run; ~8 hours of one core)
+      python benchmarks/bench_suite.py --only 'SoftTripod*_ppo_*' --workers 1   (a part)
+      python benchmarks/bench_suite.py --report-only        (the report from the runs made)
+      python benchmarks/bench_suite.py --quick              (tiny budgets: PPO on every id, SAC on two,
+                                                             trajopt on one, in a temporary folder;
+                                                             tests/test_suite.py runs it)
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT))
+
+from soft_envs import TASK_IDS_BY_TASK, TASKS  # noqa: E402
+from soft_envs.envs.tasks.docs import TASK_DOCS  # noqa: E402
+from trajopt.optim.optimize import DEFAULT_SPEED  # noqa: E402
+from trajopt.results.files import atomic_write_bytes  # noqa: E402
+from trajopt.rl.envs import robot_name, task_of  # noqa: E402
+from trajopt.sweep import load_spec, read_status, run_sweep  # noqa: E402
+from trajopt.tasks.registry import get_task  # noqa: E402
+from trajopt.tasks.scores import SCORES, default_episodes  # noqa: E402
+
+SPEC = ROOT / "examples" / "suite.toml"
+SWEEP_DIR = ROOT / "results" / "sweeps" / "suite"
+REPORT = HERE / "results" / "suite.md"
+IMAGES = HERE / "results" / "suite"
+DOCS = ROOT / "docs" / "tasks.md"
+TABLE_HEAD = ["| task | robot | method | score | success | seeds | sim steps | wall time / run |",
+              "|---|---|---|---|---|---|---|---|"]
+ROBOTS = ("tripod", "puppy")
+METHODS = {"trajopt": "trajopt (open loop)", "ppo": "PPO", "sac": "SAC"}
+#: the runs of the quick mode (CI): PPO on every id, SAC on two, trajopt on one terrain task
+QUICK_ONLY = ["*_ppo_seed0", "SoftTripodWalk-v0_sac_seed0", "SoftPuppyClimbStep-v0_sac_seed0", "tripod_climb_step_trajopt"]
+#: why an open-loop gait cannot do a task as it is posed (docs/tasks.md says the same)
+CLOSED_LOOP_ONLY = {
+    "reach_goal": "the goal's direction is drawn at each reset (within +-90 degrees at medium): a gait walks "
+                  "one heading (+x here) whatever the goal, and walks away from goals off to the side; the task "
+                  "needs the goal in the observation, i.e. a policy",
+    "rough_terrain": "a new terrain at each reset: the gait is optimised on the terrain of seed 0 and played "
+                     "unchanged on others (allowed, but it cannot adapt to them)",
+}
+
+
+def group_of(run) -> tuple[str, str, str]:
+    """(task, robot, method) of a suite run."""
+    if run.kind == "optimize":
+        return get_task(run.params["task"]).env_task, robot_name(run.params["robot"]), "trajopt"
+    return task_of(run.params["robot"]), robot_name(run.params["robot"]), run.params["algo"]
+
+
+def collect(spec, sweep_dir: Path) -> dict[tuple[str, str, str], dict]:
+    """Per (task, robot, method): the runs planned, the statuses of those done."""
+    groups: dict[tuple[str, str, str], dict] = {}
+    for run in spec.runs:
+        g = groups.setdefault(group_of(run), {"planned": [], "done": [], "failed": []})
+        g["planned"].append(run.name)
+        st = read_status(sweep_dir / run.name) or {}
+        if st.get("status") == "done" and (st.get("metrics") or {}).get("task"):
+            g["done"].append(st)
+        elif st.get("status") in ("failed", "interrupted"):
+            g["failed"].append(f"{run.name}: {st.get('status')} ({st.get('reason', '')})")
+    return groups
+
+
+def cell(group: dict) -> dict | None:
+    """Mean and spread of a group's scores (RL: over seeds; trajopt, one run: over its episodes)."""
+    done = group["done"]
+    if not done:
+        return None
+    tasks = [st["metrics"]["task"] for st in done]
+    if len(done) == 1 and done[0]["kind"] == "optimize":
+        import json
+        episodes = json.loads((Path(done[0]["metrics"]["result"]).parent / "task_score.json").read_text())["episodes"]
+        scores = [e["score"] for e in episodes]
+    else:
+        scores = [t["score"] for t in tasks]
+    return {"mean": float(np.mean(scores)), "std": float(np.std(scores, ddof=1)) if len(scores) > 1 else 0.0,
+            "n": len(done), "planned": len(group["planned"]), "success": float(np.mean([t["success_rate"] for t in tasks])),
+            "sim_steps": float(np.mean([st["metrics"].get("sim_steps") or 0 for st in done])),
+            "wall": float(np.mean([st.get("wall_time_s", 0.0) for st in done])),
+            "unit": tasks[0]["score_unit"], "name": tasks[0]["score_name"]}
+
+
+def measure_rates(steps: int) -> dict[str, float]:
+    """Simulation steps per second of each id (random actions, one process, after a warm-up)."""
+    import gymnasium as gym
+    rates = {}
+    for task in TASKS:
+        for robot in ROBOTS:
+            env = gym.make(TASK_IDS_BY_TASK[task][robot])
+            env.reset(seed=0)
+            env.action_space.seed(0)
+            env.step(env.action_space.sample())
+            t0, n = time.perf_counter(), 0
+            while n < steps:
+                _, _, term, trunc, _ = env.step(env.action_space.sample())
+                n += 1
+                if term or trunc:
+                    env.reset()
+            rates[TASK_IDS_BY_TASK[task][robot]] = n / (time.perf_counter() - t0)
+            env.close()
+    return rates
+
+
+def render_pictures(folder: Path, width: int, height: int) -> dict[str, Path]:
+    """Each task on the Tripod at the start of an episode (seed 0, medium), one PNG per task."""
+    import gymnasium as gym
+    from PIL import Image
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for task in TASKS:
+        env = gym.make(TASK_IDS_BY_TASK[task]["tripod"], render_mode="rgb_array", width=width, height=height,
+                       camera_config={"azimuth": 20.0, "elevation": 18.0})
+        env.reset(seed=0)
+        path = folder / f"{task}.png"
+        tmp = path.with_name(f".{path.name}.tmp.png")
+        Image.fromarray(env.render()).save(tmp)
+        os.replace(tmp, path)
+        env.close()
+        out[task] = path
+    return out
+
+
+def _fmt(c: dict | None) -> str:
+    if c is None:
+        return "not run"
+    digits = 1 if c["unit"] == "deg" else 2
+    return f"{c['mean']:+.{digits}f} ± {c['std']:.{digits}f}"
+
+
+def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, Path], path: Path,
+           quick: bool) -> str:
+    """The report's markdown (written to ``path`` atomically)."""
+    groups = collect(spec, sweep_dir)
+    budgets = {}
+    for run in spec.runs:
+        budgets.setdefault(group_of(run)[2], run.params.get("timesteps", run.params.get("iterations", 10)))
+    rel = os.path.relpath(sweep_dir, ROOT) if str(sweep_dir).startswith(str(ROOT)) else str(sweep_dir)
+    made = sum(len(g["done"]) for g in groups.values())
+    n_ep = default_episodes()
+    lines = [f"# The task suite{' (quick: tiny budgets, no result)' if quick else ''}", "",
+             f"Made by `python benchmarks/bench_suite.py{' --quick' if quick else ''}` on {platform.node()}, "
+             f"{time.strftime('%Y-%m-%d')}; the runs of `examples/suite.toml` in `{rel}/` ({made} of "
+             f"{len(spec.runs)} made). Every run is scored on its task's Gymnasium id (difficulty medium, "
+             f"the registered 300-step episodes, {n_ep} episode{'s' * (n_ep > 1)}, seeds 0-{n_ep - 1}) with the "
+             "task's own score (`trajopt.tasks.scores`):", ""]
+    for task in TASKS:
+        sc = SCORES[task]
+        lines.append(f"- {task}: **{sc.name}** [{sc.unit}], {sc.description}")
+    lines += ["", f"Budgets: PPO and SAC {budgets.get('ppo')} / {budgets.get('sac')} environment steps per run "
+              f"(3 seeds); trajopt {budgets.get('trajopt')} Gauss-Newton iterations (one run; its ± is over its "
+              "evaluation episodes, RL's over the seeds). Simulation steps: RL's training steps, trajopt's "
+              "optimisation steps (rollouts, Jacobians, line searches); wall time per run includes the "
+              "evaluation.", "",
+              *TABLE_HEAD]
+    missing = []
+    for task in TASKS:
+        for robot in ROBOTS:
+            for method, label in METHODS.items():
+                g = groups.get((task, robot, method))
+                if g is None:
+                    continue
+                c = cell(g)
+                if c is None or c["n"] < c["planned"]:
+                    missing.append((task, robot, method, g))
+                unit = SCORES[task].unit
+                row = [task, robot.capitalize(), label, f"{_fmt(c)} {unit}" if c else "not run",
+                       (f"{c['success']:.0%}" if TASK_DOCS[task].success else "–") if c else "", f"{c['n']}/{c['planned']}" if c else f"0/{len(g['planned'])}",
+                       f"{c['sim_steps']:,.0f}" if c else "", f"{c['wall']:.0f} s" if c else ""]
+                lines.append("| " + " | ".join(row) + " |")
+    lines += ["", "## Open loop or closed loop", "",
+              "Every task is a trajopt objective (`trajopt optimize ROBOT --task TASK [--difficulty LEVEL]`): walk, "
+              "turn, the slopes, rough terrain, the step and the trench on the task's own slope or ground, reach "
+              "a goal as the walk along `--heading`. Where an open-loop gait falls short of the task as posed:", ""]
+    lines += [f"- {task}: {why}" for task, why in CLOSED_LOOP_ONLY.items()]
+    speeds = ", ".join(f"{DEFAULT_SPEED[r]:g} BL/min for the {r.capitalize()}" for r in ROBOTS if r in DEFAULT_SPEED)
+    lines += ["", "trajopt's objective is the walk's of `trajopt optimize` as shipped: it tracks a COM path at the "
+              f"robot's default target speed ({speeds}), not the fastest walk (`--speed max`, "
+              "benchmarks/results/headline.md), and every optimisation starts from its own random seeds (the "
+              "README's Puppy turn is warm-started from its walk, `--warm-start results/puppy_walk.npz`); RL "
+              "maximises the task's reward."]
+    turns = [cell(groups[("turn", "tripod", m)]) for m in METHODS if ("turn", "tripod", m) in groups]
+    turns = [c for c in turns if c is not None]
+    if turns and max(abs(c["mean"]) for c in turns) < 1.0:
+        lines += ["", "The Tripod's two motors bend its middle leg forward and backward in its plane of symmetry "
+                  "(assets/tripod/robot.toml): no control yaws it, and every method made on it turns it by "
+                  f"{max(abs(c['mean']) for c in turns):.2f} degrees at most over an episode. The turn is the "
+                  "Puppy's task."]
+    lines += ["", "## Cost", "", "Simulation steps per second of each id (random actions, one process; measured "
+              "by this script on this machine, shared with other jobs):", "",
+              "| id | steps/s | RL runs' cost at the budget (6 runs) |", "|---|---|---|"]
+    rl_steps = 3 * (budgets.get("ppo") or 0) + 3 * (budgets.get("sac") or 0)
+    for tid, rate in rates.items():
+        lines.append(f"| `{tid}` | {rate:.0f} | {rl_steps / rate / 60:.0f} min (simulation alone) |")
+    total = sum(rl_steps / r for r in rates.values())
+    lines += ["", f"The RL runs of the full suite simulate {rl_steps * len(rates):,} steps: {total / 3600:.1f} hours "
+              "of one core for the simulation alone (SAC's gradient steps and PPO's updates add to it: the wall "
+              "times above).", ""]
+    if missing:
+        lines += ["## Not run", "", "Runs of `examples/suite.toml` not made (or not finished) in this report; "
+                  "`python benchmarks/bench_suite.py` makes every one (it skips those done), a part: "
+                  "`trajopt sweep examples/suite.toml --out results/sweeps/suite --only PATTERN` then "
+                  "`python benchmarks/bench_suite.py --report-only`:", ""]
+        for task, robot, method, g in missing:
+            pat = _pattern(g["planned"])
+            lines.append(f"- {task}, {robot}, {METHODS[method]}: `--only '{pat}'`"
+                         + (f" ({'; '.join(g['failed'])})" if g["failed"] else ""))
+        lines.append("")
+    lines += ["## The tasks", ""]
+    for task, pic in pictures.items():
+        lines += [f"![{task}]({os.path.relpath(pic, path.parent)})", ""]
+    text = "\n".join(lines)
+    atomic_write_bytes(path, text.encode())
+    return text
+
+
+def update_docs(report_text: str, docs: Path = DOCS) -> None:
+    """Each task's rows of the report into its section of docs/tasks.md (between the lines
+    ``<!-- baselines TASK -->`` and ``<!-- /baselines TASK -->``), atomically."""
+    text = docs.read_text()
+    for task in TASKS:
+        start, end = f"<!-- baselines {task} -->", f"<!-- /baselines {task} -->"
+        if start not in text or end not in text:
+            raise ValueError(f"{docs}: no '{start}' ... '{end}' block for the task {task!r}")
+        rows = [line for line in report_text.splitlines() if line.startswith(f"| {task} | ")]
+        a, b = text.index(start) + len(start), text.index(end)
+        text = text[:a] + "\n" + "\n".join(TABLE_HEAD + rows) + "\n" + text[b:]
+    atomic_write_bytes(docs, text.encode())
+
+
+def _pattern(names: list[str]) -> str:
+    """A shell pattern matching ``names`` (their common prefix, ``*``)."""
+    prefix = os.path.commonprefix(names)
+    return prefix if len(names) == 1 else prefix + "*"
+
+
+def main(argv: list[str] | None = None) -> str:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--spec", type=Path, default=SPEC, help="sweep file (default examples/suite.toml)")
+    ap.add_argument("--sweep-dir", type=Path, default=None,
+                    help="the sweep's folder (default results/sweeps/suite; --quick: a temporary one)")
+    ap.add_argument("--report", type=Path, default=None,
+                    help="report file (default benchmarks/results/suite.md; --quick: SWEEP_DIR/suite.md)")
+    ap.add_argument("--quick", action="store_true", help="tiny budgets ([runs.quick]), also SOFT_ENVS_QUICK=1")
+    ap.add_argument("--only", action="append", default=None, metavar="PATTERN", help="only the runs matching")
+    ap.add_argument("--workers", type=int, default=None, help="local Ray CPUs (default: all)")
+    ap.add_argument("--serial", action="store_true", help="no Ray: the runs one after another in this process")
+    ap.add_argument("--report-only", action="store_true", help="no runs: the report from those made")
+    args = ap.parse_args(argv)
+    quick = args.quick or os.environ.get("SOFT_ENVS_QUICK", "") not in ("", "0")
+    sweep_dir = args.sweep_dir or (Path(tempfile.mkdtemp(prefix="suite_quick_")) if quick else SWEEP_DIR)
+    report_path = args.report or (sweep_dir / "suite.md" if quick else REPORT)
+    spec = load_spec(args.spec, sweep_dir, quick=quick)
+    saved = os.environ.get("SOFT_ENVS_QUICK")
+    if quick:
+        os.environ["SOFT_ENVS_QUICK"] = "1"             # one evaluation episode per run (trajopt.tasks.scores)
+    try:
+        return _run(args, spec, sweep_dir, report_path, quick)
+    finally:
+        if saved is None:
+            os.environ.pop("SOFT_ENVS_QUICK", None)
+        else:
+            os.environ["SOFT_ENVS_QUICK"] = saved
+
+
+def _run(args, spec, sweep_dir: Path, report_path: Path, quick: bool) -> str:
+    """The sweep (unless ``--report-only``), the rates, the pictures, the report (and the docs)."""
+    if not args.report_only:
+        sweep_dir.mkdir(parents=True, exist_ok=True)
+        only = args.only or (QUICK_ONLY if quick else None)
+        outcome = run_sweep(spec.only(only), sweep_dir, workers=args.workers, serial=args.serial)
+        if outcome.interrupted:
+            raise SystemExit(130)
+    rates = measure_rates(10 if quick else 100)
+    pictures = render_pictures(sweep_dir / "images" if quick else IMAGES, *((160, 120) if quick else (480, 320)))
+    text = report(spec, sweep_dir, rates, pictures, report_path, quick)
+    print(f"wrote {report_path}")
+    if not quick and args.report is None:
+        update_docs(text)
+        print(f"wrote each task's rows into {DOCS}")
+    return text
+
+
+if __name__ == "__main__":
+    main()

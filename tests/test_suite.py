@@ -1,0 +1,190 @@
+"""The task suite (issue #39 items 4-6): every benchmark task is a trajopt objective on the task's
+own ground, RL trains on the task ids, both are scored with the task's own score, one sweep file
+holds the runs, the quick mode of benchmarks/bench_suite.py renders its report with every row, and
+the rl_zoo3 files are trajopt/rl/hyperparams.py's values."""
+from __future__ import annotations
+
+import importlib.util
+import tomllib
+from pathlib import Path
+from types import SimpleNamespace
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import soft_envs
+from soft_envs import TASK_ENV_IDS, TASK_IDS_BY_TASK, TASKS
+from trajopt.rl.hyperparams import ALGOS, SUITE_N_ENVS, SUITE_TIMESTEPS, default_hyperparams, vecnormalize_kwargs
+from trajopt.tasks import ENV_TASKS, get_task
+from trajopt.tasks.scores import SCORES, _episode_score
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_every_benchmark_task_is_a_trajopt_task_on_the_task_s_own_ground():
+    assert set(ENV_TASKS) == set(TASKS) == set(SCORES)
+    xs, zs = np.meshgrid(np.linspace(-0.1, 0.5, 31), np.linspace(-0.2, 0.2, 5))
+    for task, name in ENV_TASKS.items():
+        where = get_task(name).environment("tripod", "hard")
+        env = gym.make(TASK_IDS_BY_TASK[task]["tripod"], difficulty="hard")
+        base = env.unwrapped
+        assert where.get("incline_deg", 0.0) == base.incline_deg, task
+        ground = base.robot.ground
+        if "ground" in where:        # the same field as the environment's (the rough terrain's of seed 0)
+            if task == "rough_terrain":
+                env.close()
+                ground = gym.make(TASK_IDS_BY_TASK[task]["tripod"], difficulty="hard", terrain_seed=0).unwrapped.robot.ground
+            np.testing.assert_array_equal(where["ground"].height(xs, zs), ground.height(xs, zs), err_msg=task)
+        else:
+            assert ground is None or ground.is_flat, task
+        env.close()
+    with pytest.raises(ValueError, match="difficulty must be one of 'easy', 'medium', 'hard', got 'extreme'"):
+        get_task("climb_step").environment("tripod", "extreme")
+
+
+def test_each_task_s_score_is_what_its_documentation_says():
+    L, dt, K = 0.14, 0.033, 300
+    base = SimpleNamespace(robot=SimpleNamespace(body_length=L), dt=dt,
+                           locomotion_task=SimpleNamespace(heading=np.array([1.0, 0.0, 0.0]), turn_direction="left"))
+    com = np.zeros((K + 1, 3))
+    com[-1, 0] = L                                   # one body length along +x over 10 s
+    rec = {"com": com, "yaw": np.linspace(0.0, -3 * np.pi / 4, K + 1) % (2 * np.pi) - np.pi,   # wraps around
+           "goal_distance": np.linspace(1.0, 0.5, K + 1) * L}
+    assert _episode_score("walk", base, rec, K) == pytest.approx(60.0 / (K * dt))            # BL/min
+    assert _episode_score("rough_terrain", base, rec, K) == pytest.approx(60.0 / (K * dt))
+    assert _episode_score("climb_step", base, rec, K) == pytest.approx(1.0)                  # BL
+    assert _episode_score("reach_goal", base, rec, K) == pytest.approx(0.5)                  # BL gained
+    assert _episode_score("turn", base, rec, K) == pytest.approx(135.0)                      # deg, to the left
+    assert {s.unit for s in SCORES.values()} == {"BL/min", "deg", "BL"}
+
+
+def test_rl_takes_a_task_id_and_refuses_what_does_not_fit(tmp_path):
+    from trajopt.rl.envs import env_id, make_env, rl_target, robot_name, task_of
+    assert robot_name("SoftPuppyCrossTrench-v0") == "puppy" and task_of("SoftPuppyCrossTrench-v0") == "cross_trench"
+    assert env_id("SoftPuppyCrossTrench-v0") == "SoftPuppyCrossTrench-v0" and env_id("puppy") == "SoftPuppy-v2"
+    env = make_env("SoftTripodReachGoal-v0", max_episode_steps=300, env_kwargs={"difficulty": "easy"})
+    assert env.unwrapped.difficulty == "easy" and "goal_offset" in env.unwrapped.observation_structure
+    env.close()
+    import argparse
+    with pytest.raises(argparse.ArgumentTypeError, match=r"or a task id SoftPuppyClimbStep-v0 \.\.\.\), got 'SoftTripodWalk-v9'"):
+        rl_target("SoftTripodWalk-v9")
+    from trajopt.rl.options import train_with_options
+    with pytest.raises(ValueError, match="--difficulty applies to a task id .*, not to 'tripod'"):
+        train_with_options("tripod", difficulty="easy", out=tmp_path)
+    from trajopt.sweep import load_spec
+    spec = tmp_path / "s.toml"
+    spec.write_text('[[runs]]\nkind = "evaluate"\nname = "e"\ntask_score = true\n[runs.args]\nresult = "x.npz"\n')
+    with pytest.raises(ValueError, match=r"s.toml: runs\[0\].task_score must be true or false and applies to kinds "
+                                         "'rl-train' and 'optimize' only"):
+        load_spec(spec)
+    spec.write_text('[[runs]]\nkind = "rl-train"\nname = "r"\n[runs.args]\nrobot = "SoftTripodWalk-v0"\n'
+                    'difficulty = "extreme"\n')
+    with pytest.raises(ValueError, match="argument difficulty: difficulty must be one of"):
+        load_spec(spec)
+
+
+def test_difficulty_is_refused_for_a_task_that_is_no_benchmark_task(tmp_path):
+    from trajopt.optimize_run import OptimizeRun, run_optimization
+    with pytest.raises(ValueError, match="--difficulty applies to the benchmark's tasks .*, not to --task incline"):
+        run_optimization(OptimizeRun("tripod", task="incline", difficulty="easy", out=tmp_path, quiet=True))
+
+
+def test_the_sweep_file_uses_the_suite_s_budget_on_every_id():
+    doc = tomllib.loads((ROOT / "examples" / "suite.toml").read_text())
+    rl = [b for b in doc["runs"] if b["kind"] == "rl-train"]
+    assert sorted(b["args"]["algo"] for b in rl) == sorted(ALGOS)
+    for b in rl:
+        assert b["args"]["timesteps"] == SUITE_TIMESTEPS and b["args"]["n_envs"] == SUITE_N_ENVS
+        assert sorted(b["grid"]["robot"]) == sorted(TASK_ENV_IDS) and b["grid"]["seed"] == [0, 1, 2]
+    opt = [b for b in doc["runs"] if b["kind"] == "optimize"]
+    assert len(opt) == 1 and set(opt[0]["grid"]["task"]) == set(ENV_TASKS.values())
+    assert all(b.get("task_score") for b in doc["runs"])
+
+
+def test_the_renderer_draws_a_relief_and_a_goal():
+    from soft_envs.render import Renderer
+    from soft_envs.sim import HeightField, load_robot
+    robot = load_robot("tripod")
+    r = Renderer(robot.mesh.surface, width=160, height=120, body_length=robot.body_length, legend=False,
+                 scale_bar=False)
+    x = robot.mesh.points
+    flat = r.render(x)
+    step = r.render(x, ground=HeightField.step(height=0.02, position=0.15, width=0.01))
+    goal = r.render(x, goal=[0.1, 0.0, 0.05])
+    assert (flat != step).any() and (flat != goal).any()
+
+
+@pytest.mark.rl
+def test_the_quick_suite_trains_every_id_and_its_report_has_every_row(tmp_path):
+    """benchmarks/bench_suite.py --quick: PPO a few hundred steps on each of the 16 ids, SAC on two,
+    trajopt on the step, each scored on its id; the report lists task x robot x method, the runs not
+    made as "not run", each id's steps per second and a picture of each task."""
+    pytest.importorskip("stable_baselines3")
+    spec = importlib.util.spec_from_file_location("bench_suite", ROOT / "benchmarks" / "bench_suite.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    text = bench.main(["--quick", "--serial", "--sweep-dir", str(tmp_path)])
+    rows = [line.split(" | ") for line in text.splitlines() if line.startswith("| ") and " | Tripod | " in line
+            or line.startswith("| ") and " | Puppy | " in line]
+    assert len(rows) == len(TASKS) * 2 * 3
+    for task in TASKS:
+        for robot in ("Tripod", "Puppy"):
+            ppo = next(r for r in rows if r[0] == f"| {task}" and r[1] == robot and r[2] == "PPO")
+            assert ppo[3].endswith(SCORES[task].unit) and "±" in ppo[3] and ppo[5] == "1/3", ppo
+    step = next(r for r in rows if r[0] == "| climb_step" and r[1] == "Tripod" and r[2].startswith("trajopt"))
+    assert step[3].endswith("BL") and "±" in step[3]
+    assert sum(r[3] == "not run" for r in rows) == 48 - 16 - 2 - 1
+    assert all(f"`{i}`" in text for i in TASK_ENV_IDS)                 # steps per second of every id
+    assert all((tmp_path / "images" / f"{t}.png").is_file() for t in TASKS)
+    assert "--only 'SoftPuppyWalk-v0_sac_seed*'" in text
+    from trajopt.replay import env_for_result
+    from trajopt.results.result import Result
+    res = Result.load(tmp_path / "tripod_climb_step_trajopt" / "tripod_climb_step_trajopt.npz")
+    assert res.settings["env_task"] == "climb_step" and env_for_result(res).robot.ground is not None
+
+
+def test_the_rl_zoo_files_are_the_baseline_s_hyperparameters(tmp_path):
+    from trajopt.rl.zoo import ZOO_DIR, write_zoo_files, zoo_ids, zoo_text
+    for algo in ALGOS:
+        assert (ZOO_DIR / f"{algo}.yml").read_text() == zoo_text(algo), "python -m trajopt.rl.zoo"
+    assert len(zoo_ids()) == len(TASK_ENV_IDS) + len(soft_envs.LATEST_ENV_IDS)
+    assert [p.read_text() for p in write_zoo_files(tmp_path)] == [zoo_text(a) for a in ALGOS]
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_rl_zoo3_loads_every_id_with_its_own_loader(algo, tmp_path):
+    pytest.importorskip("rl_zoo3", reason="rl_zoo3 is the optional 'zoo' extra (pip install -e .[zoo])")
+    import argparse
+    from rl_zoo3.exp_manager import ExperimentManager
+    from trajopt.rl.envs import DropHorizontalPosition
+    from trajopt.rl.zoo import ZOO_DIR, zoo_ids
+    want = default_hyperparams(algo, n_envs=SUITE_N_ENVS, timesteps=SUITE_TIMESTEPS)
+    for env_id in zoo_ids():
+        em = ExperimentManager(argparse.Namespace(), algo, env_id, str(tmp_path), config=str(ZOO_DIR / f"{algo}.yml"),
+                               verbose=0)
+        hp, _ = em.read_hyperparameters()
+        hp, wrapper, _, _ = em._preprocess_hyperparams(hp)
+        assert em.n_envs == SUITE_N_ENVS and em.n_timesteps == SUITE_TIMESTEPS, env_id
+        assert em.normalize and em.normalize_kwargs == vecnormalize_kwargs(algo, want["gamma"]), env_id
+        assert wrapper(gym.make("SoftTripod-v2")).__class__ is DropHorizontalPosition
+        assert hp.pop("policy_kwargs") == want["policy_kwargs"] and hp.pop("policy") == "MlpPolicy"
+        lr = hp.pop("learning_rate")
+        assert lr(1.0) == want["learning_rate"], env_id               # rl_zoo3 makes it a schedule
+        if "clip_range" in hp:
+            assert hp.pop("clip_range")(1.0) == want["clip_range"]
+        assert hp == {k: v for k, v in want.items() if k not in ("policy_kwargs", "learning_rate", "clip_range")}
+        assert (em.env_kwargs == {}) == (env_id in TASK_ENV_IDS), env_id
+
+
+def test_docs_show_each_task_s_picture_and_its_rows_of_the_report():
+    """docs/tasks.md's rows under each task are benchmarks/results/suite.md's (bench_suite.py
+    writes both), and the pictures it links exist."""
+    report = (ROOT / "benchmarks" / "results" / "suite.md").read_text().splitlines()
+    docs = (ROOT / "docs" / "tasks.md").read_text()
+    for task in TASKS:
+        block = docs.split(f"<!-- baselines {task} -->")[1].split(f"<!-- /baselines {task} -->")[0]
+        rows = [line for line in block.splitlines() if line.startswith(f"| {task} | ")]
+        assert rows and rows == [line for line in report if line.startswith(f"| {task} | ")], task
+        assert f"](../benchmarks/results/suite/{task}.png)" in docs
+        assert (ROOT / "benchmarks" / "results" / "suite" / f"{task}.png").is_file()
