@@ -219,6 +219,7 @@ def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_su
     wall = time.perf_counter() - t0
     model_path = run_dir / MODEL_NAME
     _save_atomically(model, venv, model_path, run_dir / VECNORM_NAME)
+    model.logger.close()                # progress.csv and the event files: flushed and closed now, not at GC
     done = int(model.num_timesteps)
     config.update(status=status, timesteps_done=done, sim_steps=done * int(frame_skip), wall_time_s=wall)
     write_config(run_dir, config)
