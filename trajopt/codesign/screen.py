@@ -8,8 +8,23 @@ keyframes follow for 5 Gauss-Newton iterations; the shipped design: 26.8). So co
 screens designs a finite step away in a few directions and keeps the best; then
 :mod:`trajopt.codesign.joint` refines gait and design together from there.
 
-A design is scored (``ScreenSettings.score``) by the speed of a gait for it, upright over 10
-cycles with the motors' limit on:
+A design is scored by the *credible speed* of a gait for it (``ScreenSettings.score`` says how
+the gait is found, below), the protocol of ``--speed max``'s hold stage
+(:func:`trajopt.search.hold.hold_check`): the gait, upright over 10 cycles with the motors' limit on
+at its own physics (4 steps of 8.25 ms per 33-ms control step), replayed with ``hold_factors``
+times its physics steps (default half, twice and four times: 16.5, 4.125 and 2.06 ms), gives the
+speeds ``v_n`` at n = 2, 4, 8, 16 steps per control step and
+
+    slowest = min_n v_n,    spread = (max_n v_n - slowest) / slowest,    holds = spread <= 5 %.
+
+Candidates rank by ``(holds, slowest)`` (:func:`~trajopt.search.hold.credible_rank`): a gait that
+holds beats every gait that does not, whatever their speeds (a design kept for a gain that belongs
+to the physics step would lose it on the next finer step); among gaits alike in that, the slowest
+speed decides. A gait that falls at any step or walks backwards is never better (the rank of
+not upright). ``hold_factors=()`` scores on the own physics alone (the slowest is then the
+speed and every upright forward gait holds).
+
+How the gait is found:
 
 * ``"warm"`` (default): ``iterations`` Gauss-Newton iterations warm-started from the current
   keyframes. The gait follows the design step by step, so the pair found is fast, but the gait
@@ -68,10 +83,11 @@ from ..fastest import SearchSettings, fastest_gait
 from ..optim.gauss_newton import GaussNewtonOptions
 from ..optim.optimize import optimize_gait
 from ..optim.qp import QPError, nearest_feasible
+from ..search.hold import HOLD_FACTORS, MAX_SPREAD, credible_rank, hold_check
 from ..workers import start_worker
 from .problem import CodesignProblem, design_env
 
-__all__ = ["ScreenSettings", "ScreenProgress", "candidates", "screen_designs", "SCORES", "WorkerDied"]
+__all__ = ["ScreenSettings", "ScreenProgress", "Score", "candidates", "screen_designs", "SCORES", "WorkerDied"]
 
 #: how a candidate design is scored (module docstring)
 SCORES = ("warm", "scratch")
@@ -89,6 +105,8 @@ class ScreenSettings:
     eval_cycles: int = 10
     warm: int = 2
     score: str = "warm"
+    hold_factors: tuple[float, ...] = HOLD_FACTORS
+    max_spread: float = MAX_SPREAD
 
     def __post_init__(self):
         if self.score not in SCORES:
@@ -96,7 +114,8 @@ class ScreenSettings:
 
     @classmethod
     def quick(cls) -> "ScreenSettings":
-        return cls(rounds=1, iterations=1, modulus_factors=(2.0,), routing_steps=(), eval_cycles=2, warm=1)
+        return cls(rounds=1, iterations=1, modulus_factors=(2.0,), routing_steps=(), eval_cycles=2, warm=1,
+                   hold_factors=(0.5,))
 
 
 def candidates(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, settings: ScreenSettings
@@ -141,25 +160,66 @@ def candidates(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, setti
     return out
 
 
-def _gait(env, gait, target: float, settings: ScreenSettings, z0: np.ndarray | None, search: SearchSettings):
-    """``(speed, z, simulation steps, status)`` of a gait on ``env``'s robot:
-    ``settings.iterations`` Gauss-Newton iterations from ``z0`` (warm), or (``z0`` None) from
-    scratch as ``--speed max`` finds it on the current cycle and keyframes (``search`` pinned to
-    them: the same runs as that candidate's in the full search). Speed nan: not upright."""
+@dataclass(frozen=True)
+class Score:
+    """A candidate's gait and its credible speed (module docstring): ``own`` its speed at the own
+    physics, ``hold`` the replays (:func:`~trajopt.search.hold.hold_check`: ``speeds``,
+    ``slowest``, ``spread``, ``holds``; None when nothing upright was found), ``z`` its keyframes,
+    ``steps`` the simulation steps it took (the replays included) and ``status`` the optimiser's."""
+
+    own: float
+    hold: dict | None
+    z: np.ndarray | None
+    steps: int
+    status: str
+
+    @property
+    def rank(self) -> tuple[int, float]:
+        return credible_rank(self.hold)
+
+    @property
+    def slowest(self) -> float:
+        return float("nan") if self.hold is None else float(self.hold["slowest"])
+
+    def row(self) -> dict:
+        """The screening row's fields of this score."""
+        h = self.hold or {}
+        return {"own_bl_per_min": self.own, "slowest_bl_per_min": self.slowest,
+                "spread": float(h.get("spread", float("nan"))), "holds": bool(h.get("holds", False))}
+
+
+def _gait(env, gait, target: float, settings: ScreenSettings, z0: np.ndarray | None, search: SearchSettings
+          ) -> Score:
+    """The :class:`Score` of a gait on ``env``'s robot: ``settings.iterations`` Gauss-Newton
+    iterations from ``z0`` (warm), or (``z0`` None) from scratch as ``--speed max`` finds it on the
+    current cycle and keyframes (``search`` pinned to them: the same runs as that candidate's in
+    the full search, its hold stage's replays reused when they were made over
+    ``settings.eval_cycles`` cycles at ``settings.hold_factors``); then replayed at the other physics
+    steps (:func:`~trajopt.search.hold.hold_check`). Not upright: ``own`` nan, ``hold`` None."""
+    reuse = False
     if z0 is None:
         pinned = replace(search, keyframes=(gait.n_keyframes,), max_sim_steps=None)
         try:
             res, _ = fastest_gait(env, settings=pinned, cycle_steps=gait.n_cycle, quiet=True)
-        except SimulationError as err:            # nothing upright: a score of nan
-            return float("nan"), None, 0, f"no upright gait ({err})"
+        except SimulationError as err:            # nothing upright: never better
+            return Score(float("nan"), None, None, 0, f"no upright gait ({err})")
         steps = int(res.evaluation["search_sim_steps"])
+        reuse = (int(res.settings["eval_cycles"]) == settings.eval_cycles
+                 and tuple(pinned.hold_factors) == tuple(settings.hold_factors)
+                 and float(pinned.max_spread) == float(settings.max_spread))
     else:
         res = optimize_gait(env, "walk", gait=gait, speed_bl_per_min=target, z0=z0, n_seeds=0,
                             options=GaussNewtonOptions(max_iter=settings.iterations), eval_cycles=settings.eval_cycles)
         steps = int(res.evaluation.get("optimization_sim_steps", 0)) + gait.n_prep + settings.eval_cycles * gait.n_cycle
     ev = res.evaluation
-    speed = float(ev["speed_bl_per_min"]) if ev.get("upright") else float("nan")
-    return speed, np.asarray(res.z), steps, res.status
+    if not ev.get("upright"):
+        return Score(float("nan"), None, np.asarray(res.z), steps, res.status)
+    hold = ev.get("hold") if reuse else None
+    if hold is None:
+        hold = hold_check(env, res, factors=settings.hold_factors, max_spread=settings.max_spread,
+                          n_cycles=settings.eval_cycles)
+        steps += hold["steps"]
+    return Score(float(ev["speed_bl_per_min"]), hold, np.asarray(res.z), steps, res.status)
 
 
 @dataclass(frozen=True)
@@ -264,15 +324,18 @@ class _Scorer:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _better(a: float, b: float) -> bool:
-    return np.isfinite(a) and (not np.isfinite(b) or a > b)
+def _better(a: Score, b: Score | None) -> bool:
+    """``a`` ranks above ``b`` (:func:`~trajopt.search.hold.credible_rank`; None: not scored)."""
+    return a.rank > (credible_rank(None) if b is None else b.rank)
 
 
 @dataclass
 class ScreenProgress:
     """Where a screening stands after a round (JSON-able through :func:`dataclasses.asdict`):
     the rounds done, the designs it moved to (in order: the path a resumed run replays), the best
-    design, its gait and speed so far, the rows, and whether it has ended."""
+    design, its gait and that gait's credible speed so far (``speed``: the slowest over the hold
+    replays; ``holds``: whether it holds; ``own``: its speed at the own physics), the rows, and
+    whether it has ended."""
 
     rounds_done: int
     theta: list[float]
@@ -281,29 +344,31 @@ class ScreenProgress:
     path: list[list[float]] = field(default_factory=list)
     rows: list[dict] = field(default_factory=list)
     finished: bool = False
+    holds: bool = False
+    own: float = float("nan")
 
 
 def screen_designs(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, speed: float, target: float,
                    settings: ScreenSettings = ScreenSettings(), *, search: SearchSettings = SearchSettings(),
                    workers: int = 1, resume: ScreenProgress | None = None,
                    log: Callable[[str], Any] = lambda t: None, done: Callable[[dict], None] | None = None,
-                   round_done: Callable[[ScreenProgress], None] | None = None) -> ScreenProgress:
-    """Where the screening ends (:class:`ScreenProgress`): the design chosen, its fastest upright
-    gait found and that gait's speed (``theta, z, speed`` as given when no candidate is better),
+                   round_done: Callable[[ScreenProgress], None] | None = None, holds: bool = False) -> ScreenProgress:
+    """Where the screening ends (:class:`ScreenProgress`): the design chosen, its best-ranked
+    gait found and that gait's credible speed (``theta, z, speed`` as given when no candidate is better),
     the designs moved to, and one row per run. ``target``: the gaits' tracking target [BL/min];
     ``done(row)`` after each candidate, ``round_done(progress)`` after each round; ``workers``:
     processes scoring a round's candidates (module docstring); ``resume``: continue from a
     ``round_done`` progress (``problem`` must stand at its last design: :meth:`CodesignProblem.move_to`
-    along its path).
+    along its path); ``speed`` and ``holds``: the given gait's credible speed and whether it holds.
 
-    A candidate's score (``settings.score``, module docstring) is the speed of its gait
-    warm-started from the current keyframes, or found from scratch as ``--speed max``
-    (``search``) finds it on the current cycle and keyframe count; the current design is scored
-    the same way. With scratch scores the ``warm`` best-scored candidates also get a gait
-    warm-started from the current keyframes, and keep the faster."""
+    A candidate's score (module docstring) is the credible rank of its gait warm-started from the
+    current keyframes, or found from scratch as ``--speed max`` (``search``) finds it on the
+    current cycle and keyframe count (``settings.score``); the current design is scored the same
+    way. With scratch scores the ``warm`` best-ranked candidates also get a gait warm-started
+    from the current keyframes, and keep the better-ranked."""
     if resume is None:
         state = ScreenProgress(0, np.asarray(theta, dtype=np.float64).tolist(),
-                               np.asarray(z, dtype=np.float64).tolist(), float(speed))
+                               np.asarray(z, dtype=np.float64).tolist(), float(speed), holds=bool(holds))
     else:
         state = resume
     scorer = _Scorer(workers)
@@ -335,7 +400,7 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
     rows: list[dict] = []
     jobs: list[_ScoreJob] = []
     for label, th in todo:
-        rows.append({"round": rnd, "candidate": label, "score_bl_per_min": float("nan"),
+        rows.append({"round": rnd, "candidate": label, **Score(float("nan"), None, None, 0, "").row(),
                      "warm_bl_per_min": float("nan"), "status": "", "sim_steps": 0})
         try:
             robot = problem.robot_at(th)
@@ -349,41 +414,52 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
         jobs.append(_ScoreJob(robot, problem.contact, problem.newton, problem.substeps, problem.gait, target, settings,
                               start_z if settings.score == "warm" else None, search, problem.motor_model))
     scores = scorer.map(jobs)                  # in the order of the rows left unscored above
-    scored: list[tuple[float, str, np.ndarray, np.ndarray]] = []
+    scored: list[tuple[Score, str, np.ndarray]] = []
     for row, (label, th) in zip(rows, todo):
         if row["status"] == "":
             out = next(scores)
             if isinstance(out, str):
                 row["status"] = f"failed: {out}"
             else:
-                score, z_s, steps, status = out
-                problem.sim_steps += steps
-                row.update(score_bl_per_min=score, sim_steps=steps, status=status)
-                scored.append((score, label, th, z_s))
+                problem.sim_steps += out.steps
+                row.update(out.row(), sim_steps=out.steps, status=out.status)
+                scored.append((out, label, th))
         state.rows.append(row)
-        log(f"  screen round {rnd}: {label}: {row['score_bl_per_min']:.2f} BL/min "
+        log(f"  screen round {rnd}: {label}: {_describe(row)} "
             f"({'warm-started' if settings.score == 'warm' else 'from scratch'}) {row['status']}")
         if done is not None:
             done(row)
-    current = scored[0][0] if scored and scored[0][1] == "current design" else float("nan")
-    ranked = sorted((s for s in scored if s[1] != "current design" and np.isfinite(s[0])), key=lambda s: -s[0])
+    current = scored[0][0] if scored and scored[0][1] == "current design" else None
+    ranked = sorted((s for s in scored if s[1] != "current design" and s[0].hold is not None),
+                    key=lambda s: s[0].rank, reverse=True)          # stable: ties keep the candidates' order
     winner = None
-    for score, label, th, z_s in ranked[:settings.warm]:
+    for score, label, th in ranked[:settings.warm]:
         if not _better(score, current):
             break
-        warm, z_w = score, z_s
+        gait = score
         if settings.score == "scratch":       # also a gait from the current keyframes
             env = problem.env_of(problem.robot_at(th))
-            warm, z_w, steps, _ = _gait(env, problem.gait, target, settings, start_z, search)
-            problem.sim_steps += steps
+            warm = _gait(env, problem.gait, target, settings, start_z, search)
+            problem.sim_steps += warm.steps
             row = next(r for r in rows if r["candidate"] == label)
-            row.update(warm_bl_per_min=warm, sim_steps=row["sim_steps"] + steps)
-            log(f"  screen round {rnd}: {label}: {warm:.2f} BL/min warm-started")
-        gait_speed, gait_z = (warm, z_w) if _better(warm, score) else (score, z_s)
+            row.update(warm_bl_per_min=warm.slowest, sim_steps=row["sim_steps"] + warm.steps)
+            log(f"  screen round {rnd}: {label}: warm-started {_describe(warm.row())}")
+            gait = warm if _better(warm, score) else score
         if winner is None:
             winner = label
-            state.theta, state.z, state.speed = np.asarray(th).tolist(), np.asarray(gait_z).tolist(), float(gait_speed)
-    log(f"screen round {rnd}: {'best ' + winner if winner else 'no better design'} (score "
-        f"{ranked[0][0] if ranked else float('nan'):.2f} vs the current design's {current:.2f}; gait {state.speed:.2f} BL/min)")
+            state.theta, state.z = np.asarray(th).tolist(), np.asarray(gait.z).tolist()
+            state.speed, state.holds, state.own = gait.slowest, bool(gait.hold["holds"]), gait.own
+    best = _describe(ranked[0][0].row()) if ranked else "nothing upright"
+    log(f"screen round {rnd}: {'best ' + winner if winner else 'no better design'} (best candidate {best}; the "
+        f"current design's {_describe(current.row()) if current is not None else 'not upright'}; gait "
+        f"{state.speed:.2f} BL/min at the slowest step)")
     state.rounds_done = rnd
     state.finished = winner is None or rnd >= settings.rounds
+
+
+def _describe(row: dict) -> str:
+    """A score in a line: its own speed, its slowest, spread and whether it holds."""
+    if not np.isfinite(row["slowest_bl_per_min"]):
+        return f"{row['own_bl_per_min']:.2f} BL/min, falls at another physics step or not upright"
+    return (f"{row['own_bl_per_min']:.2f} BL/min, slowest {row['slowest_bl_per_min']:.2f}, spread "
+            f"{100 * row['spread']:.1f} % ({'holds' if row['holds'] else 'does not hold'})")
