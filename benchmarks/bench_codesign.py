@@ -39,7 +39,8 @@ import time
 from pathlib import Path
 
 from bench_headline import MAX_SPREAD, bar_row
-from trajopt.codesign.run import CodesignRun, describe_credible, run_codesign
+from trajopt.codesign.run import CodesignRun, run_codesign
+from trajopt.codesign.summary import describe_credible
 
 HERE = Path(__file__).resolve().parent
 TARGET_RATIO, TARGET_REOPT, TARGET_MINUTES = 1.25, 1.2, 20.0

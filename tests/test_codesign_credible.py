@@ -14,9 +14,11 @@ import numpy as np
 import pytest
 
 import trajopt.codesign.joint as joint
+import trajopt.codesign.score as score
 import trajopt.codesign.screen as screen
 from trajopt.codesign.joint import JointSettings, JointState, optimise_jointly
-from trajopt.codesign.screen import Score, ScreenSettings, screen_designs
+from trajopt.codesign.score import Score
+from trajopt.codesign.screen import ScreenSettings, screen_designs
 from trajopt.search.hold import credible_rank, hold_verdict
 
 NAN = float("nan")
@@ -78,7 +80,7 @@ def _screen(monkeypatch, labels, table=CANDIDATES, **settings):
         own, hold = table[job.robot]
         return Score(own, hold, np.array([own]), 100, "fake")
 
-    monkeypatch.setattr(screen, "_score", fake)
+    monkeypatch.setattr(score, "score_job", fake)
     return screen_designs(problem, np.zeros(1), np.zeros(1), 21.0, 25.0,
                           ScreenSettings(rounds=1, **settings), workers=1)
 
@@ -153,3 +155,14 @@ def test_a_joint_stage_is_accepted_only_when_its_credible_rank_improves(monkeypa
     assert end.best_w == (moved_to if accepted else start)
     assert (end.best_speed, end.best_holds) == ((20.5, True) if accepted else (20.0, True))
     assert end.stage_rows[0]["holds"] == stage_hold["holds"]
+
+
+def test_a_checkpoint_made_before_credible_scores_is_refused(tmp_path):
+    """A run interrupted before co-design ranked by credible speeds ranked its screening's designs
+    otherwise: ``--resume`` refuses it in one line, before any work."""
+    import json
+
+    from trajopt.codesign.run import PARTIAL, CodesignRun, run_codesign
+    (tmp_path / PARTIAL).write_text(json.dumps({"settings": {"robot": "tripod"}, "state": {"w": [0.0]}}))
+    with pytest.raises(ValueError, match="made before co-design scored designs by credible speeds.*--overwrite"):
+        run_codesign(CodesignRun("tripod", tmp_path, resume=True, quiet=True))

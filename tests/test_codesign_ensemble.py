@@ -6,9 +6,8 @@ A short Tripod walk (4 prep steps, two 8-step cycles, Coulomb law, Newton tolera
 a modulus, the routing and the legs as the design, the motors' speed limit alone (the finite
 differences step through gaits beyond the torque-speed line). Along random directions in all of
 w = [z; theta] (the via points moved inwards, along the clearance's gradient, so that both sides
-are inside the body), step h = 1e-4: relative error measured below 1e-6 per direction; asserted
-<= 1e-5, the bound of tests/test_codesign_problem.py (the environments' rest relaxation stops at
-1e-9 m).
+are inside the body), step h = 1e-4: relative error |J d - fd| / |fd| measured 1.9e-8 and 3.3e-8
+(seeds 0 and 1); asserted <= 1e-6.
 """
 from __future__ import annotations
 
@@ -84,7 +83,7 @@ def test_stacked_jacobian_matches_central_differences(ensemble, seed):
     rm, _, _ = ensemble(w0 - h * d, False)
     fd = (rp - rm) / (2 * h)
     err = np.linalg.norm(J @ d - fd) / np.linalg.norm(fd)
-    assert err <= 1e-5, f"direction {seed}: relative error {err:.2e}"
+    assert err <= 1e-6, f"direction {seed}: relative error {err:.2e}"
 
 
 def test_constraints_add_every_members_torque_speed_rows():

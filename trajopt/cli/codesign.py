@@ -100,7 +100,7 @@ def _cmd_codesign(args) -> int:
     s = outcome.summary
     if outcome.finished:
         print(f"{args.out} holds a finished co-design (--vary {','.join(args.vary)}); nothing to resume")
-    from ..codesign.run import describe_credible
+    from ..codesign.summary import describe_credible
     credible = describe_credible(s) if "credible_ratio" in s else (      # a co-design made before they were
         f"{s['before_bl_per_min']:.2f} -> {s['after_bl_per_min']:.2f} BL/min ({s['ratio']:.2f}x)")
     print(f"{outcome.robot_file}: {credible}; gait {outcome.result_file}; report {outcome.report_file}")

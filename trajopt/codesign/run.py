@@ -52,7 +52,8 @@ from .joint import JointSettings, JointState, optimise_jointly, replay_path
 from .partial import check_partial_sizes, read_partial
 from .problem import CodesignProblem, CodesignWeights
 from .screen import ScreenProgress, ScreenSettings, screen_designs
-from ..search.hold import credible_rank, describe_hold, hold_check
+from ..search.hold import credible_rank
+from .summary import credible_check, describe_credible, summarise, write_report
 
 __all__ = ["CodesignRun", "CodesignOutcome", "run_codesign", "design_changes", "check_baseline"]
 
@@ -230,6 +231,10 @@ def _run_reserved(run: CodesignRun, env, design, given: Result | None, t_start: 
     shipped = env.robot
     partial = run.out / PARTIAL
     saved = read_partial(partial) if run.resume and partial.is_file() else None   # before any work
+    if saved is not None and saved[0].get("scores") != SCORES:
+        raise ValueError(f"{partial}: cannot resume: the interrupted run was made before co-design scored designs "
+                         "by credible speeds (the slowest over the hold stage's physics steps), and its screening "
+                         "and stages ranked designs by the speed at the own physics; start afresh with --overwrite")
     baseline = _baseline(run, env, given, say)
     gait = GaitSpec.from_settings(baseline.settings)
     base_speed = float(baseline.evaluation["speed_bl_per_min"])
@@ -244,10 +249,6 @@ def _run_reserved(run: CodesignRun, env, design, given: Result | None, t_start: 
     state = None
     if saved is not None:
         expected = json.loads(json.dumps(settings, default=float))
-        if saved[0].get("scores") != SCORES:
-            raise ValueError(f"{partial}: cannot resume: the interrupted run was made before co-design scored "
-                             "designs by credible speeds (the slowest over the hold stage's physics steps), and "
-                             "its screening and stages ranked designs otherwise; start afresh with --overwrite")
         if saved[0] != expected:
             raise ValueError(f"{partial}: cannot resume: the settings differ from the interrupted run's "
                              f"({_settings_difference(saved[0], expected)}); resume with its options, or start "
@@ -305,8 +306,8 @@ def _run_reserved(run: CodesignRun, env, design, given: Result | None, t_start: 
     holds = {"before": base_hold, "after": result.evaluation.get("hold"),
              "reoptimised": credible_check(new_env, reopt, run.screen)
              if reopt is not None and reopt.evaluation.get("upright") else None}
-    summary = _summary(run, env, baseline, result, reopt, state, changes, checks, time.perf_counter() - t_start, holds)
-    report_file = _report(run, shipped, new_env.robot, summary, changes, checks, settings)
+    summary = summarise(run, env, baseline, result, reopt, state, changes, checks, time.perf_counter() - t_start, holds)
+    report_file = write_report(run, shipped, new_env.robot, summary, changes, checks, settings)
     _write_json(run.out / SUMMARY, summary)
     partial.unlink(missing_ok=True)
     say(f"co-design: {describe_credible(summary)}; {summary['iterations']} Gauss-Newton iterations, "
@@ -359,21 +360,6 @@ def _screen(run: CodesignRun, problem: CodesignProblem, state: JointState, basel
     checkpoint(state)
 
 
-def credible_check(env, res: Result, screen: ScreenSettings) -> dict:
-    """The replays of ``res`` (a gait on ``env``'s physics) at the screening's other physics steps
-    (:func:`~trajopt.search.hold.hold_check` over ``screen.eval_cycles`` cycles at
-    ``screen.hold_factors``): its ``evaluation["hold"]`` when its search's hold stage made them so,
-    else replayed here."""
-    made = res.evaluation.get("hold")
-    search = (res.settings.get("search") or {}).get("settings") or {}
-    if (made and int(res.settings.get("eval_cycles", -1)) == screen.eval_cycles
-            and tuple(search.get("hold_factors", ())) == tuple(screen.hold_factors)
-            and float(made.get("max_spread", -1)) == float(screen.max_spread)):
-        return made
-    return hold_check(env, res, factors=screen.hold_factors, max_spread=screen.max_spread,
-                      n_cycles=screen.eval_cycles)
-
-
 def _gait_on_written_robot(run: CodesignRun, env, gait: GaitSpec, z: np.ndarray, state: JointState,
                            robot_file: Path) -> Result:
     """The co-designed keyframes on the reloaded robot: ``polish_iterations`` more Gauss-Newton
@@ -390,81 +376,3 @@ def _gait_on_written_robot(run: CodesignRun, env, gait: GaitSpec, z: np.ndarray,
         if res.evaluation.get("upright"):
             res.evaluation["hold"] = credible_check(env, res, run.screen)
     return max(gaits, key=lambda r: credible_rank(r.evaluation.get("hold")))     # the first of equals: plain
-
-
-def _summary(run, env, baseline, result, reopt, state, changes, checks, wall, holds) -> dict:
-    """The figures of a co-design (``codesign.json``): per gait (``before``: the shipped design's
-    fastest, ``after``: the co-designed, ``reoptimised``: the written robot's from scratch) its
-    speed at the own physics and its credible figures (``holds[gait]``, the replays); the ratios
-    of the own speeds (``ratio``, ``reoptimised_ratio``) and, the primary figures, of the slowest
-    speeds (``credible_ratio``, ``reoptimised_credible_ratio``)."""
-    before = float(baseline.evaluation["speed_bl_per_min"])
-    after = float(result.evaluation["speed_bl_per_min"])
-    out = {"robot": env.robot.name, "contact": env.contact_model, "vary": list(run.vary),
-           "n_cycle": baseline.settings["n_cycle"], "n_keyframes": baseline.settings["n_keyframes"],
-           "before_bl_per_min": before, "after_bl_per_min": after, "ratio": after / before,
-           "after_upright": bool(result.evaluation.get("upright")),
-           "iterations": len(state.history), "stages": state.stage_rows,
-           "joint_ensemble": list(run.joint.ensemble),
-           "codesign_sim_steps": state.sim_steps, "codesign_wall_time_s": state.wall_time_s,
-           "wall_time_s": wall, "changes": len(changes), "checks_passed": all(c.passed for c in checks)}
-    if reopt is not None:
-        v = float(reopt.evaluation["speed_bl_per_min"])
-        out.update(reoptimised_bl_per_min=v, reoptimised_ratio=v / before,
-                   reoptimised_cycle=[reopt.settings["n_cycle"], reopt.settings["n_keyframes"]],
-                   reoptimised_chosen_by=(reopt.settings.get("search") or {}).get("chosen_by"))
-    for gait, check in holds.items():
-        if gait == "reoptimised" and reopt is None:
-            continue
-        out.update({f"{gait}_slowest_bl_per_min": float("nan") if check is None else float(check["slowest"]),
-                    f"{gait}_spread": float("nan") if check is None else float(check["spread"]),
-                    f"{gait}_holds": bool(check and check["holds"]),
-                    f"{gait}_speeds": None if check is None else [float(v) for v in check["speeds"]],
-                    f"{gait}_substeps": None if check is None else list(check["substeps"])})
-    base = out["before_slowest_bl_per_min"]
-    out["credible_ratio"] = out["after_slowest_bl_per_min"] / base
-    if reopt is not None:
-        out["reoptimised_credible_ratio"] = out["reoptimised_slowest_bl_per_min"] / base
-    return out
-
-
-def describe_credible(summary: dict) -> str:
-    """The co-design's primary figures in a line: the slowest speeds over the physics steps, their
-    ratios to the shipped design's, and whether each gait holds; then the own-physics speeds."""
-    def gait(key: str) -> str:
-        if not np.isfinite(summary[f"{key}_slowest_bl_per_min"]):
-            return "falls at a physics step (or walks backwards)"
-        return (f"{summary[f'{key}_slowest_bl_per_min']:.2f} at the slowest step, spread "
-                f"{100 * summary[f'{key}_spread']:.1f} % ({'holds' if summary[f'{key}_holds'] else 'does not hold'})")
-    text = (f"credible speeds: shipped {gait('before')}; co-designed {gait('after')}, "
-            f"{summary['credible_ratio']:.2f}x")
-    if "reoptimised_credible_ratio" in summary:
-        text += f"; re-optimised from the files {gait('reoptimised')}, {summary['reoptimised_credible_ratio']:.2f}x"
-    text += (f" (own physics: {summary['before_bl_per_min']:.2f} -> {summary['after_bl_per_min']:.2f}, "
-             f"{summary['ratio']:.2f}x")
-    if "reoptimised_ratio" in summary:
-        text += f"; re-optimised {summary['reoptimised_bl_per_min']:.2f}, {summary['reoptimised_ratio']:.2f}x"
-    return text + ")"
-
-
-def _report(run, shipped, designed, summary, changes, checks, settings) -> Path:
-    from .report import plot_robots_side_by_side, write_codesign_report
-    picture = run.out / "codesign.png"
-    plot_robots_side_by_side(shipped, designed, picture,
-                             speeds=(summary["before_bl_per_min"], summary["after_bl_per_min"]))
-    def credible(gait: str) -> dict:
-        return {key: summary[f"{gait}_{key}"] for key in ("slowest_bl_per_min", "spread", "holds")}
-
-    before = {"speed_bl_per_min": summary["before_bl_per_min"], **credible("before"), "n_cycle": summary["n_cycle"],
-              "n_keyframes": summary["n_keyframes"]}
-    after = {"speed_bl_per_min": summary["after_bl_per_min"], **credible("after"), "n_cycle": summary["n_cycle"],
-             "n_keyframes": summary["n_keyframes"], "upright": summary["after_upright"],
-             "simulation_steps": summary["codesign_sim_steps"], "wall_time_s": summary["codesign_wall_time_s"],
-             "iterations": summary["iterations"]}
-    reopt = None if "reoptimised_bl_per_min" not in summary else {
-        "speed_bl_per_min": summary["reoptimised_bl_per_min"], **credible("reoptimised"),
-        "n_cycle": summary["reoptimised_cycle"][0], "n_keyframes": summary["reoptimised_cycle"][1]}
-    path = run.out / "codesign.md"
-    write_codesign_report(path, robot_name=shipped.name, before=before, after=after, reoptimised=reopt,
-                          changes=changes, checks=checks, picture=str(picture), settings=settings)
-    return path

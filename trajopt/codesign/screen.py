@@ -62,30 +62,24 @@ The workers end with the screening however it ends: on an exception, Ctrl-C, SIG
 (killed by SIGKILL) ends itself (:mod:`trajopt.workers`: ``PR_SET_PDEATHSIG`` on Linux, and a
 thread that watches its parent everywhere, started before the worker imports the work), so that
 no worker outlives the run and holds its stdout. A worker that dies
-(the out-of-memory killer, ``kill -9``) ends the screening with :class:`WorkerDied`.
+(the out-of-memory killer, ``kill -9``) ends the screening with :class:`WorkerDied`. The scoring
+and its processes: :mod:`trajopt.codesign.score`.
 """
 from __future__ import annotations
 
-import multiprocessing
-import os
-import signal
-from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, Callable
 
 import numpy as np
 
 from soft_envs.envs import SimulationError
-from soft_envs.envs.threads import limit_threads
 
-from ..fastest import SearchSettings, fastest_gait
-from ..optim.gauss_newton import GaussNewtonOptions
-from ..optim.optimize import optimize_gait
+from ..fastest import SearchSettings
 from ..optim.qp import QPError, nearest_feasible
-from ..search.hold import HOLD_FACTORS, MAX_SPREAD, credible_rank, hold_check
-from ..workers import start_worker
-from .problem import CodesignProblem, design_env
+from ..search.hold import HOLD_FACTORS, MAX_SPREAD, credible_rank
+from .problem import CodesignProblem
+from .score import Score, ScoreJob, Scorer, WorkerDied, score_gait
 
 __all__ = ["ScreenSettings", "ScreenProgress", "Score", "candidates", "screen_designs", "SCORES", "WorkerDied"]
 
@@ -160,170 +154,6 @@ def candidates(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, setti
     return out
 
 
-@dataclass(frozen=True)
-class Score:
-    """A candidate's gait and its credible speed (module docstring): ``own`` its speed at the own
-    physics, ``hold`` the replays (:func:`~trajopt.search.hold.hold_check`: ``speeds``,
-    ``slowest``, ``spread``, ``holds``; None when nothing upright was found), ``z`` its keyframes,
-    ``steps`` the simulation steps it took (the replays included) and ``status`` the optimiser's."""
-
-    own: float
-    hold: dict | None
-    z: np.ndarray | None
-    steps: int
-    status: str
-
-    @property
-    def rank(self) -> tuple[int, float]:
-        return credible_rank(self.hold)
-
-    @property
-    def slowest(self) -> float:
-        return float("nan") if self.hold is None else float(self.hold["slowest"])
-
-    def row(self) -> dict:
-        """The screening row's fields of this score."""
-        h = self.hold or {}
-        return {"own_bl_per_min": self.own, "slowest_bl_per_min": self.slowest,
-                "spread": float(h.get("spread", float("nan"))), "holds": bool(h.get("holds", False))}
-
-
-def _gait(env, gait, target: float, settings: ScreenSettings, z0: np.ndarray | None, search: SearchSettings
-          ) -> Score:
-    """The :class:`Score` of a gait on ``env``'s robot: ``settings.iterations`` Gauss-Newton
-    iterations from ``z0`` (warm), or (``z0`` None) from scratch as ``--speed max`` finds it on the
-    current cycle and keyframes (``search`` pinned to them: the same runs as that candidate's in
-    the full search, its hold stage's replays reused when they were made over
-    ``settings.eval_cycles`` cycles at ``settings.hold_factors``); then replayed at the other physics
-    steps (:func:`~trajopt.search.hold.hold_check`). Not upright: ``own`` nan, ``hold`` None."""
-    reuse = False
-    if z0 is None:
-        pinned = replace(search, keyframes=(gait.n_keyframes,), max_sim_steps=None)
-        try:
-            res, _ = fastest_gait(env, settings=pinned, cycle_steps=gait.n_cycle, quiet=True)
-        except SimulationError as err:            # nothing upright: never better
-            return Score(float("nan"), None, None, 0, f"no upright gait ({err})")
-        steps = int(res.evaluation["search_sim_steps"])
-        reuse = (int(res.settings["eval_cycles"]) == settings.eval_cycles
-                 and tuple(pinned.hold_factors) == tuple(settings.hold_factors)
-                 and float(pinned.max_spread) == float(settings.max_spread))
-    else:
-        res = optimize_gait(env, "walk", gait=gait, speed_bl_per_min=target, z0=z0, n_seeds=0,
-                            options=GaussNewtonOptions(max_iter=settings.iterations), eval_cycles=settings.eval_cycles)
-        steps = int(res.evaluation.get("optimization_sim_steps", 0)) + gait.n_prep + settings.eval_cycles * gait.n_cycle
-    ev = res.evaluation
-    if not ev.get("upright"):
-        return Score(float("nan"), None, np.asarray(res.z), steps, res.status)
-    hold = ev.get("hold") if reuse else None
-    if hold is None:
-        hold = hold_check(env, res, factors=settings.hold_factors, max_spread=settings.max_spread,
-                          n_cycles=settings.eval_cycles)
-        steps += hold["steps"]
-    return Score(float(ev["speed_bl_per_min"]), hold, np.asarray(res.z), steps, res.status)
-
-
-@dataclass(frozen=True)
-class _ScoreJob:
-    """One candidate's gait, as a worker process receives it (everything picklable)."""
-
-    robot: Any
-    contact: str
-    newton: Any
-    substeps: int
-    gait: Any
-    target: float
-    settings: ScreenSettings
-    z0: np.ndarray | None
-    search: SearchSettings
-    motor_model: str = "torque-speed"
-
-
-def _score(job: _ScoreJob):
-    """:func:`_gait` of a job on a fresh environment of its robot, or ``SimulationError``'s text
-    (a failed candidate, not a failed screening)."""
-    env = design_env(job.robot, job.contact, job.newton, job.substeps, job.motor_model)
-    try:
-        return _gait(env, job.gait, job.target, job.settings, job.z0, job.search)
-    except SimulationError as err:
-        return str(err)
-
-
-class WorkerDied(RuntimeError):
-    """A process scoring the screening's candidates died (``how``: e.g. "killed by SIGKILL", as
-    the out-of-memory killer ends one), after ``rounds_done`` finished rounds of ``rounds``."""
-
-    def __init__(self, how: str, rounds_done: int, rounds: int):
-        self.how, self.rounds_done, self.rounds = how, int(rounds_done), int(rounds)
-        super().__init__(
-            f"a worker process scoring the screening's candidates died ({how}; the out-of-memory killer ends one "
-            f"so when memory runs out) after {rounds_done} of {rounds} screening rounds. Fewer workers use less "
-            "memory (workers=1 scores in this process; the result is the same); the run's checkpoint continues "
-            "after the last finished round. From a script, processes are started by multiprocessing's spawn "
-            "method, which imports the script again: a script that co-designs with workers > 1 must run its work "
-            "under `if __name__ == \"__main__\":`")
-
-    def command_line_text(self) -> str:
-        """The advice for ``trajopt codesign`` (no script is involved there)."""
-        return (f"a worker process scoring the screening's candidates died ({self.how}; the out-of-memory killer "
-                f"ends one so when memory runs out) after {self.rounds_done} of {self.rounds} screening rounds: "
-                "the same command with --resume continues from the last finished round; --workers 1 uses less "
-                "memory (the result is the same)")
-
-
-def _one_thread() -> None:
-    """A scoring process computes on one thread (the workers share the cores)."""
-    limit_threads(1)
-
-
-class _Scorer:
-    """Scores jobs in order: in this process (``workers`` 1) or in a pool of ``workers`` processes,
-    started on first use and terminated by :meth:`close` (also on Ctrl-C or an error)."""
-
-    def __init__(self, workers: int):
-        if int(workers) < 1:
-            raise ValueError(f"workers must be >= 1, got {workers}")
-        self.workers = int(workers)
-        self.pool: ProcessPoolExecutor | None = None
-        self._seen = set()                  # the worker processes (their exit codes, once dead)
-
-    def map(self, jobs: list[_ScoreJob]) -> Iterator:
-        if self.workers == 1 or len(jobs) <= 1:
-            return map(_score, jobs)
-        if self.pool is None:
-            self.pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                            initializer=start_worker,
-                                            initargs=(os.getpid(), f"{__name__}:_one_thread"))
-        try:        # a worker killed while the jobs are submitted breaks the pool inside map()
-            return self.pool.map(_score, jobs)
-        finally:
-            self._seen.update((getattr(self.pool, "_processes", None) or {}).values())
-
-    def how_they_died(self) -> str:
-        """How the first worker that died unasked ended ("killed by SIGKILL", "exit code 1")."""
-        for proc in self._seen:
-            if proc.exitcode is None:
-                proc.join(timeout=1.0)      # the pool's manager may not have reaped it yet
-            code = proc.exitcode
-            if code is None or code == 0 or code == -signal.SIGTERM:      # alive, or terminated by the pool
-                continue
-            if code < 0:
-                try:
-                    return f"killed by {signal.Signals(-code).name}"
-                except ValueError:
-                    return f"killed by signal {-code}"
-            return f"exit code {code}"
-        return "ended abruptly"
-
-    def close(self, terminate: bool = False) -> None:
-        pool, self.pool = self.pool, None
-        if pool is None:
-            return
-        if terminate:                       # running scores are abandoned, not waited for
-            for proc in list((getattr(pool, "_processes", None) or {}).values()):
-                proc.terminate()
-        pool.shutdown(wait=True, cancel_futures=True)
-
-
 def _better(a: Score, b: Score | None) -> bool:
     """``a`` ranks above ``b`` (:func:`~trajopt.search.hold.credible_rank`; None: not scored)."""
     return a.rank > (credible_rank(None) if b is None else b.rank)
@@ -371,7 +201,7 @@ def screen_designs(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, s
                                np.asarray(z, dtype=np.float64).tolist(), float(speed), holds=bool(holds))
     else:
         state = resume
-    scorer = _Scorer(workers)
+    scorer = Scorer(workers)
     try:
         while not state.finished and state.rounds_done < settings.rounds:
             _screen_round(problem, state, target, settings, search, scorer, log, done)
@@ -389,7 +219,7 @@ def screen_designs(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, s
 
 
 def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float, settings: ScreenSettings,
-                  search: SearchSettings, scorer: _Scorer, log, done) -> None:
+                  search: SearchSettings, scorer: Scorer, log, done) -> None:
     """One greedy round from ``state``'s design (module docstring); updates ``state``."""
     rnd = state.rounds_done + 1
     start_theta, start_z = np.asarray(state.theta), np.asarray(state.z)
@@ -398,7 +228,7 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
         state.path.append(list(state.theta))
     todo = [("current design", start_theta)] + candidates(problem, start_theta, start_z, settings)
     rows: list[dict] = []
-    jobs: list[_ScoreJob] = []
+    jobs: list[ScoreJob] = []
     for label, th in todo:
         rows.append({"round": rnd, "candidate": label, **Score(float("nan"), None, None, 0, "").row(),
                      "warm_bl_per_min": float("nan"), "status": "", "sim_steps": 0})
@@ -411,7 +241,7 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
         if why is not None:
             rows[-1]["status"] = f"skipped: {why}"
             continue
-        jobs.append(_ScoreJob(robot, problem.contact, problem.newton, problem.substeps, problem.gait, target, settings,
+        jobs.append(ScoreJob(robot, problem.contact, problem.newton, problem.substeps, problem.gait, target, settings,
                               start_z if settings.score == "warm" else None, search, problem.motor_model))
     scores = scorer.map(jobs)                  # in the order of the rows left unscored above
     scored: list[tuple[Score, str, np.ndarray]] = []
@@ -439,7 +269,7 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
         gait = score
         if settings.score == "scratch":       # also a gait from the current keyframes
             env = problem.env_of(problem.robot_at(th))
-            warm = _gait(env, problem.gait, target, settings, start_z, search)
+            warm = score_gait(env, problem.gait, target, settings, start_z, search)
             problem.sim_steps += warm.steps
             row = next(r for r in rows if r["candidate"] == label)
             row.update(warm_bl_per_min=warm.slowest, sim_steps=row["sim_steps"] + warm.steps)
