@@ -91,7 +91,7 @@ def main() -> None:
              f"{time.strftime('%Y-%m-%d')}, {args.contact} law, motors' limits on; "
              + ("the runs made before under the output folder (each robot's codesign.json), their gaits replayed; "
                 if args.replay_only else f"{rounds} screening rounds at most, their candidates scored in "
-                f"{run.n_workers()} processes; ")
+                f"{run.n_workers()} process{'es' if run.n_workers() > 1 else ''}; ")
              + f"{os.cpu_count()} shared CPU cores, Python {platform.python_version()}.", "",
              "Credible speeds (the primary figures, from each run's codesign.json): each gait's slowest speed "
              "over 16.5, 8.25, 4.125 and 2.06 ms physics steps [BL/min], its spread (max - min) / slowest, and "
