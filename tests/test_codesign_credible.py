@@ -166,3 +166,25 @@ def test_a_checkpoint_made_before_credible_scores_is_refused(tmp_path):
     (tmp_path / PARTIAL).write_text(json.dumps({"settings": {"robot": "tripod"}, "state": {"w": [0.0]}}))
     with pytest.raises(ValueError, match="made before co-design scored designs by credible speeds.*--overwrite"):
         run_codesign(CodesignRun("tripod", tmp_path, resume=True, quiet=True))
+
+
+def test_a_checkpoint_keeps_a_start_without_credible_speed_and_refuses_a_bad_verdict(tmp_path):
+    """A start that falls at a physics step has no credible speed (best_speed -inf, written as
+    -Infinity): the checkpoint reads back; a verdict that is not true or false is refused."""
+    import json
+
+    from trajopt.codesign.partial import read_partial
+    path = tmp_path / "codesign.partial.json"
+    state = {"w": [0.0, 1.0], "best_speed": -math.inf, "best_holds": False,
+             "screen_progress": {"rounds_done": 1, "theta": [1.0], "z": [0.0], "speed": -math.inf, "holds": False,
+                                 "own": NAN}}
+    path.write_text(json.dumps({"settings": {}, "state": state}))
+    _, read = read_partial(path)
+    assert read.best_speed == -math.inf and read.best_holds is False
+    path.write_text(json.dumps({"settings": {}, "state": {**state, "best_holds": 1}}))
+    with pytest.raises(ValueError, match="state.best_holds' must be true or false"):
+        read_partial(path)
+    path.write_text(json.dumps({"settings": {}, "state": {**state, "screen_progress": {
+        **state["screen_progress"], "holds": "yes"}}}))
+    with pytest.raises(ValueError, match="screen_progress.holds' must be true or false"):
+        read_partial(path)
