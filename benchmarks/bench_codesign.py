@@ -24,7 +24,7 @@ Run:  python benchmarks/bench_codesign.py [ROBOT ...] [--contact LAW] [--baselin
       the time of the run then excludes that search, which the table says)
       python benchmarks/bench_codesign.py [ROBOT ...] --replay-only   (the report from the runs'
       folders under OUT/codesign/, their codesign.json and gaits; no co-design is run)
-      --joint-ensemble N: the joint Gauss-Newton on the default physics and N steps per control step
+      --joint-ensemble N[,N...]|off: the joint Gauss-Newton's ensemble (default 2,8, as trajopt codesign)
 """
 from __future__ import annotations
 
@@ -39,6 +39,7 @@ import time
 from pathlib import Path
 
 from bench_headline import MAX_SPREAD, bar_row
+from trajopt.cli.codesign import ensemble_counts
 from trajopt.codesign.run import CodesignRun, run_codesign
 from trajopt.codesign.summary import describe_credible
 
@@ -56,8 +57,8 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=None, help="screening rounds at most (default: ScreenSettings')")
     ap.add_argument("--workers", type=int, default=None, help="processes scoring the screening's candidates "
                     "(default: one per core)")
-    ap.add_argument("--joint-ensemble", type=int, nargs="+", default=None, metavar="N",
-                    help="the joint Gauss-Newton on an ensemble (default: off, as trajopt codesign)")
+    ap.add_argument("--joint-ensemble", type=ensemble_counts, default=None, metavar="N[,N...]|off",
+                    help="the joint Gauss-Newton's ensemble, as trajopt codesign's (default 2,8)")
     ap.add_argument("--replay-only", action="store_true",
                     help="no co-design: the report from the folders of runs made before (OUT/codesign/ROBOT/)")
     args = ap.parse_args()
@@ -73,8 +74,8 @@ def main() -> None:
         run = CodesignRun(robot, out, contact=args.contact, baseline=base, overwrite=True, workers=args.workers)
         run.screen = dataclasses.replace(run.screen, score=args.screen,
                                          rounds=run.screen.rounds if args.rounds is None else args.rounds)
-        if args.joint_ensemble:
-            run.joint = dataclasses.replace(run.joint, ensemble=tuple(args.joint_ensemble))
+        if args.joint_ensemble is not None:
+            run.joint = dataclasses.replace(run.joint, ensemble=args.joint_ensemble)
         (out / SCREENED).unlink(missing_ok=True)
         with keep_screened():
             outcome = run_codesign(run)

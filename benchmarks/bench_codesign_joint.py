@@ -31,7 +31,8 @@ from trajopt.codesign.run import PARTIAL, CodesignRun, run_codesign
 HERE = Path(__file__).resolve().parent
 
 
-def joint_from_screened(robot: str, out: Path, ensemble: tuple[int, ...], contact: str) -> dict:
+def joint_from_screened(robot: str, out: Path, ensemble: tuple[int, ...], contact: str, reoptimise: bool = False
+                        ) -> dict:
     """The joint stage resumed from ``out/codesign/ROBOT/screened.partial.json`` with ``ensemble``
     (() : none) in its own folder; its summary plus the joint stage's wall time and steps."""
     src = out / "codesign" / robot
@@ -43,7 +44,7 @@ def joint_from_screened(robot: str, out: Path, ensemble: tuple[int, ...], contac
     data = json.loads((src / SCREENED).read_text())
     data["settings"]["joint"]["ensemble"] = list(ensemble)     # the one setting that differs
     (folder / PARTIAL).write_text(json.dumps(data))
-    run = CodesignRun(robot, folder, contact=contact, resume=True, reoptimise=False, workers=1)
+    run = CodesignRun(robot, folder, contact=contact, resume=True, reoptimise=reoptimise, workers=1)
     run.joint = dataclasses.replace(run.joint, ensemble=tuple(ensemble))
     return figures(run_codesign(run).summary, data)
 
@@ -79,6 +80,9 @@ def main() -> None:
                          "per control step besides the default's, comma-separated (default: 8)")
     ap.add_argument("--contact", default="coulomb")
     ap.add_argument("--out", type=Path, default=HERE / "results")
+    ap.add_argument("--reoptimise", action="store_true",
+                    help="also re-optimise the written robot's gait from scratch (--speed max), as the full run does")
+    ap.add_argument("--skip-off", action="store_true", help="only the ensembles (not the default physics alone)")
     ap.add_argument("--report-only", action="store_true",
                     help="no run: the table from the measurements made before (OUT/codesign-joint/*/joint.json)")
     args = ap.parse_args()
@@ -94,12 +98,14 @@ def main() -> None:
              "joint stage: own, slowest, spread, holds | gain of the slowest | GN iterations | joint stage's steps | "
              "joint stage's wall time [min] |", "|---|---|---:|---|---|---:|---:|---:|---:|"]
     for robot in args.robots:
-        for ens in ((), *ensembles):
+        for ens in (() if not args.skip_off else None, *ensembles):
+            if ens is None:
+                continue
             if args.report_only:
                 s = figures(json.loads((_folder(args.out, robot, ens) / "codesign.json").read_text()),
                             json.loads((args.out / "codesign" / robot / SCREENED).read_text()))
             else:
-                s = joint_from_screened(robot, args.out, ens, args.contact)
+                s = joint_from_screened(robot, args.out, ens, args.contact, args.reoptimise)
             gain = s["after_slowest_bl_per_min"] / s["screened_slowest_bl_per_min"] - 1
             row = (f"| {robot} | {'off' if not ens else ', '.join(map(str, ens))} | "
                    f"{s['screened_slowest_bl_per_min']:.2f} | {_stages(s['stages'])} | {s['after_bl_per_min']:.2f}, "

@@ -151,7 +151,7 @@ def test_a_joint_stage_is_accepted_only_when_its_credible_rank_improves(monkeypa
     monkeypatch.setattr(joint, "evaluate_design", lambda p, w, *a: {"speed_bl_per_min": 30.0, "upright": True,
                                                                    "hold": stage_hold})
     state = JointState(w=list(start), best_speed=20.0, best_holds=True)
-    end = optimise_jointly(_FakeJointProblem(), state, JointSettings(stages=1, iterations=1))
+    end = optimise_jointly(_FakeJointProblem(), state, JointSettings(stages=1, iterations=1, ensemble=()))
     assert end.best_w == (moved_to if accepted else start)
     assert (end.best_speed, end.best_holds) == ((20.5, True) if accepted else (20.0, True))
     assert end.stage_rows[0]["holds"] == stage_hold["holds"]

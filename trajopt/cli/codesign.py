@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..argtypes import contact_law, integer, output_dir
 
-__all__ = ["add_codesign_parser", "vary_kinds"]
+__all__ = ["add_codesign_parser", "vary_kinds", "ensemble_counts"]
 
 #: the design kinds, in the order of their columns (soft_envs.envs.design.KINDS, without importing it)
 _KINDS = ("stiffness", "routing", "legs")
@@ -21,6 +21,21 @@ def vary_kinds(text: str) -> tuple[str, ...]:
     if not kinds or bad:
         raise argparse.ArgumentTypeError(f"{text!r}: give design kinds, comma-separated, from {', '.join(_KINDS)}")
     return tuple(k for k in _KINDS if k in kinds)
+
+
+def ensemble_counts(text: str) -> tuple[int, ...]:
+    """``--joint-ensemble``: comma-separated physics steps per control step (``2,8``), or ``off``."""
+    import argparse
+    if text.strip().lower() == "off":
+        return ()
+    try:
+        counts = tuple(int(n) for n in text.split(","))
+    except ValueError:
+        counts = ()
+    if not counts or any(n < 1 or n > 64 for n in counts):
+        raise argparse.ArgumentTypeError(f"{text!r}: give physics steps per control step, comma-separated whole "
+                                         "numbers from 1 to 64 (e.g. 2,8), or off")
+    return counts
 
 
 def add_codesign_parser(sub) -> None:
@@ -43,10 +58,10 @@ def add_codesign_parser(sub) -> None:
     p.add_argument("--stages", type=integer(1, 100), default=None, help="co-design stages (rising targets; default 4)")
     p.add_argument("--iterations", type=integer(1, 10_000), default=None,
                    help="Gauss-Newton iterations per stage at most (default 8)")
-    p.add_argument("--joint-ensemble", type=integer(1, 64), nargs="+", default=None, metavar="N",
-                   help="the joint Gauss-Newton on an ensemble: the default physics and N physics steps per control "
-                        "step (e.g. 8: 2x finer), their residuals stacked (default: the default physics alone; "
-                        "every stage is accepted by its credible speed either way)")
+    p.add_argument("--joint-ensemble", type=ensemble_counts, default=None, metavar="N[,N...]|off",
+                   help="the joint Gauss-Newton's ensemble: the default physics and these physics steps per control "
+                        "step, their residuals stacked (default 2,8: 2x coarser and 2x finer; off: the default "
+                        "physics alone; every stage is accepted by its credible speed either way)")
     p.add_argument("--screen", choices=("warm", "scratch"), default=None,
                    help="how the screening scores a candidate design: warm, its gait warm-started from the current "
                         "keyframes (default; the fastest pairs), or scratch, as --speed max finds a gait for it "
@@ -76,7 +91,7 @@ def _cmd_codesign(args) -> int:
     run = (CodesignRun.quick(args.robot, Path(args.out), **kw) if quick_requested(args.quick)
            else CodesignRun(args.robot, Path(args.out), **kw))
     joint = {k: v for k, v in (("stages", args.stages), ("iterations", args.iterations),
-                               ("ensemble", None if args.joint_ensemble is None else tuple(args.joint_ensemble)))
+                               ("ensemble", args.joint_ensemble))
              if v is not None}
     if joint:
         run.joint = dataclasses.replace(run.joint, **joint)
