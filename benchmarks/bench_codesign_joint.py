@@ -72,6 +72,13 @@ def _stages(stages: list[dict]) -> str:
     return "; ".join(one(r) for r in stages) or "-"
 
 
+def _reoptimised(s: dict) -> str:
+    if "reoptimised_credible_ratio" not in s:
+        return "not run"
+    return (f"{s['reoptimised_slowest_bl_per_min']:.2f}, {100 * s['reoptimised_spread']:.1f} %, "
+            f"{s['reoptimised_credible_ratio']:.2f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("robots", nargs="*", default=["tripod", "puppy"])
@@ -96,7 +103,8 @@ def main() -> None:
              f"{os.cpu_count()} shared CPU cores, Python {platform.python_version()}.", "",
              "| robot | joint ensemble | screened: slowest | each stage's gait: own; slowest, spread | after the "
              "joint stage: own, slowest, spread, holds | gain of the slowest | GN iterations | joint stage's steps | "
-             "joint stage's wall time [min] |", "|---|---|---:|---|---|---:|---:|---:|---:|"]
+             "joint stage's wall time [min] | ratio of slowest to the shipped design's | re-optimised from the files: "
+             "slowest, spread, ratio |", "|---|---|---:|---|---|---:|---:|---:|---:|---:|---|"]
     for robot in args.robots:
         for ens in (() if not args.skip_off else None, *ensembles):
             if ens is None:
@@ -111,7 +119,8 @@ def main() -> None:
                    f"{s['screened_slowest_bl_per_min']:.2f} | {_stages(s['stages'])} | {s['after_bl_per_min']:.2f}, "
                    f"{s['after_slowest_bl_per_min']:.2f}, {100 * s['after_spread']:.1f} %, "
                    f"{'yes' if s['after_holds'] else 'no'} | {100 * gain:+.1f} % | "
-                   f"{s['iterations']} | {s['joint_sim_steps']:,} | {s['joint_wall_time_s'] / 60:.1f} |")
+                   f"{s['iterations']} | {s['joint_sim_steps']:,} | {s['joint_wall_time_s'] / 60:.1f} | "
+                   f"{s['credible_ratio']:.2f} | {_reoptimised(s)} |")
             lines.append(row)
             print(row, flush=True)
     lines += ["", "The slowest speed is over 16.5, 8.25, 4.125 and 2.06 ms physics steps (the hold stage's replays); "

@@ -22,10 +22,9 @@ after ``stages`` stages, when a stage is not accepted, or when it gains less tha
 members' mean objective, :class:`~trajopt.codesign.ensemble.CodesignEnsemble`. Default
 :data:`~trajopt.optim.ensemble.DEFAULT_ENSEMBLE`, ``(2, 8)``: 2x coarser and 2x finer steps than
 the default 4, as ``trajopt optimize --ensemble``; ``()``: the default physics alone. Chosen by
-measurement (docs/codesign.md, "On the converged physics"): the screened Puppy's stages, all
-refused on the default physics alone and with ``(8,)``, were all accepted with ``(2, 8)``, +12 %
-at the slowest step (its gaits are slowest at 16.5 ms, a member only of the latter); the Tripod's
-were refused by all three.
+measurement (docs/codesign.md, "On the converged physics"): the screened Puppy's stages, refused
+on the default physics alone and with ``(8,)``, were all accepted with ``(2, 8)``, +12 % at the
+slowest step; the Tripod's were refused by all three.
 
 Resumable: the :class:`JointState` (JSON) is handed to ``checkpoint`` after every iteration. It
 holds the designs Gauss-Newton linearised at, in order (``path``): a design block's derivatives
