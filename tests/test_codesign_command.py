@@ -83,9 +83,11 @@ def test_writes_a_robot_folder_its_gait_and_a_report(done):
     assert not (done / "codesign.partial.json").exists()
     summary = json.loads((done / "codesign.json").read_text())
     assert summary["checks_passed"] and summary["after_upright"]
-    assert summary["after_bl_per_min"] >= summary["before_bl_per_min"]        # the screening keeps the best
+    rank = lambda g: (summary[f"{g}_holds"], summary[f"{g}_slowest_bl_per_min"])     # noqa: E731
+    assert rank("after") >= rank("before")            # the screening and the stages keep the best, credibly
+    assert summary["credible_ratio"] == summary["after_slowest_bl_per_min"] / summary["before_slowest_bl_per_min"]
     text = (done / "codesign.md").read_text()
-    assert "Design changes" in text and "codesign.png" in text
+    assert "Design changes" in text and "codesign.png" in text and "Credible speed ratio, co-designed" in text
 
 
 def test_written_robot_loads_simulates_and_holds_its_constraints(done):

@@ -29,9 +29,9 @@ def test_the_screening_beats_off_a_terminal(monkeypatch, capsys):
     run = SimpleNamespace(screen=SimpleNamespace(rounds=2), quiet=False, n_workers=lambda: 1,
                           search=SimpleNamespace(target=lambda speed: 2 * speed))
     problem = SimpleNamespace(anchor=np.zeros(2), sim_steps=0)
-    state = JointState(w=[0.0] * 4)
-    run_module._screen(run, problem, state, SimpleNamespace(z=np.zeros(2)), 3.0, lambda s: None,
-                       lambda text: print(text, file=sys.stderr))
+    state = JointState(w=[0.0] * 4, best_speed=3.0)
+    run_module._screen(run, problem, state, SimpleNamespace(z=np.zeros(2), evaluation={"speed_bl_per_min": 3.0}),
+                       lambda s: None, lambda text: print(text, file=sys.stderr))
     err = capsys.readouterr().err
     assert "co-design screening: 0/2 rounds, still working" in err
     assert "co-design screening: 1/2 rounds, still working" in err and "\r" not in err

@@ -62,9 +62,12 @@ EXPECTED = {
                          r"credible [+-]?\d+\.\d+ BL/min",
                          r"replayed: [+-]?\d+\.\d+ at 8\.25 ms, [+-]?\d+\.\d+ at 4\.12 ms; spread \d+\.\d %",
                          r"saved results/tripod_credible_example_quick\.npz"],
-    "codesign_tripod.py": [r"shipped design, fastest gait: \d+\.\d+ BL/min \(\d+-step cycle\)",
-                           r"co-designed robot and gait: +\d+\.\d+ BL/min \(\d+\.\d+x\), \d+ Gauss-Newton iterations",
-                           r"its gait re-optimised from scratch: \d+\.\d+ BL/min",
+    "codesign_tripod.py": [r"shipped design, fastest gait: \d+\.\d+ BL/min \(\d+-step cycle\), slowest \S+, spread "
+                           r"\S+ % \((holds|does not hold)\)",
+                           r"co-designed robot and gait: +\d+\.\d+ BL/min, slowest \S+, spread \S+ % \((holds|does not "
+                           r"hold)\): \S+x at the slowest step; \d+ Gauss-Newton iterations",
+                           r"its gait re-optimised from scratch: \d+\.\d+ BL/min, slowest \S+, spread \S+ % "
+                           r"\((holds|does not hold)\): \S+x at the slowest step",
                            r"constraints checked in the written files: all hold",
                            r"robot results/tripod_codesign_example_quick/robot\.toml"],
     "motor_line.py": [r"speed +: +[+-]?\d+\.\d+ BL/min as optimised, +[+-]?\d+\.\d+ BL/min played by motors on "

@@ -75,8 +75,11 @@ def _check_progress(p: Any, path: Path) -> None:
     for i, theta in enumerate(p.get("path", [])):
         _finite_list(theta, f"{field}.path[{i}]", path)
     _list_of_dicts(p.get("rows", []), f"{field}.rows", path)
-    if not isinstance(p.get("finished", False), bool):
-        raise _refuse(path, f"{field}.finished", f"must be true or false, got {_short(p['finished'])}")
+    for key in ("finished", "holds"):
+        if not isinstance(p.get(key, False), bool):
+            raise _refuse(path, f"{field}.{key}", f"must be true or false, got {_short(p[key])}")
+    if "own" in p:
+        _number(p["own"], f"{field}.own", path, finite=False)
 
 
 def read_partial(path: str | Path) -> tuple[dict, JointState]:
@@ -116,9 +119,10 @@ def read_partial(path: str | Path) -> tuple[dict, JointState]:
             _count(state[key], f"state.{key}", path)
     if state.get("lam") is not None:
         _number(state["lam"], "state.lam", path)
-    for key in ("best_speed", "wall_time_s"):
-        if key in state:
-            _number(state[key], f"state.{key}", path)
+    if "wall_time_s" in state:
+        _number(state["wall_time_s"], "state.wall_time_s", path)
+    if "best_speed" in state:              # -inf: no credible speed yet (a start that falls at a physics step)
+        _number(state["best_speed"], "state.best_speed", path, finite=False)
     if not isinstance(state.get("path", []), list):
         raise _refuse(path, "state.path", f"must be a list of designs, got {_short(state['path'])}")
     for i, theta in enumerate(state.get("path", [])):
@@ -126,7 +130,7 @@ def read_partial(path: str | Path) -> tuple[dict, JointState]:
     for key in ("stage_rows", "history", "screen_rows"):
         if key in state:
             _list_of_dicts(state[key], f"state.{key}", path)
-    for key in ("done", "screened"):
+    for key in ("done", "screened", "best_holds"):
         if key in state and not isinstance(state[key], bool):
             raise _refuse(path, f"state.{key}", f"must be true or false, got {_short(state[key])}")
     if state.get("best_evaluation") is not None and not isinstance(state["best_evaluation"], dict):

@@ -250,9 +250,8 @@ class CodesignProblem:
             rows.append(np.hstack([self.motor_rows.G, np.zeros((len(self.motor_rows.h), self.ntheta))]))
             rhs.append(self.motor_rows.h)
         if self.line is not None:               # the line on z, at the current design (module docstring)
-            traj = self.last_traj
-            lin = self.line.linearised(self.split(w)[0], traj.cable_deformation, traj.dgammadz)
-            rows.append(np.hstack([lin.G, np.zeros((len(lin.h), self.ntheta))]))
+            lin = self.line_constraints(w)
+            rows.append(lin.G)
             rhs.append(lin.h)
         routing, sl = self._routing()
         if routing is not None:
@@ -275,6 +274,13 @@ class CodesignProblem:
         if not rows:
             return LinearConstraints(np.zeros((0, self.nz + self.ntheta)), np.zeros(0))
         return LinearConstraints(np.vstack(rows), np.concatenate(rhs))
+
+    def line_constraints(self, w: np.ndarray) -> LinearConstraints:
+        """The motors' torque-speed line's rows on ``w`` (zero on theta), linearised on the rollout
+        of the last Jacobian (call after ``self(w, True)``; ``self.line`` must be set)."""
+        traj = self.last_traj
+        lin = self.line.linearised(self.split(w)[0], traj.cable_deformation, traj.dgammadz)
+        return LinearConstraints(np.hstack([lin.G, np.zeros((len(lin.h), self.ntheta))]), lin.h)
 
     # ------------------------------------------------------------------ residuals
     def __call__(self, w: np.ndarray, need_jac: bool = True):

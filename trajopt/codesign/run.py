@@ -52,10 +52,15 @@ from .joint import JointSettings, JointState, optimise_jointly, replay_path
 from .partial import check_partial_sizes, read_partial
 from .problem import CodesignProblem, CodesignWeights
 from .screen import ScreenProgress, ScreenSettings, screen_designs
+from ..search.hold import credible_rank
+from .summary import credible_check, describe_credible, summarise, write_report
 
 __all__ = ["CodesignRun", "CodesignOutcome", "run_codesign", "design_changes", "check_baseline"]
 
 PARTIAL = "codesign.partial.json"
+#: what the screening's and the joint stage's scores are, in a checkpoint's settings: a checkpoint
+#: without it was made when they were the speeds at the own physics alone, and is refused
+SCORES = "credible: (holds, slowest) over the hold replays"
 
 
 @dataclass
@@ -226,10 +231,16 @@ def _run_reserved(run: CodesignRun, env, design, given: Result | None, t_start: 
     shipped = env.robot
     partial = run.out / PARTIAL
     saved = read_partial(partial) if run.resume and partial.is_file() else None   # before any work
+    if saved is not None and saved[0].get("scores") != SCORES:
+        raise ValueError(f"{partial}: cannot resume: the interrupted run was made before co-design scored designs "
+                         "by credible speeds (the slowest over the hold stage's physics steps), and its screening "
+                         "and stages ranked designs by the speed at the own physics; start afresh with --overwrite")
     baseline = _baseline(run, env, given, say)
     gait = GaitSpec.from_settings(baseline.settings)
     base_speed = float(baseline.evaluation["speed_bl_per_min"])
-    settings = {"robot": run.robot, "vary": list(run.vary), "contact": env.contact_model, "gait": gait.to_settings(),
+    base_hold = credible_check(env, baseline, run.screen)
+    settings = {"scores": SCORES, "robot": run.robot, "vary": list(run.vary), "contact": env.contact_model,
+                "gait": gait.to_settings(),
                 "motor_model": run.motor_model,
                 "joint": asdict(run.joint), "screen": asdict(run.screen), "weights": run.weights.to_dict(), "parameters": list(design.names),
                 "baseline_speed_bl_per_min": base_speed}
@@ -246,13 +257,14 @@ def _run_reserved(run: CodesignRun, env, design, given: Result | None, t_start: 
         check_partial_sizes(partial, state, problem.nz, len(design))
         say(f"resuming {partial}: stage {state.stage + 1}, iteration {state.iteration}")
     if state is None:
-        state = JointState(w=problem.start(baseline.z).tolist(), best_speed=base_speed)
+        state = JointState(w=problem.start(baseline.z).tolist(), best_speed=credible_rank(base_hold)[1],
+                           best_holds=bool(credible_rank(base_hold)[0]))
 
     def checkpoint(s: JointState) -> None:
         _write_json(partial, {"settings": settings, "state": s.to_dict()})
 
     if not state.screened:                   # the coarse stage, resumed after its last finished round
-        _screen(run, problem, state, baseline, base_speed, checkpoint, say)
+        _screen(run, problem, state, baseline, checkpoint, say)
 
     total = run.joint.stages * run.joint.iterations
     bar = None
@@ -291,14 +303,14 @@ def _run_reserved(run: CodesignRun, env, design, given: Result | None, t_start: 
         for stale in (reopt_file, reopt_file.with_suffix(".json"), *search_table_paths(reopt_file)):
             stale.unlink(missing_ok=True)
     changes = design_changes(design, design.values, block.values)
-    summary = _summary(run, env, baseline, result, reopt, state, changes, checks, time.perf_counter() - t_start)
-    report_file = _report(run, shipped, new_env.robot, summary, changes, checks, settings)
+    holds = {"before": base_hold, "after": result.evaluation.get("hold"),
+             "reoptimised": credible_check(new_env, reopt, run.screen)
+             if reopt is not None and reopt.evaluation.get("upright") else None}
+    summary = summarise(run, env, baseline, result, reopt, state, changes, checks, time.perf_counter() - t_start, holds)
+    report_file = write_report(run, shipped, new_env.robot, summary, changes, checks, settings)
     _write_json(run.out / SUMMARY, summary)
     partial.unlink(missing_ok=True)
-    again = "" if reopt is None else (f"; re-optimised from scratch {summary['reoptimised_bl_per_min']:.2f} "
-                                      f"({summary['reoptimised_ratio']:.2f}x)")
-    say(f"co-design: {summary['before_bl_per_min']:.2f} -> {summary['after_bl_per_min']:.2f} BL/min "
-        f"({summary['ratio']:.2f}x){again}; {summary['iterations']} Gauss-Newton iterations, "
+    say(f"co-design: {describe_credible(summary)}; {summary['iterations']} Gauss-Newton iterations, "
         f"{summary['wall_time_s']:.0f} s; report {report_file}")
     failed = [c for c in checks if not c.passed]
     if failed:
@@ -306,8 +318,7 @@ def _run_reserved(run: CodesignRun, env, design, given: Result | None, t_start: 
     return CodesignOutcome(robot_file, result_file, report_file, summary)
 
 
-def _screen(run: CodesignRun, problem: CodesignProblem, state: JointState, baseline: Result, base_speed: float,
-            checkpoint, say) -> None:
+def _screen(run: CodesignRun, problem: CodesignProblem, state: JointState, baseline: Result, checkpoint, say) -> None:
     """The screening stage into ``state`` (:func:`~trajopt.codesign.screen.screen_designs`),
     checkpointed after every round; an interrupted one continues after its last round."""
     t0, wall0 = time.perf_counter(), state.wall_time_s
@@ -333,16 +344,17 @@ def _screen(run: CodesignRun, problem: CodesignProblem, state: JointState, basel
         beat.update(1)
 
     with beat:
-        p = screen_designs(problem, theta0, np.asarray(baseline.z), base_speed, run.search.target(base_speed),
-                           run.screen, search=run.search, workers=run.n_workers(), resume=progress, log=say,
-                           round_done=round_done)
+        p = screen_designs(problem, theta0, np.asarray(baseline.z), state.best_speed,
+                           run.search.target(float(baseline.evaluation["speed_bl_per_min"])), run.screen,
+                           search=run.search, workers=run.n_workers(), resume=progress, log=say,
+                           round_done=round_done, holds=state.best_holds)
     theta = np.asarray(p.theta)
     state.path = list(p.path)
     if not np.array_equal(theta, problem.anchor):
         problem.move_to(theta)
         state.path.append(theta.tolist())
     state.w = state.best_w = np.concatenate([np.asarray(p.z), theta]).tolist()
-    state.best_speed, state.best_path_len = p.speed, len(state.path)
+    state.best_speed, state.best_holds, state.best_path_len = p.speed, p.holds, len(state.path)
     state.screen_rows, state.screened, state.screen_progress = p.rows, True, None
     state.sim_steps, state.wall_time_s = problem.sim_steps, wall0 + time.perf_counter() - t0
     checkpoint(state)
@@ -351,50 +363,16 @@ def _screen(run: CodesignRun, problem: CodesignProblem, state: JointState, basel
 def _gait_on_written_robot(run: CodesignRun, env, gait: GaitSpec, z: np.ndarray, state: JointState,
                            robot_file: Path) -> Result:
     """The co-designed keyframes on the reloaded robot: ``polish_iterations`` more Gauss-Newton
-    iterations of the walk there (the motors' limit on), kept when faster than none."""
+    iterations of the walk there (the motors' limit on), kept when their credible rank is higher
+    than none's (:func:`~trajopt.search.hold.credible_rank`); the replays in ``evaluation["hold"]``."""
     target = run.joint.target(state.best_speed)
     kw = dict(gait=gait, speed_bl_per_min=target, z0=z, n_seeds=0, eval_cycles=run.joint.eval_cycles,
               robot_spec=robot_reference(robot_file))
     plain = optimize_gait(env, "walk", options=GaussNewtonOptions(max_iter=0), **kw)
-    if run.polish_iterations <= 0:
-        return plain
-    polished = optimize_gait(env, "walk", options=GaussNewtonOptions(max_iter=run.polish_iterations), **kw)
-    speed = lambda r: r.evaluation["speed_bl_per_min"] if r.evaluation.get("upright") else -np.inf  # noqa: E731
-    return polished if speed(polished) > speed(plain) else plain
-
-
-def _summary(run, env, baseline, result, reopt, state, changes, checks, wall) -> dict:
-    before = float(baseline.evaluation["speed_bl_per_min"])
-    after = float(result.evaluation["speed_bl_per_min"])
-    out = {"robot": env.robot.name, "contact": env.contact_model, "vary": list(run.vary),
-           "n_cycle": baseline.settings["n_cycle"], "n_keyframes": baseline.settings["n_keyframes"],
-           "before_bl_per_min": before, "after_bl_per_min": after, "ratio": after / before,
-           "after_upright": bool(result.evaluation.get("upright")),
-           "iterations": len(state.history), "stages": state.stage_rows,
-           "codesign_sim_steps": state.sim_steps, "codesign_wall_time_s": state.wall_time_s,
-           "wall_time_s": wall, "changes": len(changes), "checks_passed": all(c.passed for c in checks)}
-    if reopt is not None:
-        v = float(reopt.evaluation["speed_bl_per_min"])
-        out.update(reoptimised_bl_per_min=v, reoptimised_ratio=v / before,
-                   reoptimised_cycle=[reopt.settings["n_cycle"], reopt.settings["n_keyframes"]])
-    return out
-
-
-def _report(run, shipped, designed, summary, changes, checks, settings) -> Path:
-    from .report import plot_robots_side_by_side, write_codesign_report
-    picture = run.out / "codesign.png"
-    plot_robots_side_by_side(shipped, designed, picture,
-                             speeds=(summary["before_bl_per_min"], summary["after_bl_per_min"]))
-    before = {"speed_bl_per_min": summary["before_bl_per_min"], "n_cycle": summary["n_cycle"],
-              "n_keyframes": summary["n_keyframes"]}
-    after = {"speed_bl_per_min": summary["after_bl_per_min"], "n_cycle": summary["n_cycle"],
-             "n_keyframes": summary["n_keyframes"], "upright": summary["after_upright"],
-             "simulation_steps": summary["codesign_sim_steps"], "wall_time_s": summary["codesign_wall_time_s"],
-             "iterations": summary["iterations"]}
-    reopt = None if "reoptimised_bl_per_min" not in summary else {
-        "speed_bl_per_min": summary["reoptimised_bl_per_min"], "n_cycle": summary["reoptimised_cycle"][0],
-        "n_keyframes": summary["reoptimised_cycle"][1]}
-    path = run.out / "codesign.md"
-    write_codesign_report(path, robot_name=shipped.name, before=before, after=after, reoptimised=reopt,
-                          changes=changes, checks=checks, picture=str(picture), settings=settings)
-    return path
+    gaits = [plain]
+    if run.polish_iterations > 0:
+        gaits.append(optimize_gait(env, "walk", options=GaussNewtonOptions(max_iter=run.polish_iterations), **kw))
+    for res in gaits:
+        if res.evaluation.get("upright"):
+            res.evaluation["hold"] = credible_check(env, res, run.screen)
+    return max(gaits, key=lambda r: credible_rank(r.evaluation.get("hold")))     # the first of equals: plain

@@ -8,8 +8,23 @@ keyframes follow for 5 Gauss-Newton iterations; the shipped design: 26.8). So co
 screens designs a finite step away in a few directions and keeps the best; then
 :mod:`trajopt.codesign.joint` refines gait and design together from there.
 
-A design is scored (``ScreenSettings.score``) by the speed of a gait for it, upright over 10
-cycles with the motors' limit on:
+A design is scored by the *credible speed* of a gait for it (``ScreenSettings.score`` says how
+the gait is found, below), the protocol of ``--speed max``'s hold stage
+(:func:`trajopt.search.hold.hold_check`): the gait, upright over 10 cycles with the motors' limit on
+at its own physics (4 steps of 8.25 ms per 33-ms control step), replayed with ``hold_factors``
+times its physics steps (default half, twice and four times: 16.5, 4.125 and 2.06 ms), gives the
+speeds ``v_n`` at n = 2, 4, 8, 16 steps per control step and
+
+    slowest = min_n v_n,    spread = (max_n v_n - slowest) / slowest,    holds = spread <= 5 %.
+
+Candidates rank by ``(holds, slowest)`` (:func:`~trajopt.search.hold.credible_rank`): a gait that
+holds beats every gait that does not, whatever their speeds (a design kept for a gain that belongs
+to the physics step would lose it on the next finer step); among gaits alike in that, the slowest
+speed decides. A gait that falls at any step or walks backwards is never better (the rank of
+not upright). ``hold_factors=()`` scores on the own physics alone (the slowest is then the
+speed and every upright forward gait holds).
+
+How the gait is found:
 
 * ``"warm"`` (default): ``iterations`` Gauss-Newton iterations warm-started from the current
   keyframes. The gait follows the design step by step, so the pair found is fast, but the gait
@@ -47,31 +62,26 @@ The workers end with the screening however it ends: on an exception, Ctrl-C, SIG
 (killed by SIGKILL) ends itself (:mod:`trajopt.workers`: ``PR_SET_PDEATHSIG`` on Linux, and a
 thread that watches its parent everywhere, started before the worker imports the work), so that
 no worker outlives the run and holds its stdout. A worker that dies
-(the out-of-memory killer, ``kill -9``) ends the screening with :class:`WorkerDied`.
+(the out-of-memory killer, ``kill -9``) ends the screening with :class:`WorkerDied`. The scoring
+and its processes: :mod:`trajopt.codesign.score`.
 """
 from __future__ import annotations
 
-import multiprocessing
-import os
-import signal
-from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, Callable
 
 import numpy as np
 
 from soft_envs.envs import SimulationError
-from soft_envs.envs.threads import limit_threads
 
-from ..fastest import SearchSettings, fastest_gait
-from ..optim.gauss_newton import GaussNewtonOptions
-from ..optim.optimize import optimize_gait
+from ..fastest import SearchSettings
 from ..optim.qp import QPError, nearest_feasible
-from ..workers import start_worker
-from .problem import CodesignProblem, design_env
+from ..search.hold import HOLD_FACTORS, MAX_SPREAD, credible_rank
+from .problem import CodesignProblem
+from .score import Score, ScoreJob, Scorer, WorkerDied, score_gait
 
-__all__ = ["ScreenSettings", "ScreenProgress", "candidates", "screen_designs", "SCORES", "WorkerDied"]
+__all__ = ["ScreenSettings", "ScreenProgress", "Score", "candidates", "screen_designs", "SCORES", "WorkerDied"]
 
 #: how a candidate design is scored (module docstring)
 SCORES = ("warm", "scratch")
@@ -89,6 +99,8 @@ class ScreenSettings:
     eval_cycles: int = 10
     warm: int = 2
     score: str = "warm"
+    hold_factors: tuple[float, ...] = HOLD_FACTORS
+    max_spread: float = MAX_SPREAD
 
     def __post_init__(self):
         if self.score not in SCORES:
@@ -96,7 +108,8 @@ class ScreenSettings:
 
     @classmethod
     def quick(cls) -> "ScreenSettings":
-        return cls(rounds=1, iterations=1, modulus_factors=(2.0,), routing_steps=(), eval_cycles=2, warm=1)
+        return cls(rounds=1, iterations=1, modulus_factors=(2.0,), routing_steps=(), eval_cycles=2, warm=1,
+                   hold_factors=(0.5,))
 
 
 def candidates(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, settings: ScreenSettings
@@ -141,138 +154,18 @@ def candidates(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, setti
     return out
 
 
-def _gait(env, gait, target: float, settings: ScreenSettings, z0: np.ndarray | None, search: SearchSettings):
-    """``(speed, z, simulation steps, status)`` of a gait on ``env``'s robot:
-    ``settings.iterations`` Gauss-Newton iterations from ``z0`` (warm), or (``z0`` None) from
-    scratch as ``--speed max`` finds it on the current cycle and keyframes (``search`` pinned to
-    them: the same runs as that candidate's in the full search). Speed nan: not upright."""
-    if z0 is None:
-        pinned = replace(search, keyframes=(gait.n_keyframes,), max_sim_steps=None)
-        try:
-            res, _ = fastest_gait(env, settings=pinned, cycle_steps=gait.n_cycle, quiet=True)
-        except SimulationError as err:            # nothing upright: a score of nan
-            return float("nan"), None, 0, f"no upright gait ({err})"
-        steps = int(res.evaluation["search_sim_steps"])
-    else:
-        res = optimize_gait(env, "walk", gait=gait, speed_bl_per_min=target, z0=z0, n_seeds=0,
-                            options=GaussNewtonOptions(max_iter=settings.iterations), eval_cycles=settings.eval_cycles)
-        steps = int(res.evaluation.get("optimization_sim_steps", 0)) + gait.n_prep + settings.eval_cycles * gait.n_cycle
-    ev = res.evaluation
-    speed = float(ev["speed_bl_per_min"]) if ev.get("upright") else float("nan")
-    return speed, np.asarray(res.z), steps, res.status
-
-
-@dataclass(frozen=True)
-class _ScoreJob:
-    """One candidate's gait, as a worker process receives it (everything picklable)."""
-
-    robot: Any
-    contact: str
-    newton: Any
-    substeps: int
-    gait: Any
-    target: float
-    settings: ScreenSettings
-    z0: np.ndarray | None
-    search: SearchSettings
-    motor_model: str = "torque-speed"
-
-
-def _score(job: _ScoreJob):
-    """:func:`_gait` of a job on a fresh environment of its robot, or ``SimulationError``'s text
-    (a failed candidate, not a failed screening)."""
-    env = design_env(job.robot, job.contact, job.newton, job.substeps, job.motor_model)
-    try:
-        return _gait(env, job.gait, job.target, job.settings, job.z0, job.search)
-    except SimulationError as err:
-        return str(err)
-
-
-class WorkerDied(RuntimeError):
-    """A process scoring the screening's candidates died (``how``: e.g. "killed by SIGKILL", as
-    the out-of-memory killer ends one), after ``rounds_done`` finished rounds of ``rounds``."""
-
-    def __init__(self, how: str, rounds_done: int, rounds: int):
-        self.how, self.rounds_done, self.rounds = how, int(rounds_done), int(rounds)
-        super().__init__(
-            f"a worker process scoring the screening's candidates died ({how}; the out-of-memory killer ends one "
-            f"so when memory runs out) after {rounds_done} of {rounds} screening rounds. Fewer workers use less "
-            "memory (workers=1 scores in this process; the result is the same); the run's checkpoint continues "
-            "after the last finished round. From a script, processes are started by multiprocessing's spawn "
-            "method, which imports the script again: a script that co-designs with workers > 1 must run its work "
-            "under `if __name__ == \"__main__\":`")
-
-    def command_line_text(self) -> str:
-        """The advice for ``trajopt codesign`` (no script is involved there)."""
-        return (f"a worker process scoring the screening's candidates died ({self.how}; the out-of-memory killer "
-                f"ends one so when memory runs out) after {self.rounds_done} of {self.rounds} screening rounds: "
-                "the same command with --resume continues from the last finished round; --workers 1 uses less "
-                "memory (the result is the same)")
-
-
-def _one_thread() -> None:
-    """A scoring process computes on one thread (the workers share the cores)."""
-    limit_threads(1)
-
-
-class _Scorer:
-    """Scores jobs in order: in this process (``workers`` 1) or in a pool of ``workers`` processes,
-    started on first use and terminated by :meth:`close` (also on Ctrl-C or an error)."""
-
-    def __init__(self, workers: int):
-        if int(workers) < 1:
-            raise ValueError(f"workers must be >= 1, got {workers}")
-        self.workers = int(workers)
-        self.pool: ProcessPoolExecutor | None = None
-        self._seen = set()                  # the worker processes (their exit codes, once dead)
-
-    def map(self, jobs: list[_ScoreJob]) -> Iterator:
-        if self.workers == 1 or len(jobs) <= 1:
-            return map(_score, jobs)
-        if self.pool is None:
-            self.pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                            initializer=start_worker,
-                                            initargs=(os.getpid(), f"{__name__}:_one_thread"))
-        try:        # a worker killed while the jobs are submitted breaks the pool inside map()
-            return self.pool.map(_score, jobs)
-        finally:
-            self._seen.update((getattr(self.pool, "_processes", None) or {}).values())
-
-    def how_they_died(self) -> str:
-        """How the first worker that died unasked ended ("killed by SIGKILL", "exit code 1")."""
-        for proc in self._seen:
-            if proc.exitcode is None:
-                proc.join(timeout=1.0)      # the pool's manager may not have reaped it yet
-            code = proc.exitcode
-            if code is None or code == 0 or code == -signal.SIGTERM:      # alive, or terminated by the pool
-                continue
-            if code < 0:
-                try:
-                    return f"killed by {signal.Signals(-code).name}"
-                except ValueError:
-                    return f"killed by signal {-code}"
-            return f"exit code {code}"
-        return "ended abruptly"
-
-    def close(self, terminate: bool = False) -> None:
-        pool, self.pool = self.pool, None
-        if pool is None:
-            return
-        if terminate:                       # running scores are abandoned, not waited for
-            for proc in list((getattr(pool, "_processes", None) or {}).values()):
-                proc.terminate()
-        pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _better(a: float, b: float) -> bool:
-    return np.isfinite(a) and (not np.isfinite(b) or a > b)
+def _better(a: Score, b: Score | None) -> bool:
+    """``a`` ranks above ``b`` (:func:`~trajopt.search.hold.credible_rank`; None: not scored)."""
+    return a.rank > (credible_rank(None) if b is None else b.rank)
 
 
 @dataclass
 class ScreenProgress:
     """Where a screening stands after a round (JSON-able through :func:`dataclasses.asdict`):
     the rounds done, the designs it moved to (in order: the path a resumed run replays), the best
-    design, its gait and speed so far, the rows, and whether it has ended."""
+    design, its gait and that gait's credible speed so far (``speed``: the slowest over the hold
+    replays; ``holds``: whether it holds; ``own``: its speed at the own physics), the rows, and
+    whether it has ended."""
 
     rounds_done: int
     theta: list[float]
@@ -281,32 +174,34 @@ class ScreenProgress:
     path: list[list[float]] = field(default_factory=list)
     rows: list[dict] = field(default_factory=list)
     finished: bool = False
+    holds: bool = False
+    own: float = float("nan")
 
 
 def screen_designs(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, speed: float, target: float,
                    settings: ScreenSettings = ScreenSettings(), *, search: SearchSettings = SearchSettings(),
                    workers: int = 1, resume: ScreenProgress | None = None,
                    log: Callable[[str], Any] = lambda t: None, done: Callable[[dict], None] | None = None,
-                   round_done: Callable[[ScreenProgress], None] | None = None) -> ScreenProgress:
-    """Where the screening ends (:class:`ScreenProgress`): the design chosen, its fastest upright
-    gait found and that gait's speed (``theta, z, speed`` as given when no candidate is better),
+                   round_done: Callable[[ScreenProgress], None] | None = None, holds: bool = False) -> ScreenProgress:
+    """Where the screening ends (:class:`ScreenProgress`): the design chosen, its best-ranked
+    gait found and that gait's credible speed (``theta, z, speed`` as given when no candidate is better),
     the designs moved to, and one row per run. ``target``: the gaits' tracking target [BL/min];
     ``done(row)`` after each candidate, ``round_done(progress)`` after each round; ``workers``:
     processes scoring a round's candidates (module docstring); ``resume``: continue from a
     ``round_done`` progress (``problem`` must stand at its last design: :meth:`CodesignProblem.move_to`
-    along its path).
+    along its path); ``speed`` and ``holds``: the given gait's credible speed and whether it holds.
 
-    A candidate's score (``settings.score``, module docstring) is the speed of its gait
-    warm-started from the current keyframes, or found from scratch as ``--speed max``
-    (``search``) finds it on the current cycle and keyframe count; the current design is scored
-    the same way. With scratch scores the ``warm`` best-scored candidates also get a gait
-    warm-started from the current keyframes, and keep the faster."""
+    A candidate's score (module docstring) is the credible rank of its gait warm-started from the
+    current keyframes, or found from scratch as ``--speed max`` (``search``) finds it on the
+    current cycle and keyframe count (``settings.score``); the current design is scored the same
+    way. With scratch scores the ``warm`` best-ranked candidates also get a gait warm-started
+    from the current keyframes, and keep the better-ranked."""
     if resume is None:
         state = ScreenProgress(0, np.asarray(theta, dtype=np.float64).tolist(),
-                               np.asarray(z, dtype=np.float64).tolist(), float(speed))
+                               np.asarray(z, dtype=np.float64).tolist(), float(speed), holds=bool(holds))
     else:
         state = resume
-    scorer = _Scorer(workers)
+    scorer = Scorer(workers)
     try:
         while not state.finished and state.rounds_done < settings.rounds:
             _screen_round(problem, state, target, settings, search, scorer, log, done)
@@ -324,7 +219,7 @@ def screen_designs(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, s
 
 
 def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float, settings: ScreenSettings,
-                  search: SearchSettings, scorer: _Scorer, log, done) -> None:
+                  search: SearchSettings, scorer: Scorer, log, done) -> None:
     """One greedy round from ``state``'s design (module docstring); updates ``state``."""
     rnd = state.rounds_done + 1
     start_theta, start_z = np.asarray(state.theta), np.asarray(state.z)
@@ -333,9 +228,9 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
         state.path.append(list(state.theta))
     todo = [("current design", start_theta)] + candidates(problem, start_theta, start_z, settings)
     rows: list[dict] = []
-    jobs: list[_ScoreJob] = []
+    jobs: list[ScoreJob] = []
     for label, th in todo:
-        rows.append({"round": rnd, "candidate": label, "score_bl_per_min": float("nan"),
+        rows.append({"round": rnd, "candidate": label, **Score(float("nan"), None, None, 0, "").row(),
                      "warm_bl_per_min": float("nan"), "status": "", "sim_steps": 0})
         try:
             robot = problem.robot_at(th)
@@ -346,44 +241,55 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
         if why is not None:
             rows[-1]["status"] = f"skipped: {why}"
             continue
-        jobs.append(_ScoreJob(robot, problem.contact, problem.newton, problem.substeps, problem.gait, target, settings,
+        jobs.append(ScoreJob(robot, problem.contact, problem.newton, problem.substeps, problem.gait, target, settings,
                               start_z if settings.score == "warm" else None, search, problem.motor_model))
     scores = scorer.map(jobs)                  # in the order of the rows left unscored above
-    scored: list[tuple[float, str, np.ndarray, np.ndarray]] = []
+    scored: list[tuple[Score, str, np.ndarray]] = []
     for row, (label, th) in zip(rows, todo):
         if row["status"] == "":
             out = next(scores)
             if isinstance(out, str):
                 row["status"] = f"failed: {out}"
             else:
-                score, z_s, steps, status = out
-                problem.sim_steps += steps
-                row.update(score_bl_per_min=score, sim_steps=steps, status=status)
-                scored.append((score, label, th, z_s))
+                problem.sim_steps += out.steps
+                row.update(out.row(), sim_steps=out.steps, status=out.status)
+                scored.append((out, label, th))
         state.rows.append(row)
-        log(f"  screen round {rnd}: {label}: {row['score_bl_per_min']:.2f} BL/min "
+        log(f"  screen round {rnd}: {label}: {_describe(row)} "
             f"({'warm-started' if settings.score == 'warm' else 'from scratch'}) {row['status']}")
         if done is not None:
             done(row)
-    current = scored[0][0] if scored and scored[0][1] == "current design" else float("nan")
-    ranked = sorted((s for s in scored if s[1] != "current design" and np.isfinite(s[0])), key=lambda s: -s[0])
+    current = scored[0][0] if scored and scored[0][1] == "current design" else None
+    ranked = sorted((s for s in scored if s[1] != "current design" and s[0].hold is not None),
+                    key=lambda s: s[0].rank, reverse=True)          # stable: ties keep the candidates' order
     winner = None
-    for score, label, th, z_s in ranked[:settings.warm]:
+    for score, label, th in ranked[:settings.warm]:
         if not _better(score, current):
             break
-        warm, z_w = score, z_s
+        gait = score
         if settings.score == "scratch":       # also a gait from the current keyframes
             env = problem.env_of(problem.robot_at(th))
-            warm, z_w, steps, _ = _gait(env, problem.gait, target, settings, start_z, search)
-            problem.sim_steps += steps
+            warm = score_gait(env, problem.gait, target, settings, start_z, search)
+            problem.sim_steps += warm.steps
             row = next(r for r in rows if r["candidate"] == label)
-            row.update(warm_bl_per_min=warm, sim_steps=row["sim_steps"] + steps)
-            log(f"  screen round {rnd}: {label}: {warm:.2f} BL/min warm-started")
-        gait_speed, gait_z = (warm, z_w) if _better(warm, score) else (score, z_s)
+            row.update(warm_bl_per_min=warm.slowest, sim_steps=row["sim_steps"] + warm.steps)
+            log(f"  screen round {rnd}: {label}: warm-started {_describe(warm.row())}")
+            gait = warm if _better(warm, score) else score
         if winner is None:
             winner = label
-            state.theta, state.z, state.speed = np.asarray(th).tolist(), np.asarray(gait_z).tolist(), float(gait_speed)
-    log(f"screen round {rnd}: {'best ' + winner if winner else 'no better design'} (score "
-        f"{ranked[0][0] if ranked else float('nan'):.2f} vs the current design's {current:.2f}; gait {state.speed:.2f} BL/min)")
+            state.theta, state.z = np.asarray(th).tolist(), np.asarray(gait.z).tolist()
+            state.speed, state.holds, state.own = gait.slowest, bool(gait.hold["holds"]), gait.own
+    best = _describe(ranked[0][0].row()) if ranked else "nothing upright"
+    log(f"screen round {rnd}: {'best ' + winner if winner else 'no better design'} (best candidate {best}; the "
+        f"current design's {_describe(current.row()) if current is not None else 'not upright'}; gait "
+        f"{state.speed:.2f} BL/min at the slowest step)")
     state.rounds_done = rnd
     state.finished = winner is None or rnd >= settings.rounds
+
+
+def _describe(row: dict) -> str:
+    """A score in a line: its own speed, its slowest, spread and whether it holds."""
+    if not np.isfinite(row["slowest_bl_per_min"]):
+        return f"{row['own_bl_per_min']:.2f} BL/min, falls at another physics step or not upright"
+    return (f"{row['own_bl_per_min']:.2f} BL/min, slowest {row['slowest_bl_per_min']:.2f}, spread "
+            f"{100 * row['spread']:.1f} % ({'holds' if row['holds'] else 'does not hold'})")

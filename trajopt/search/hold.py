@@ -31,7 +31,7 @@ from ..evaluation import evaluate_controls
 from ..optim.ensemble import member_env
 from ..replay import result_controls
 
-__all__ = ["HOLD_FACTORS", "MAX_SPREAD", "FASTEST_HELD", "FASTEST_UPRIGHT", "hold_steps", "hold_check", "hold_cost", "hold_stage", "choose_gait", "describe_hold", "hold_verdict"]
+__all__ = ["HOLD_FACTORS", "MAX_SPREAD", "FASTEST_HELD", "FASTEST_UPRIGHT", "hold_steps", "hold_check", "hold_replays", "credible_rank", "hold_cost", "hold_stage", "choose_gait", "describe_hold", "hold_verdict"]
 
 #: the physics steps per control step a candidate is replayed with, as factors of its own
 HOLD_FACTORS = (0.5, 2.0, 4.0)
@@ -55,19 +55,42 @@ def hold_check(env: Any, res: Any, *, factors=HOLD_FACTORS, max_spread: float = 
     """Replay ``res`` (made on ``env``'s physics, its evaluation ``res.evaluation`` at that
     physics) at the other physics steps of ``factors`` over ``n_cycles`` cycles (default: its
     evaluation's) and say whether its speed holds (module docstring)."""
-    own = int(env.substeps)
     cycles = int(res.settings["eval_cycles"]) if n_cycles is None else int(n_cycles)
     u, n_prep, n_cycle = result_controls(res, env.robot, cycles)
-    heading = float(res.settings.get("heading_deg", 0.0))
-    speeds = {own: float(res.evaluation["speed_bl_per_min"]) if res.evaluation.get("upright") else float("nan")}
+    return hold_replays(env, u, n_prep, n_cycle, res.evaluation, factors=factors, max_spread=max_spread,
+                        heading_deg=float(res.settings.get("heading_deg", 0.0)))
+
+
+def hold_replays(env: Any, u: np.ndarray, n_prep: int, n_cycle: int, own: dict, *, factors=HOLD_FACTORS,
+                 max_spread: float = MAX_SPREAD, heading_deg: float = 0.0) -> dict[str, Any]:
+    """:func:`hold_check` of the controls ``u`` (the prep phase's ``n_prep`` steps, then cycles of
+    ``n_cycle``) whose evaluation at ``env``'s own physics is ``own``
+    (:func:`~trajopt.evaluation.evaluate_controls`'s dict: ``speed_bl_per_min``, ``upright``)."""
+    own_n = int(env.substeps)
+    speeds = {own_n: float(own["speed_bl_per_min"]) if own.get("upright") and "sim_failure" not in own
+              else float("nan")}
     steps = 0.0
-    for n in hold_steps(own, factors):
-        ev = evaluate_controls(member_env(env, n), u, n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading)
+    for n in hold_steps(own_n, factors):
+        ev = evaluate_controls(member_env(env, n), u, n_prep=n_prep, n_cycle=n_cycle, heading_deg=heading_deg)
         speeds[n] = float(ev["speed_bl_per_min"]) if ev.get("upright") and "sim_failure" not in ev else float("nan")
-        steps += len(u) * n / own
+        steps += len(u) * n / own_n
     values = [speeds[n] for n in sorted(speeds)]
     return {"substeps": [int(n) for n in sorted(speeds)], "speeds": values, **hold_verdict(values, max_spread),
             "max_spread": float(max_spread), "steps": int(math.ceil(steps))}
+
+
+def credible_rank(check: dict[str, Any] | None) -> tuple[int, float]:
+    """The order co-design ranks gaits by (:mod:`trajopt.codesign.screen`, :mod:`trajopt.codesign.joint`):
+    ``(holds, slowest)`` of a :func:`hold_check`, compared as tuples, so that a gait whose speed holds
+    beats every gait that does not, and among gaits alike in that the slowest speed decides. A gait
+    that fell at any step, walks backwards (``slowest <= 0``), or was not checked (None) ranks
+    ``(0, -inf)``, below every upright forward gait: it is never better."""
+    if check is None:
+        return 0, -math.inf
+    slowest = float(check["slowest"])
+    if not math.isfinite(slowest) or slowest <= 0:
+        return 0, -math.inf
+    return int(bool(check["holds"])), slowest
 
 
 def hold_verdict(speeds, max_spread: float = MAX_SPREAD) -> dict[str, Any]:
