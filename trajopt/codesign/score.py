@@ -179,7 +179,7 @@ class Scorer:
         """How the first worker that died unasked ended ("killed by SIGKILL", "exit code 1")."""
         for proc in self._seen:
             if proc.exitcode is None:
-                proc.join(timeout=1.0)      # the pool's manager may not have reaped it yet
+                proc.join(timeout=5.0)      # the pool's manager may not have reaped it yet (slow on a loaded machine)
             code = proc.exitcode
             if code is None or code == 0 or code == -signal.SIGTERM:      # alive, or terminated by the pool
                 continue
