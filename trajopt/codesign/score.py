@@ -17,7 +17,7 @@ import os
 import signal
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, Iterator
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -30,9 +30,6 @@ from ..optim.optimize import optimize_gait
 from ..search.hold import credible_rank, hold_check
 from ..workers import start_worker
 from .problem import design_env
-
-if TYPE_CHECKING:
-    from .screen import ScreenSettings
 
 __all__ = ["Score", "ScoreJob", "Scorer", "WorkerDied", "score_gait", "score_job"]
 
@@ -65,9 +62,10 @@ class Score:
                 "spread": float(h.get("spread", float("nan"))), "holds": bool(h.get("holds", False))}
 
 
-def score_gait(env, gait, target: float, settings: "ScreenSettings", z0: np.ndarray | None, search: SearchSettings
+def score_gait(env, gait, target: float, settings: Any, z0: np.ndarray | None, search: SearchSettings
           ) -> Score:
-    """The :class:`Score` of a gait on ``env``'s robot: ``settings.iterations`` Gauss-Newton
+    """The :class:`Score` of a gait on ``env``'s robot (``settings``: a
+    :class:`~trajopt.codesign.screen.ScreenSettings`): ``settings.iterations`` Gauss-Newton
     iterations from ``z0`` (warm), or (``z0`` None) from scratch as ``--speed max`` finds it on the
     current cycle and keyframes (``search`` pinned to them: the same runs as that candidate's in
     the full search, its hold stage's replays reused when they were made over
@@ -109,7 +107,7 @@ class ScoreJob:
     substeps: int
     gait: Any
     target: float
-    settings: "ScreenSettings"
+    settings: Any                       # trajopt.codesign.screen.ScreenSettings (which imports this module)
     z0: np.ndarray | None
     search: SearchSettings
     motor_model: str = "torque-speed"
