@@ -162,12 +162,17 @@ class BoxContact(EnergyTerm):
         """Every node inside the box anchored at its projection on its nearest face (the
         faces of :meth:`depths` with ``x_prev``)."""
         out = np.zeros((len(self.nodes), 3))
-        out[:, 0] = -1.0
-        s, f = self.depths(x0, x_prev)
-        on = np.flatnonzero(s > 0)
-        xi, eta = self._anchor(x0, on, f[on], x0[self.nodes[on]])
-        out[on, 0], out[on, 1], out[on, 2] = f[on], xi, eta
+        self._fresh_anchors(x0, x_prev, np.arange(len(self.nodes)), out)
         return out
+
+    def _fresh_anchors(self, x, x_prev, rows: np.ndarray, out: np.ndarray) -> None:
+        """``out[rows]``: the anchors :meth:`initial_history` gives those nodes at ``x`` (the
+        nodes outside the box unanchored, face -1)."""
+        s, f = self.depths(x, x_prev)
+        out[rows] = (-1.0, 0.0, 0.0)
+        on = rows[s[rows] > 0]
+        xi, eta = self._anchor(x, on, f[on], x[self.nodes[on]])
+        out[on, 0], out[on, 1], out[on, 2] = f[on], xi, eta
 
     def next_history(self, x, x_prev, hist) -> np.ndarray:
         """The anchors' update of the module docstring."""
@@ -175,8 +180,7 @@ class BoxContact(EnergyTerm):
         face = _faces(hist)
         out[:, 0] = face
         active = self._active(x_prev, hist)
-        fresh = self.initial_history(x, x_prev)
-        out[~active] = fresh[~active]
+        self._fresh_anchors(x, x_prev, np.flatnonzero(~active), out)     # the others keep or slide theirs
         fr = np.flatnonzero(active)
         if len(fr):
             F = x[self.faces[face[fr]]]
