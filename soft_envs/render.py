@@ -43,6 +43,8 @@ _SHADOW = np.array([0.42, 0.42, 0.42])
 _SLACK = (0.55, 0.55, 0.55, 1.0)
 _TRAIL = (0.85, 0.2, 0.1, 1.0)
 _GOAL = (0.1, 0.6, 0.25, 1.0)
+#: the body's colour unless one is given
+BODY_COLOUR = (0.45, 0.70, 0.92)
 _CABLE_WIDTH, _TRAIL_WIDTH = 2.2, 1.6
 _UP = np.array([0.0, 1.0, 0.0])
 
@@ -104,7 +106,7 @@ class Renderer:
         azimuth: float = 35.0,
         distance: float | None = None,
         fov: float = 30.0,
-        color: Sequence[float] = (0.45, 0.70, 0.92),
+        color: Sequence[float] = BODY_COLOUR,
         light_dir: Sequence[float] = (0.3, 1.0, 0.6),
         tension_max: float | None = None,
         slack_tension: float = 1e-6,

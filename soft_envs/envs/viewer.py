@@ -19,8 +19,8 @@ from .measure import cable_points
 
 __all__ = ["EnvViewer", "RenderingMixin", "cable_polylines"]
 
-#: the robot's colour (the renderer's default) and a box's (:mod:`soft_envs.sim.box`)
-BODY_COLOUR, BOX_COLOUR = (0.45, 0.70, 0.92), (0.85, 0.62, 0.35)
+#: a box's colour (:mod:`soft_envs.sim.box`); the robot keeps the renderer's
+BOX_COLOUR = (0.85, 0.62, 0.35)
 _NON_INTERACTIVE = {"agg", "pdf", "ps", "svg", "pgf", "cairo", "template"}
 _warned_headless = False
 
@@ -108,9 +108,9 @@ class RenderingMixin:
             surface = self._base_robot.mesh.surface
             config = dict(self._camera_config or {})
             if len(self._base_robot.box_nodes) and "color" not in config:      # a box: wood-coloured
-                body = np.asarray(config.get("color", BODY_COLOUR), dtype=float)
+                from ..render import BODY_COLOUR          # (matplotlib: imported with the first frame only)
                 on_box = np.isin(surface, self._base_robot.box_nodes).all(axis=1)
-                config["color"] = np.where(on_box[:, None], BOX_COLOUR, body)
+                config["color"] = np.where(on_box[:, None], BOX_COLOUR, BODY_COLOUR)
             self._viewer = EnvViewer(surface, width=self._width, height=self._height,
                                      body_length=self._body_length, fps=self.metadata["render_fps"],
                                      camera_config=config)
