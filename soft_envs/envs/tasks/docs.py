@@ -50,6 +50,8 @@ def _per_level(key: str, fmt) -> dict[str, str]:
     return {name: fmt(values) for name, values in LEVELS[key].items()}
 
 
+#: the robot keywords a terrain task sets itself (its ``owned``)
+TERRAIN_OWNED = ("task", "ground", "target_heading_deg", "incline_deg")
 _TERRAIN_PART = (("terrain", 3, "COM height above the ground under it; the ground's height 0.5 and 1 body length "
                   "ahead (along the body's forward vector in the ground plane) minus the ground's under the COM",
                   "position (m)"),)
@@ -91,7 +93,7 @@ TASK_DOCS = {
         "(`HeightField.rough`) of wavelength 0.4 body lengths, a new one at each reset (its seed drawn from "
         "`np_random`) unless `terrain_seed` fixes it.",
         _WALK, _per_level("rough_terrain", lambda v: f"RMS height {_in_mm(v['amplitude_bl'], 1)}"),
-        ("task", "ground", "target_heading_deg", "incline_deg"), _TERRAIN_PART,
+        TERRAIN_OWNED, _TERRAIN_PART,
         arguments=(("`terrain_seed`", "**int \\| None**", "`None`",
                     "seed of a fixed terrain; `None`: a new terrain at each reset, its seed from `np_random` "
                     "(`info[\"terrain_seed\"]`; redrawn, at most 10 times, when the robot cannot be placed at rest "
@@ -100,7 +102,7 @@ TASK_DOCS = {
         "climb_step", "ClimbStep", "Walk along +x and climb a step (`HeightField.step`, its edge smoothed over "
         "0.07 body lengths) whose foot is 0.15 body lengths ahead of the robot's front at rest.",
         _WALK, _per_level("climb_step", lambda v: f"step height {_in_mm(v['height_bl'], 1)}"),
-        ("task", "ground", "target_heading_deg", "incline_deg"), _TERRAIN_PART,
+        TERRAIN_OWNED, _TERRAIN_PART,
         "the COM is half a body length beyond the step's top edge (`env.unwrapped.finish_x`) and the robot "
         "healthy", _SUCCESS_ARGS),
     "cross_trench": TaskDoc(
@@ -108,7 +110,7 @@ TASK_DOCS = {
         "(`HeightField.trench`, edges smoothed over 0.07 body lengths) whose near edge is 0.15 body lengths "
         "ahead of the robot's front at rest.",
         _WALK, _per_level("cross_trench", lambda v: f"trench length {_in_mm(v['length_bl'], 0)}"),
-        ("task", "ground", "target_heading_deg", "incline_deg"), _TERRAIN_PART,
+        TERRAIN_OWNED, _TERRAIN_PART,
         "the COM is half a body length beyond the trench's far edge (`env.unwrapped.finish_x`) and the robot "
         "healthy", _SUCCESS_ARGS),
     "reach_goal": TaskDoc(

@@ -19,7 +19,7 @@ import numpy as np
 from ...sim import HeightField, Robot, SimulationError, load_robot
 from .base import TaskEnv
 from .difficulty import DEFAULT_DIFFICULTY, LEVELS, level
-from .docs import TASK_DOCS, task_docstring
+from .docs import TASK_DOCS, TERRAIN_OWNED, task_docstring
 
 __all__ = ["RoughTerrainEnv", "ClimbStepEnv", "CrossTrenchEnv", "task_ground", "task_keywords", "LOOK_AHEAD_BL", "ROUGH_WAVELENGTH_BL",
            "MAX_TERRAIN_DRAWS"]
@@ -82,7 +82,7 @@ def task_keywords(task: str, robot: str | os.PathLike | Robot, difficulty: str =
 
 
 class _TerrainEnv(TaskEnv):
-    owned = ("task", "ground", "target_heading_deg", "incline_deg")
+    owned = TERRAIN_OWNED
 
     def _task_kwargs(self, robot: Robot) -> dict[str, Any]:
         self._L = float(robot.body_length)
