@@ -95,3 +95,11 @@ def test_the_child_is_stopped_when_the_block_fails(monkeypatch):
             raise KeyboardInterrupt
     (child,) = children
     assert child.poll() is not None                        # ended, not left running
+
+
+def test_the_warmup_compiles_the_box_kernels_too():
+    """``python -m soft_envs.sim.warmup`` leaves the carry and push tasks' kernels in the cache."""
+    from soft_envs.sim import load_robot
+    from soft_envs.sim.contact import box_geometry
+    warmup.compile_box_kernels(load_robot("tripod"))
+    assert box_geometry.face_planes._cache._cache_file._load_index()

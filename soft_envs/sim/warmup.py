@@ -13,7 +13,9 @@ Python) while the caller sets up its simulation, which compiles the kernels of a
 the same time on another core: the two compile disjoint sets of kernels. On a busy machine a
 child only takes CPU time from the caller, so none is started there.
 
-``python -m soft_envs.sim.warmup [ROBOT]`` compiles every kernel once, e.g. after installing.
+``python -m soft_envs.sim.warmup [ROBOT]`` compiles every kernel once, e.g. after installing,
+those of a robot with a box too (the carry and push tasks' contact, :func:`compile_box_kernels`;
+``--no-box``: not those).
 """
 from __future__ import annotations
 
@@ -31,7 +33,7 @@ import numpy as np
 
 from .timing import DEFAULT_DT
 
-__all__ = ["compile_kernels", "kernels_cached", "compile_ahead", "idle_core"]
+__all__ = ["compile_kernels", "compile_box_kernels", "kernels_cached", "compile_ahead", "idle_core"]
 
 #: kernels whose cache entries tell whether the simulator has been compiled on this machine
 _SENTINELS = (("soft_envs.sim.materials", "fem_assemble"),
@@ -99,6 +101,19 @@ def compile_kernels(robot, *, dt: float = DEFAULT_DT, gravity=(0.0, -9.81, 0.0),
     BodyFrame(x, robot.node_masses).rotation(traj.x[-1])
 
 
+def compile_box_kernels(robot, *, dt: float = DEFAULT_DT) -> None:
+    """Compile (or load) the kernels of a box on ``robot`` (:func:`~soft_envs.sim.with_box`: its
+    contact with the robot and their sensitivities), by :func:`compile_kernels` of the robot
+    carrying a small box on its top; ``robot`` itself must have no box."""
+    from .box import Box, with_box
+    p = robot.mesh.points
+    top = float(p[:, 1].max())
+    size = 0.2 * float(robot.body_length)
+    box = Box(size=(size, size, size), center=(float(p[:, 0].mean()), top + 0.5 * size, float(p[:, 2].mean())),
+              mass=0.1 * float(robot.total_mass))
+    compile_kernels(with_box(robot, box), dt=dt)
+
+
 @contextlib.contextmanager
 def compile_ahead(robot_spec: str | os.PathLike, out: TextIO | None = None) -> Iterator[bool]:
     """Around the set-up of a simulation of ``robot_spec`` (a shipped robot's name or a
@@ -156,9 +171,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("robot", nargs="?", default="tripod", help="shipped robot name or robot.toml path")
     p.add_argument("--ahead", action="store_true",
                    help="only the Newton fallback's projected Hessian (what compile_ahead's child compiles)")
+    p.add_argument("--no-box", action="store_true", help="not the kernels of a box (the carry and push tasks)")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    compile_kernels(load_robot(args.robot), everything=not args.ahead)
+    robot = load_robot(args.robot)
+    compile_kernels(robot, everything=not args.ahead)
+    if not (args.ahead or args.no_box):
+        compile_box_kernels(robot)
     print(f"simulator kernels compiled and cached ({time.perf_counter() - t0:.1f} s)")
     return 0
 
