@@ -1,4 +1,4 @@
-"""The task suite: the benchmark's 16 task ids (docs/tasks.md) against three baselines, each scored
+"""The task suite: the benchmark's 20 task ids (docs/tasks.md) against three baselines, each scored
 with the task's own score on the id itself (:mod:`trajopt.tasks.scores`).
 
 The runs are one sweep file, ``examples/suite.toml`` (``trajopt sweep``: one Ray task per run,
@@ -12,7 +12,7 @@ and writes the report: a table of task x robot x method (mean +- std over the se
 score, success, simulation steps, wall time), runs not made marked "not run" with the command
 that makes them.
 
-Run:  python benchmarks/bench_suite.py                      (every run; ~8 hours of one core)
+Run:  python benchmarks/bench_suite.py                      (every run; ~10 hours of one core)
       python benchmarks/bench_suite.py --only 'SoftTripod*_ppo_*' --workers 1   (a part)
       python benchmarks/bench_suite.py --report-only        (the report from the runs made)
       python benchmarks/bench_suite.py --quick              (tiny budgets: PPO on every id, SAC on two,
@@ -44,8 +44,7 @@ from trajopt.sweep import load_spec, read_status, run_sweep  # noqa: E402
 from trajopt.tasks.registry import get_task  # noqa: E402
 from trajopt.tasks.scores import SCORES, default_episodes  # noqa: E402
 
-#: the suite's tasks: those with a score (the locomotion tasks; carry and push a box, which need
-#: their own scores and trajopt objectives, are not in it yet)
+#: the suite's tasks: every task with a score (all of them)
 TASKS = tuple(t for t in SCORES)
 
 SPEC = ROOT / "examples" / "suite.toml"
@@ -198,8 +197,9 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
                 lines.append("| " + " | ".join(row) + " |")
     lines += ["", "## Open loop or closed loop", "",
               "Every task is a trajopt objective (`trajopt optimize ROBOT --task TASK [--difficulty LEVEL]`): walk, "
-              "turn, the slopes, rough terrain, the step and the trench on the task's own slope or ground, reach "
-              "a goal as the walk along `--heading`. Where an open-loop gait falls short of the task as posed:", ""]
+              "turn, the slopes, rough terrain, the step and the trench on the task's own slope or ground, carry and "
+              "push with the task's box added to the robot (the walk's objective: the score says whether the payload "
+              "stayed on and how far the box went), reach a goal as the walk along `--heading`. Where an open-loop gait falls short of the task as posed:", ""]
     lines += [f"- {task}: {why}" for task, why in CLOSED_LOOP_ONLY.items()]
     speeds = ", ".join(f"{DEFAULT_SPEED[r]:g} BL/min for the {r.capitalize()}" for r in ROBOTS if r in DEFAULT_SPEED)
     lines += ["", "trajopt's objective is the walk's of `trajopt optimize` as shipped: it tracks a COM path at the "

@@ -201,3 +201,29 @@ def test_frames_draw_the_box_in_its_own_colour():
         assert orange.sum() > 200                    # the plate on the robot's top is seen
     finally:
         env.close()
+
+
+def test_trajopt_optimises_with_the_box_and_its_result_replays_and_scores_with_it(tmp_path):
+    """``trajopt optimize tripod --task push_box``: the walk's objective on the robot with the
+    task's box (soft_envs.envs.tasks.task_keywords); the result replays with the same box (its
+    robot fingerprint, box nodes included, matches) and is scored on SoftTripodPushBox-v0 by the
+    box's displacement."""
+    from soft_envs.envs.tasks import task_keywords
+    from trajopt.optimize_run import OptimizeRun, run_optimization
+    from trajopt.replay import env_for_result, result_box
+    from trajopt.results.result import Result
+    from trajopt.tasks.play import gait_on_task
+    run_optimization(OptimizeRun("tripod", task="push_box", difficulty="easy", iterations=1, seeds=0, cycle_steps=12,
+                                 prep_steps=6, cycles=1, out=tmp_path, quiet=True))
+    res = Result.load(tmp_path / "tripod_push_box.npz")
+    assert res.settings["env_task"] == "push_box" and res.settings["difficulty"] == "easy"
+    box = task_keywords("push_box", "tripod", "easy")["box"]
+    assert result_box(res, "tripod") == box
+    env = env_for_result(res)                     # the fingerprint of the robot with its box
+    assert env.robot.box == box and env.robot.mesh.n_nodes == gym.make("SoftTripodPushBox-v0").unwrapped.robot.mesh.n_nodes
+    x0, _ = env.reset_state()
+    traj = env.rollout(res.u)
+    moved = float(traj.x[-1][env.robot.box_nodes][:, 0].mean() - x0[env.robot.box_nodes][:, 0].mean())
+    ev = gait_on_task(res, episodes=1)
+    assert ev["env_id"] == "SoftTripodPushBox-v0" and ev["score_name"] == "pushed" and ev["score_unit"] == "BL"
+    assert np.isfinite(ev["score"]) and (moved > 0.0) == (ev["score"] > 0.0)

@@ -89,7 +89,9 @@ EXPECTED = {
                           r"+[+-]\d+\.\d mm, tilt +\d+\.\d deg; return +[+-]\d+\.\d+; ran 10 steps",
                           r"SoftTripodPushBox-v0 +easy +: robot +[+-]\d+\.\d mm, box \d+\.\d g pushed +[+-]\d+\.\d mm",
                           r"d\(box x after 0\.20 s\) / d amplitude: [+-]\d+\.\d+ mm exact; central differences "
-                          r"[+-]\d+\.\d+ mm \(h = 1e-4\)"],
+                          r"[+-]\d+\.\d+ mm \(h = 1e-4\)",
+                          r"trajopt push_box \(1 Gauss-Newton iterations\): the robot walks [+-]?\d+\.\d+ BL/min with the "
+                          r"box ahead; on SoftTripodPushBox-v0 the box is pushed [+-]\d+\.\d+ BL \(\w+ at step \d+\)"],
     "robot_from_surface.py": [r"meshed quadruped\.obj: \d+ nodes, \d+ tets",
                               r"mass +body \d+\.\d g \+ payload \d+\.\d g on \d+ top nodes",
                               r"picture: results/quadruped_quick/quadruped\.png", r"iteration 1: objective \S+ -> \S+",

@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_every_benchmark_task_is_a_trajopt_task_on_the_task_s_own_ground():
     assert set(ENV_TASKS) == set(TASKS) == set(SCORES)
-    assert set(TASKS) <= set(ALL_TASKS) and set(ALL_TASKS) - set(TASKS) == {"carry", "push_box"}   # not yet
+    assert set(TASKS) == set(ALL_TASKS)
     xs, zs = np.meshgrid(np.linspace(-0.1, 0.5, 31), np.linspace(-0.2, 0.2, 5))
     for task, name in ENV_TASKS.items():
         where = get_task(name).environment("tripod", "hard")
@@ -41,6 +41,8 @@ def test_every_benchmark_task_is_a_trajopt_task_on_the_task_s_own_ground():
                 env.close()
                 ground = gym.make(TASK_IDS_BY_TASK[task]["tripod"], difficulty="hard", terrain_seed=0).unwrapped.robot.ground
             np.testing.assert_array_equal(where["ground"].height(xs, zs), ground.height(xs, zs), err_msg=task)
+        elif "box" in where:         # the task's box, as the environment adds it
+            assert where["box"] == base.box and (ground is None or ground.is_flat), task
         else:
             assert ground is None or ground.is_flat, task
         env.close()
@@ -55,12 +57,14 @@ def test_each_task_s_score_is_what_its_documentation_says():
     com = np.zeros((K + 1, 3))
     com[-1, 0] = L                                   # one body length along +x over 10 s
     rec = {"com": com, "yaw": np.linspace(0.0, -3 * np.pi / 4, K + 1) % (2 * np.pi) - np.pi,   # wraps around
-           "goal_distance": np.linspace(1.0, 0.5, K + 1) * L}
+           "goal_distance": np.linspace(1.0, 0.5, K + 1) * L, "box_x": np.linspace(0.01, 0.01 + 0.25 * L, K + 1)}
     assert _episode_score("walk", base, rec, K) == pytest.approx(60.0 / (K * dt))            # BL/min
     assert _episode_score("rough_terrain", base, rec, K) == pytest.approx(60.0 / (K * dt))
     assert _episode_score("climb_step", base, rec, K) == pytest.approx(1.0)                  # BL
     assert _episode_score("reach_goal", base, rec, K) == pytest.approx(0.5)                  # BL gained
     assert _episode_score("turn", base, rec, K) == pytest.approx(135.0)                      # deg, to the left
+    assert _episode_score("carry", base, rec, K) == pytest.approx(60.0 / (K * dt))           # BL/min, as walk
+    assert _episode_score("push_box", base, rec, K) == pytest.approx(0.25)                   # the box's BL
     assert {s.unit for s in SCORES.values()} == {"BL/min", "deg", "BL"}
 
 
@@ -122,7 +126,7 @@ def test_the_renderer_draws_a_relief_and_a_goal():
 
 @pytest.mark.rl
 def test_the_quick_suite_trains_every_id_and_its_report_has_every_row(tmp_path):
-    """benchmarks/bench_suite.py --quick: PPO a few hundred steps on each of the 16 ids, SAC on two,
+    """benchmarks/bench_suite.py --quick: PPO a few hundred steps on each of the 20 ids, SAC on two,
     trajopt on the step, each scored on its id; the report lists task x robot x method, the runs not
     made as "not run", each id's steps per second and a picture of each task."""
     pytest.importorskip("stable_baselines3")
@@ -139,7 +143,7 @@ def test_the_quick_suite_trains_every_id_and_its_report_has_every_row(tmp_path):
             assert ppo[3].endswith(SCORES[task].unit) and "±" in ppo[3] and ppo[5] == "1/3", ppo
     step = next(r for r in rows if r[0] == "| climb_step" and r[1] == "Tripod" and r[2].startswith("trajopt"))
     assert step[3].endswith("BL") and "±" in step[3]
-    assert sum(r[3] == "not run" for r in rows) == 48 - 16 - 2 - 1
+    assert sum(r[3] == "not run" for r in rows) == len(TASKS) * 2 * 3 - len(SUITE_IDS) - 2 - 1
     assert all(f"`{i}`" in text for i in SUITE_IDS)                    # steps per second of every id
     assert all((tmp_path / "images" / f"{t}.png").is_file() for t in TASKS)
     assert "--only 'SoftPuppyWalk-v0_sac_seed*'" in text

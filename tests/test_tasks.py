@@ -13,7 +13,7 @@ from trajopt.tasks.registry import TASKS, Task, command_line_tasks, get_task
 
 
 #: the benchmark's tasks (soft_envs.envs.tasks) that trajopt adds to the paper's, in their order
-BENCHMARK = ["slope_up", "slope_down", "rough_terrain", "climb_step", "cross_trench", "reach_goal"]
+BENCHMARK = ["slope_up", "slope_down", "rough_terrain", "climb_step", "cross_trench", "reach_goal", "carry", "push_box"]
 
 
 def test_the_paper_tasks_and_what_they_give():

@@ -344,13 +344,15 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
     contact = run.contact or task.contact          # e.g. the turn pivots on feet that stick
     with compile_ahead(run.robot):            # first run on a machine: numba compiles meanwhile
         env = make_gradient_env(run.robot, incline_deg=incline, heading_deg=run.heading, contact=contact,
-                                substeps=run.substeps, ground=where.get("ground"))
+                                substeps=run.substeps, ground=where.get("ground"), box=where.get("box"))
     print(f"{env.robot.summary()}; task {task.name}; {env.contact_model} contact law"
           + (f" (the {task.name}'s default; --contact paper for the paper's)" if contact and not run.contact
              else " (the robot file's; --contact paper for the paper's)"
              if not run.contact and env.contact_model != "paper" else "")
           + (f", slope {incline:g} deg" if incline else "")
           + (f", the {task.env_task} task's ground ({run.difficulty or 'medium'})" if "ground" in where else "")
+          + (f", the {task.env_task} task's box ({run.difficulty or 'medium'}: {where['box'].mass * 1e3:.1f} g)"
+             if "box" in where else "")
           + f"; {_physics(env)}"
           + f"; motors: {_MOTOR_WORDS[run.model()]} (--motor-model {run.model()})")
     print(f"writes {out} (+ .json) when it finishes; checkpoints in {partial} until then")

@@ -21,7 +21,7 @@ from .optim.parameterization import GaitParameterization
 from .results.result import Result
 from .results.robot_match import check_robot, fingerprint_of, locate_robot
 
-__all__ = ["env_for_result", "result_ground", "result_substeps", "result_parameterization", "result_controls", "replay",
+__all__ = ["env_for_result", "result_ground", "result_box", "result_substeps", "result_parameterization", "result_controls", "replay",
            "RobotMismatchWarning"]
 
 
@@ -42,7 +42,7 @@ def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False, substeps
                             heading_deg=float(s.get("heading_deg", 0.0)), timestep=res.dt,
                             contact=s.get("contact", "paper"),
                             substeps=result_substeps(res) if substeps is None else substeps,
-                            ground=result_ground(res, robot))
+                            ground=result_ground(res, robot), box=result_box(res, robot))
     note = check_robot(res, fingerprint_of(env.robot), list(env.robot.motor_names),
                        src=res.path or "the result", ignore=ignore_robot_mismatch)
     if note is not None:
@@ -50,14 +50,24 @@ def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False, substeps
     return env
 
 
+def _task_keywords(res: Result, robot: Any) -> dict[str, Any]:
+    s = res.settings
+    if not s.get("env_task"):
+        return {}
+    from soft_envs.envs.tasks import DEFAULT_DIFFICULTY, task_keywords
+    return task_keywords(s["env_task"], robot, s.get("difficulty") or DEFAULT_DIFFICULTY)
+
+
 def result_ground(res: Result, robot: Any):
     """The ground a benchmark task's gait was optimised on (``settings["env_task"]`` at its
     ``difficulty``: :meth:`trajopt.tasks.Task.environment`), or None (the robot file's)."""
-    s = res.settings
-    if not s.get("env_task"):
-        return None
-    from soft_envs.envs.tasks import DEFAULT_DIFFICULTY, task_keywords
-    return task_keywords(s["env_task"], robot, s.get("difficulty") or DEFAULT_DIFFICULTY).get("ground")
+    return _task_keywords(res, robot).get("ground")
+
+
+def result_box(res: Result, robot: Any):
+    """The box a benchmark task's gait was optimised with (carry a payload, push a box: its
+    ``settings["env_task"]`` at its ``difficulty``), or None."""
+    return _task_keywords(res, robot).get("box")
 
 
 def result_substeps(res: Result) -> int:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from ..sim import Robot
+from ..sim import Box, Robot, load_robot, with_box
 from ..sim.ground import HeightField
 from ..sim.motors import TORQUE_SPEED
 from .base import PAPER_TIMESTEP, SoftRobotEnv
@@ -21,7 +21,8 @@ __all__ = ["as_gradient_env", "make_gradient_env"]
 def make_gradient_env(robot: str | os.PathLike | Robot = "puppy", *, incline_deg: float = 0.0,
                       heading_deg: float = 0.0, timestep: float = PAPER_TIMESTEP,
                       contact: str | None = None, substeps: int | None = None,
-                      motor_model: str = TORQUE_SPEED, ground: HeightField | None = None) -> SoftRobotEnv:
+                      motor_model: str = TORQUE_SPEED, ground: HeightField | None = None,
+                      box: Box | None = None) -> SoftRobotEnv:
     """A bare environment for trajectory optimisation, reset without noise: its rollouts start
     at the exact rest state with the motors at ``robot.u_rest``.
 
@@ -33,7 +34,10 @@ def make_gradient_env(robot: str | os.PathLike | Robot = "puppy", *, incline_deg
     :attr:`~soft_envs.sim.contact.ContactLaw.default_substeps`); ``motor_model`` the motors' law of
     its steps (:mod:`soft_envs.sim.motors`; rollouts apply controls as given, whatever the law);
     ``ground`` a :class:`~soft_envs.sim.ground.HeightField` to stand on (None: the robot file's
-    ``[ground]``, or the plane y = 0)."""
+    ``[ground]``, or the plane y = 0); ``box`` a :class:`~soft_envs.sim.Box` added to the robot
+    (:func:`~soft_envs.sim.with_box`: a payload to carry, a box to push; None: none)."""
+    if box is not None:
+        robot = with_box(robot if isinstance(robot, Robot) else load_robot(robot), box)
     shipped = {"tripod": SoftTripodEnv, "puppy": SoftPuppyEnv}
     cls = shipped.get(robot, SoftRobotEnv) if isinstance(robot, str) else SoftRobotEnv
     env = cls(robot, incline_deg=incline_deg, target_heading_deg=heading_deg, timestep=timestep,

@@ -53,7 +53,8 @@ def _add_optimize(sub) -> None:
                    help="what the gait does (trajopt.tasks): walk straight, turn a quarter circle, incline: walk "
                         "up the --angle slope; the benchmark's tasks (docs/tasks.md) slope_up, slope_down, "
                         "rough_terrain, climb_step, cross_trench: the walk on their slope or ground at --difficulty; "
-                        "reach_goal: the walk along --heading")
+                        "carry, push_box: the walk with the task's box (a payload on top, a box ahead) at "
+                        "--difficulty; reach_goal: the walk along --heading")
     p.add_argument("--speed", type=speed, default=None,
                    help="target speed [body lengths/min], or max: the fastest walk within the motors' limits "
                         "whose speed holds within 5 %% at half, twice and four times the physics steps (searches "

@@ -20,9 +20,10 @@ its name:
   id its gait is scored (:mod:`trajopt.tasks.play`).
 
 Every benchmark task is a task here (:data:`ENV_TASKS`): walk and turn as they are, the slopes,
-rough terrain, the step and the trench as the walk on their ground, and reaching a goal as the
-walk along ``--heading`` (a goal in a fixed direction; a goal drawn anew at each reset needs a
-closed loop: docs/tasks.md).
+rough terrain, the step and the trench as the walk on their ground, carrying a payload and
+pushing a box as the walk with the task's box added to the robot (the payload on its top, the box
+ahead of it), and reaching a goal as the walk along ``--heading`` (a goal in a fixed direction; a
+goal drawn anew at each reset needs a closed loop: docs/tasks.md).
 
 Adding a task is one subclass of :class:`Task` and one line in :data:`TASKS` (a test shows it).
 This module imports nothing heavy at import time: the command line reads the task names here.
@@ -104,8 +105,9 @@ class Walk(Task):
 @dataclass(frozen=True)
 class OnTaskGround(Walk):
     """The walk on a benchmark task's slope or ground (:attr:`env_task`: slope up or down, rough
-    terrain, a step, a trench; the level from ``--difficulty``), or along ``--heading`` towards a
-    goal (reach a goal): the same objective as the walk."""
+    terrain, a step, a trench; the level from ``--difficulty``), with its box (carry a payload,
+    push a box: the robot's COM walks, the box rides or is pushed), or along ``--heading``
+    towards a goal (reach a goal): the same objective as the walk."""
 
 
 @dataclass(frozen=True)
@@ -158,7 +160,8 @@ class Custom(Task):
 #: name -> task; adding a task: a subclass of Task and one line here (or ``TASKS[name] = task``)
 TASKS: dict[str, Task] = {t.name: t for t in (Walk(), Turn(), Incline(), Custom())}
 TASKS.update({name: OnTaskGround(name=name, env_task=name)
-              for name in ("slope_up", "slope_down", "rough_terrain", "climb_step", "cross_trench", "reach_goal")})
+              for name in ("slope_up", "slope_down", "rough_terrain", "climb_step", "cross_trench", "reach_goal",
+                           "carry", "push_box")})
 #: benchmark task (``soft_envs.TASKS``) -> the task here that is its open-loop objective
 ENV_TASKS: dict[str, str] = {t.env_task: name for name, t in TASKS.items() if t.env_task is not None}
 

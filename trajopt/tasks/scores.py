@@ -13,7 +13,11 @@ success), started with ``reset(seed=s)`` for ``s = 0, 1, ...``; its score (:data
 * climb a step, cross a trench: **advance** [BL], the COM's advance along +x (the finish, half
   a body length beyond the obstacle, ends the episode with a success);
 * reach a goal: **approach** [BL], the horizontal distance to the goal gained (at most the goal's
-  distance less ``goal_radius_bl``, where it succeeds).
+  distance less ``goal_radius_bl``, where it succeeds);
+* carry a payload: **speed** [BL/min] as the walk's, with the payload on: its fall ends the
+  episode, which keeps what was made before it (per minute of the whole episode);
+* push a box: **pushed** [BL], the box's displacement along +x over the episode (the task
+  succeeds at ``push_distance_bl``).
 
 Each episode also reports the task's return (the sum of its rewards), its length and its success.
 This module needs :mod:`soft_envs.envs` (Gymnasium) when an episode is played, not on import.
@@ -61,6 +65,10 @@ SCORES: dict[str, Score] = {
     "cross_trench": Score("advance", "BL", "the COM's advance along +x over the episode (success: past the finish)"),
     "reach_goal": Score("approach", "BL", "the horizontal distance to the goal gained over the episode (success: "
                         "within goal_radius_bl of it)"),
+    "carry": Score("speed", "BL/min", "the COM's advance along +x per minute of the episode, with the payload on "
+                   "(its fall ends the episode)"),
+    "push_box": Score("pushed", "BL", "the box's displacement along +x over the episode (success: "
+                      "push_distance_bl)"),
 }
 
 
@@ -72,13 +80,21 @@ def score_of(task: str) -> Score:
         raise ValueError(f"task must be one of {tuple(SCORES)}, got {task!r}") from None
 
 
+def _box_x(info: dict[str, Any]) -> float:
+    """The box's displacement along +x since the reset [m] (NaN without a box)."""
+    d = info.get("box_displacement")
+    return math.nan if d is None else float(d[0])
+
+
 def play_episode(env, act: Callable[[np.ndarray, int], Any], seed: int, n_steps: int | None = None) -> dict[str, Any]:
     """One episode of ``env`` (a task id, possibly wrapped) from ``reset(seed=seed)``, the action
     of step k being ``act(obs, k)``, until it ends (or ``n_steps``). Returns the COM (K+1, 3),
-    the yaw (K+1,), the goal distances (reach a goal), the return, the length, the success and
-    whether it terminated (and why)."""
+    the yaw (K+1,), the goal distances (reach a goal), the box's displacement along +x (push a
+    box, carry a payload), the return, the length, the success and whether it terminated (and
+    why)."""
     obs, info = env.reset(seed=seed)
     coms, yaws, goals = [info["com"]], [info["yaw"]], [info.get("goal_distance", math.nan)]
+    boxes = [_box_x(info)]
     ret, success, k, why = 0.0, False, 0, "truncated"
     while n_steps is None or k < n_steps:
         obs, reward, terminated, truncated, info = env.step(act(obs, k))
@@ -87,12 +103,14 @@ def play_episode(env, act: Callable[[np.ndarray, int], Any], seed: int, n_steps:
         coms.append(info["com"])
         yaws.append(info["yaw"])
         goals.append(info.get("goal_distance", math.nan))
+        boxes.append(_box_x(info))
         success |= bool(info.get("is_success", False))
         if terminated or truncated:
             why = ("sim_failure" if "sim_failure" in info else "success" if info.get("is_success") else
                    "unhealthy" if terminated else "truncated")
             break
-    return {"com": np.array(coms), "yaw": np.array(yaws), "goal_distance": np.array(goals), "return": ret,
+    return {"com": np.array(coms), "yaw": np.array(yaws), "goal_distance": np.array(goals),
+            "box_x": np.array(boxes), "return": ret,
             "steps": k, "success": success, "end": why, "seed": int(seed)}
 
 
@@ -104,8 +122,10 @@ def _episode_score(task: str, base, rec: dict[str, Any], episode_steps: int) -> 
         return float(np.degrees(sign * turned))
     if task == "reach_goal":
         return float((rec["goal_distance"][0] - rec["goal_distance"][-1]) / L)
+    if task == "push_box":
+        return float((rec["box_x"][-1] - rec["box_x"][0]) / L)
     advance = float((com[-1] - com[0]) @ base.locomotion_task.heading) / L
-    if SCORES[task] is _SPEED:
+    if SCORES[task].name == "speed":
         return advance / (episode_steps * base.dt) * 60.0
     return advance
 

@@ -20,12 +20,25 @@ from ..arguments import number_in
 from .box_task import BoxTaskEnv
 from .docs import TASK_DOCS, task_docstring
 
-__all__ = ["CarryEnv", "PAYLOAD_SIZE_BL", "PRESS_IN"]
+__all__ = ["CarryEnv", "payload_box", "PAYLOAD_SIZE_BL", "PRESS_IN"]
 
 #: the payload's length (x) and depth (y) in body lengths; across (z) it is 1.1 times the robot's width
 PAYLOAD_SIZE_BL = (0.6, 0.1)
 #: how far the payload's bottom lies below the robot's top at rest [m]
 PRESS_IN = 1e-4
+
+
+def payload_box(robot: Robot, lv: dict[str, Any]) -> Box:
+    """The payload on ``robot``'s top at level ``lv`` (module docstring): the box this task adds,
+    and :func:`~soft_envs.envs.tasks.task_keywords` gives an optimiser."""
+    p, L = robot.mesh.points, float(robot.body_length)
+    top = float(p[:, 1].max())
+    on_top = p[p[:, 1] >= top - 1e-9]
+    lx, ly = PAYLOAD_SIZE_BL[0] * L, PAYLOAD_SIZE_BL[1] * L
+    lz = 1.1 * float(np.ptp(on_top[:, 2]))
+    center = (float(on_top[:, 0].mean()), top + 0.5 * ly - PRESS_IN, float(on_top[:, 2].mean()))
+    return Box(size=(lx, ly, lz), center=center, mass=lv["mass_fraction"] * robot.total_mass,
+               friction_coefficient=lv["friction_coefficient"])
 
 
 class CarryEnv(BoxTaskEnv):
@@ -40,14 +53,7 @@ class CarryEnv(BoxTaskEnv):
         super().__init__(robot, **kwargs)
 
     def _make_box(self, robot: Robot, lv: dict[str, Any]) -> Box:
-        p, L = robot.mesh.points, float(robot.body_length)
-        top = float(p[:, 1].max())
-        on_top = p[p[:, 1] >= top - 1e-9]
-        lx, ly = PAYLOAD_SIZE_BL[0] * L, PAYLOAD_SIZE_BL[1] * L
-        lz = 1.1 * float(np.ptp(on_top[:, 2]))
-        center = (float(on_top[:, 0].mean()), top + 0.5 * ly - PRESS_IN, float(on_top[:, 2].mean()))
-        return Box(size=(lx, ly, lz), center=center, mass=lv["mass_fraction"] * robot.total_mass,
-                   friction_coefficient=lv["friction_coefficient"])
+        return payload_box(robot, lv)
 
     def _task_kwargs(self, robot: Robot) -> dict[str, Any]:
         return {"task": "walk", "target_heading_deg": 0.0}

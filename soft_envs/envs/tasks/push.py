@@ -19,12 +19,23 @@ from ..arguments import number_in
 from .box_task import BoxTaskEnv
 from .docs import TASK_DOCS, task_docstring
 
-__all__ = ["PushBoxEnv", "BOX_SIZE_BL", "BOX_GAP_BL"]
+__all__ = ["PushBoxEnv", "box_to_push", "BOX_SIZE_BL", "BOX_GAP_BL"]
 
 #: the box's length (x) and height (y) in body lengths; across (z) it is 1.2 times the robot's width
 BOX_SIZE_BL = (0.25, 0.25)
 #: the gap between the robot's front at rest and the box [body lengths]
 BOX_GAP_BL = 0.1
+
+
+def box_to_push(robot: Robot, lv: dict[str, Any]) -> Box:
+    """The box ahead of ``robot`` at level ``lv`` (module docstring): the box this task adds, and
+    :func:`~soft_envs.envs.tasks.task_keywords` gives an optimiser."""
+    p, L = robot.mesh.points, float(robot.body_length)
+    lx, ly = BOX_SIZE_BL[0] * L, BOX_SIZE_BL[1] * L
+    lz = 1.2 * float(np.ptp(p[:, 2]))
+    center = (float(p[:, 0].max()) + BOX_GAP_BL * L + 0.5 * lx, float(p[:, 1].min()) + 0.5 * ly,
+              float(p[:, 2].min() + 0.5 * np.ptp(p[:, 2])))
+    return Box(size=(lx, ly, lz), center=center, mass=lv["mass_fraction"] * robot.total_mass)
 
 
 class PushBoxEnv(BoxTaskEnv):
@@ -38,12 +49,7 @@ class PushBoxEnv(BoxTaskEnv):
         super().__init__(robot, **kwargs)
 
     def _make_box(self, robot: Robot, lv: dict[str, Any]) -> Box:
-        p, L = robot.mesh.points, float(robot.body_length)
-        lx, ly = BOX_SIZE_BL[0] * L, BOX_SIZE_BL[1] * L
-        lz = 1.2 * float(np.ptp(p[:, 2]))
-        center = (float(p[:, 0].max()) + BOX_GAP_BL * L + 0.5 * lx, float(p[:, 1].min()) + 0.5 * ly,
-                  float(p[:, 2].min() + 0.5 * np.ptp(p[:, 2])))
-        return Box(size=(lx, ly, lz), center=center, mass=lv["mass_fraction"] * robot.total_mass)
+        return box_to_push(robot, lv)
 
     def _task_kwargs(self, robot: Robot) -> dict[str, Any]:
         # the robot's forward term (its COM's speed) is off: this task's is the box's

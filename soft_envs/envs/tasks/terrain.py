@@ -66,18 +66,24 @@ def task_keywords(task: str, robot: str | os.PathLike | Robot, difficulty: str =
     """The keywords of :class:`~soft_envs.envs.base.SoftRobotEnv` (and of
     :func:`~soft_envs.envs.make_gradient_env`) that put ``robot`` where ``task`` at
     ``difficulty`` stands: ``{"incline_deg": ...}`` on a slope, ``{"ground": HeightField}`` on the
-    terrain tasks (``seed``: the rough terrain's), ``{}`` for the tasks on the plane (walk, turn,
-    reach a goal; their levels draw physical parameters or goals at each reset, which a fixed
-    environment does not). A ValueError names a bad task or difficulty."""
+    terrain tasks (``seed``: the rough terrain's), ``{"box": Box}`` for carry a payload and push a
+    box (the task's box for ``robot``: :func:`~.carry.payload_box`, :func:`~.push.box_to_push`),
+    ``{}`` for the tasks on the plane (walk, turn, reach a goal; their levels draw physical
+    parameters or goals at each reset, which a fixed environment does not). A ValueError names a
+    bad task or difficulty."""
     if task not in LEVELS:
         raise ValueError(f"task must be one of {tuple(LEVELS)}, got {task!r}")
     lv = level(task, difficulty)
     if "incline_deg" in lv:
         return {"incline_deg": float(lv["incline_deg"])}
-    if task not in ("rough_terrain", "climb_step", "cross_trench"):
+    if task not in ("rough_terrain", "climb_step", "cross_trench", "carry", "push_box"):
         return {}
     if not isinstance(robot, Robot):
         robot = load_robot(robot)
+    if task in ("carry", "push_box"):
+        from .carry import payload_box          # they import this module's siblings: not at import time
+        from .push import box_to_push
+        return {"box": (payload_box if task == "carry" else box_to_push)(robot, lv)}
     return {"ground": task_ground(task, lv, robot.body_length, float(robot.mesh.points[:, 0].max()), seed)[0]}
 
 
