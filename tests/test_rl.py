@@ -310,3 +310,17 @@ def test_runs_made_before_substeps_evaluate_with_their_ids_physics():
     assert run_substeps({}) == 1
     assert run_substeps({"env_id": "SoftPuppy-v2", "env": {"env_kwargs": {"substeps": 4}}}) == 4
     assert run_substeps({"env_id": "SoftPuppy-v2", "env": {"env_kwargs": {}}}) is None     # the law's default
+
+
+def test_a_task_id_trains_on_its_registered_episodes_and_a_robot_on_trajopt_s_horizon(monkeypatch, tmp_path):
+    """``trajopt rl train ID`` without --episode-steps: a task id's 300 steps (its score is defined
+    over them), a robot's 168 (trajopt's horizon); --episode-steps wins over both."""
+    import soft_envs
+    import trajopt.rl.training
+    from trajopt.rl.envs import TRAIN_HORIZON
+    from trajopt.rl.options import train_with_options
+    seen = []
+    monkeypatch.setattr(trajopt.rl.training, "train", lambda *a, **k: seen.append(k["max_episode_steps"]))
+    for target, steps in (("SoftTripodClimbStep-v0", None), ("tripod", None), ("SoftTripodClimbStep-v0", 50)):
+        train_with_options(target, out=tmp_path, no_progress=True, episode_steps=steps)
+    assert seen == [soft_envs.MAX_EPISODE_STEPS, TRAIN_HORIZON, 50]

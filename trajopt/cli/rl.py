@@ -51,8 +51,9 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--vec-env", choices=["auto", "subproc", "dummy"], default="auto",
                    help="auto: SubprocVecEnv when n-envs > 1")
     p.add_argument("--frame-skip", type=positive_int, default=1, help="simulation steps per action")
-    p.add_argument("--episode-steps", type=positive_int, default=TRAIN_HORIZON,
-                   help=f"max_episode_steps (default {TRAIN_HORIZON}, trajopt's horizon)")
+    p.add_argument("--episode-steps", type=positive_int, default=None,
+                   help=f"max_episode_steps (default {TRAIN_HORIZON}, trajopt's horizon, on a robot; a task id's "
+                        "registered 300, over which its score is defined)")
     p.add_argument("--incline", type=slope_deg, default=0.0, help="ground slope [deg]")
     p.add_argument("--contact", type=contact_law, default=None, metavar="LAW",
                    help="ground contact law: coulomb (the default, feet that stick) or paper (II-C, Table I's; "

@@ -18,7 +18,7 @@ RUNS_DIR = RESULTS_DIR / "runs"
 
 def train_with_options(robot: str, *, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
                        out: str | os.PathLike = RUNS_DIR, name: str | None = None, n_envs: int | None = None,
-                       vec_env: str = "auto", frame_skip: int = 1, episode_steps: int = TRAIN_HORIZON,
+                       vec_env: str = "auto", frame_skip: int = 1, episode_steps: int | None = None,
                        incline: float = 0.0, contact: str | None = None, heading: float = 0.0,
                        difficulty: str | None = None,
                        checkpoint_every: int | None = None, hp: list[str] | tuple[str, ...] = (),
@@ -26,10 +26,17 @@ def train_with_options(robot: str, *, algo: str = "ppo", timesteps: int = 30_000
     """:func:`trajopt.rl.training.train` with the command's option names: ``incline``,
     ``contact`` and ``heading`` set up the environment, ``hp`` holds ``KEY=VALUE`` overrides of
     the hyper-parameters, ``difficulty`` the level of a task id (``robot`` =
-    ``"SoftTripodClimbStep-v0"``; None: the task's default), ``no_progress`` hides the progress bar (never shown when stderr is no
+    ``"SoftTripodClimbStep-v0"``; None: the task's default), ``episode_steps`` the episodes'
+    length (None: :data:`~trajopt.rl.envs.TRAIN_HORIZON`, trajopt's horizon, on a robot's id;
+    the registered 300 steps, :data:`soft_envs.MAX_EPISODE_STEPS`, on a task id, whose score is
+    defined over them), ``no_progress`` hides the progress bar (never shown when stderr is no
     terminal), ``verbose`` prints SB3's logger. Returns the :class:`~trajopt.rl.training.TrainRun`."""
+    from .envs import task_of
     from .hyperparams import parse_overrides
     from .training import train
+    if episode_steps is None:
+        from soft_envs import MAX_EPISODE_STEPS
+        episode_steps = MAX_EPISODE_STEPS if task_of(robot) is not None else TRAIN_HORIZON
     env_kwargs: dict[str, Any] = {}
     if incline:
         env_kwargs["incline_deg"] = incline
@@ -38,7 +45,6 @@ def train_with_options(robot: str, *, algo: str = "ppo", timesteps: int = 30_000
     if contact:
         env_kwargs["contact"] = contact
     if difficulty is not None:
-        from .envs import task_of
         if task_of(robot) is None:
             raise ValueError(f"--difficulty applies to a task id (SoftTripodWalk-v0 ...), not to {robot!r}")
         from soft_envs.envs.tasks import check_difficulty
