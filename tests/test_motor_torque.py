@@ -16,6 +16,7 @@ from scipy.optimize import minimize
 
 from soft_envs.envs import MotorLaw, SimulationError, SoftRobotEnv, make_gradient_env
 from soft_envs.sim import NewtonOptions
+from soft_envs.sim.substeps import SUBSTEP_TOLERANCE
 from trajopt import GaitSpec, optimize_gait
 from trajopt.evaluation import measure_gait
 from trajopt.optim.gauss_newton import GaussNewtonOptions, gauss_newton
@@ -181,8 +182,9 @@ def test_every_optimised_result_obeys_the_line(task, contact):
     traj = env.rollout(res.u)
     assert line.worst(res.z, traj.cable_deformation).excess <= LINE_TOLERANCE
     load = res.evaluation["motor_load"]
-    tau = line.law.torque(traj.cable_deformation)             # a new rollout: equal to the Newton tolerance,
-    assert np.abs(np.array(load["torque_nm"]) - tau).max() < 2e-5  # 1e-7 m x 1e5 N/m x 5 mm per physics step
+    tau = line.law.torque(traj.cable_deformation)     # a new rollout: equal to the Newton tolerance (1e-6 m per
+    tol = 1e-8 if env.substeps == 1 else SUBSTEP_TOLERANCE     # physics step) x 1e5 N/m x 5 mm, x 40 at a foot's
+    assert np.abs(np.array(load["torque_nm"]) - tau).max() < 200 * tol    # stick-slip (measured: 8e-5 at 1e-6)
     assert max(load["worst_line_excess"]) <= LINE_TOLERANCE
 
 
