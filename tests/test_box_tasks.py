@@ -230,3 +230,12 @@ def test_trajopt_optimises_with_the_box_and_its_result_replays_and_scores_with_i
     ev = gait_on_task(res, episodes=1)
     assert ev["env_id"] == "SoftTripodPushBox-v0" and ev["score_name"] == "pushed" and ev["score_unit"] == "BL"
     assert np.isfinite(ev["score"]) and (moved > 0.0) == (ev["score"] > 0.0)
+    from trajopt.robustness.report import robustness_jobs     # a robustness study replays it with its box
+    from trajopt.robustness.study import run_sample
+    nominal, perturbed = robustness_jobs(res, 1, 1, 0)
+    assert nominal.box == box and perturbed[0].box == box
+    assert np.isfinite(run_sample(nominal)["speed_bl_per_min"])
+    with pytest.raises(ValueError, match="--heading applies to the walk, the turn and reach_goal, not to --task carry"):
+        run_optimization(OptimizeRun("tripod", task="carry", heading=90.0, out=tmp_path, quiet=True))
+    with pytest.raises(ValueError, match="task 'carry' adds its own box; robot 'tripod' has one already"):
+        task_keywords("carry", gym.make("SoftTripodCarry-v0").unwrapped.robot, "medium")

@@ -314,13 +314,17 @@ def test_runs_made_before_substeps_evaluate_with_their_ids_physics():
 
 def test_a_task_id_trains_on_its_registered_episodes_and_a_robot_on_trajopt_s_horizon(monkeypatch, tmp_path):
     """``trajopt rl train ID`` without --episode-steps: a task id's 300 steps (its score is defined
-    over them), a robot's 168 (trajopt's horizon); --episode-steps wins over both."""
+    over them), a robot's 168 (trajopt's horizon); --episode-steps wins over both. The command
+    passes None on to ``train``, whose default decides (the Python API and the command agree)."""
     import soft_envs
     import trajopt.rl.training
     from trajopt.rl.envs import TRAIN_HORIZON
     from trajopt.rl.options import train_with_options
+    from trajopt.rl.training import episode_steps_for
     seen = []
     monkeypatch.setattr(trajopt.rl.training, "train", lambda *a, **k: seen.append(k["max_episode_steps"]))
-    for target, steps in (("SoftTripodClimbStep-v0", None), ("tripod", None), ("SoftTripodClimbStep-v0", 50)):
+    cases = (("SoftTripodClimbStep-v0", None), ("tripod", None), ("SoftTripodClimbStep-v0", 50))
+    for target, steps in cases:
         train_with_options(target, out=tmp_path, no_progress=True, episode_steps=steps)
-    assert seen == [soft_envs.MAX_EPISODE_STEPS, TRAIN_HORIZON, 50]
+    assert seen == [None, None, 50]
+    assert [episode_steps_for(t, s) for t, s in cases] == [soft_envs.MAX_EPISODE_STEPS, TRAIN_HORIZON, 50]

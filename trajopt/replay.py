@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from soft_envs.envs import GradientEnv, Trajectory, make_gradient_env
+from soft_envs.envs import GradientEnv, Trajectory, load_robot, make_gradient_env
 
 from .optim.gait import GaitSpec
 from .optim.parameterization import GaitParameterization
@@ -37,14 +37,15 @@ def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False, substeps
     is not the one ``res`` was made for raises :class:`~trajopt.results.robot_match.RobotMismatchError`
     (a ValueError), or warns with ``ignore_robot_mismatch``."""
     s = res.settings
-    robot = locate_robot(res)
+    robot = load_robot(locate_robot(res))
+    note = check_robot(res, fingerprint_of(robot), list(robot.motor_names),      # before the task's box is added
+                       src=res.path or "the result", ignore=ignore_robot_mismatch)
+    where = _task_keywords(res, robot)
     env = make_gradient_env(robot, incline_deg=float(s.get("incline_deg", 0.0)),
                             heading_deg=float(s.get("heading_deg", 0.0)), timestep=res.dt,
                             contact=s.get("contact", "paper"),
                             substeps=result_substeps(res) if substeps is None else substeps,
-                            ground=result_ground(res, robot), box=result_box(res, robot))
-    note = check_robot(res, fingerprint_of(env.robot), list(env.robot.motor_names),
-                       src=res.path or "the result", ignore=ignore_robot_mismatch)
+                            ground=where.get("ground"), box=where.get("box"))
     if note is not None:
         warnings.warn(note, RobotMismatchWarning, stacklevel=2)
     return env

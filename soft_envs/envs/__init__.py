@@ -15,7 +15,7 @@ It may import :mod:`soft_envs.sim`, Gymnasium, numpy and :mod:`soft_envs.render`
 ``trajopt``. The benchmark's tasks (``SoftTripodWalk-v0``, ..., docs/tasks.md) are the
 subpackage :mod:`soft_envs.envs.tasks`, imported when one is made.
 """
-from ..sim import RolloutStopped, Robot, SimulationError, Trajectory, load_robot
+from ..sim import Box, RolloutStopped, Robot, SimulationError, Trajectory, load_robot, with_box
 from ..sim.contact import CONTACT_LAWS
 from ..sim.fingerprint import robot_fingerprint
 from ..sim.motors import MOTOR_MODELS, MotorLaw, check_motor_model, line_excess, load_torque, motor_step, winding_speed
@@ -36,7 +36,7 @@ from .tripod import SoftTripodEnv
 
 __all__ = ["SoftRobotEnv", "SoftTripodEnv", "SoftPuppyEnv", "SoftHexapodEnv", "SoftInchwormEnv", "GradientEnv",
            "make_gradient_env",
-           "as_gradient_env", "Robot", "Trajectory", "SimulationError", "RolloutStopped", "load_robot",
+           "as_gradient_env", "Robot", "Trajectory", "SimulationError", "RolloutStopped", "load_robot", "Box", "with_box",
            "robot_fingerprint",
            "BodyFrame", "yaw_of",
            "tilt_deg_of", "wrap_angle", "heading_vector", "cable_points", "strain_energy_density",

@@ -8,7 +8,6 @@ import sys
 from typing import Any
 
 from ..results.files import RESULTS_DIR
-from .envs import TRAIN_HORIZON
 
 __all__ = ["train_with_options", "TRAIN_OPTIONS", "RUNS_DIR"]
 
@@ -27,16 +26,12 @@ def train_with_options(robot: str, *, algo: str = "ppo", timesteps: int = 30_000
     ``contact`` and ``heading`` set up the environment, ``hp`` holds ``KEY=VALUE`` overrides of
     the hyper-parameters, ``difficulty`` the level of a task id (``robot`` =
     ``"SoftTripodClimbStep-v0"``; None: the task's default), ``episode_steps`` the episodes'
-    length (None: :data:`~trajopt.rl.envs.TRAIN_HORIZON`, trajopt's horizon, on a robot's id;
-    the registered 300 steps, :data:`soft_envs.MAX_EPISODE_STEPS`, on a task id, whose score is
-    defined over them), ``no_progress`` hides the progress bar (never shown when stderr is no
+    length (None: :func:`~trajopt.rl.training.train`'s default, trajopt's horizon on a robot's
+    id, the registered 300 steps on a task id, whose score is defined over them), ``no_progress`` hides the progress bar (never shown when stderr is no
     terminal), ``verbose`` prints SB3's logger. Returns the :class:`~trajopt.rl.training.TrainRun`."""
     from .envs import task_of
     from .hyperparams import parse_overrides
     from .training import train
-    if episode_steps is None:
-        from soft_envs import MAX_EPISODE_STEPS
-        episode_steps = MAX_EPISODE_STEPS if task_of(robot) is not None else TRAIN_HORIZON
     env_kwargs: dict[str, Any] = {}
     if incline:
         env_kwargs["incline_deg"] = incline

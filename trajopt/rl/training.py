@@ -68,9 +68,19 @@ def _algo_class(algo: str):
     return {"ppo": sb3.PPO, "sac": sb3.SAC}[algo]
 
 
+def episode_steps_for(robot: str, max_episode_steps: int | None = None) -> int:
+    """The episodes' length of a run on ``robot`` (a robot or a task id): ``max_episode_steps``,
+    or by default :data:`~trajopt.rl.envs.TRAIN_HORIZON` (trajopt's horizon) on a robot and the
+    registered :data:`soft_envs.MAX_EPISODE_STEPS` on a task id, whose score is defined over them."""
+    if max_episode_steps is not None:
+        return int(max_episode_steps)
+    from soft_envs import MAX_EPISODE_STEPS
+    return MAX_EPISODE_STEPS if task_of(robot) is not None else TRAIN_HORIZON
+
+
 def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
           out: str | os.PathLike = "results/runs", *, name: str | None = None, n_envs: int | None = None,
-          vec_env: str = "auto", frame_skip: int = 1, max_episode_steps: int = TRAIN_HORIZON,
+          vec_env: str = "auto", frame_skip: int = 1, max_episode_steps: int | None = None,
           env_kwargs: dict[str, Any] | None = None, hyperparams: dict[str, Any] | None = None,
           checkpoint_every: int | None = None, progress_bar: bool = True, verbose: int = 0,
           log_stdout: bool = False, torch_threads: int | None = 1, callback=None,
@@ -78,6 +88,8 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     """Train ``algo`` ("ppo" | "sac") on ``robot`` ("tripod" | "puppy", or a task id such as
     ``"SoftTripodClimbStep-v0"``, whose keywords go in ``env_kwargs``: ``difficulty``) for ``timesteps``
     environment steps and save the run in ``out/name`` (see the module docstring).
+    ``max_episode_steps``: :func:`episode_steps_for` (None: trajopt's horizon on a robot, the
+    registered 300 steps on a task id).
 
     ``n_envs``: parallel environments (default ``os.cpu_count()``); ``vec_env``: "subproc",
     "dummy" or "auto" (subprocesses when ``n_envs > 1``). ``env_kwargs`` go to ``gym.make``
@@ -96,6 +108,7 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
     target = robot if task_of(robot) is not None else robot_name(robot)    # what make_env makes
+    max_episode_steps = episode_steps_for(robot, max_episode_steps)
     robot = robot_name(robot)
     algo = algo.lower()
     if algo not in ALGOS:

@@ -58,7 +58,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from soft_envs.envs import (SimulationError, SoftRobotEnv, load_robot, make_gradient_env, scale_parameters,
+from soft_envs.envs import (SimulationError, SoftRobotEnv, load_robot, make_gradient_env, scale_parameters, with_box,
                             with_contact_law)
 
 from ..evaluation import measure_gait
@@ -110,6 +110,8 @@ class SampleJob:
     contact: str | None = None                # the gait's contact law (None: the robot file's)
     substeps: int | None = None               # the gait's physics steps per control step (None: the law's)
     motor_model: str = "speed"                # the motors' law the gait was made under
+    ground: Any = None                        # the task's ground (a HeightField; None: the robot file's)
+    box: Any = None                           # the task's box (carry, push; None: none)
 
 
 def perturbed_slope(incline_deg: float, uphill_deg: float, slope_deg: float, direction_deg: float
@@ -197,6 +199,8 @@ def run_sample(job: SampleJob) -> dict[str, Any]:
     upright, heading drift [deg per cycle], max tilt, or the simulation failure."""
     t0 = time.perf_counter()
     robot = with_contact_law(load_robot(job.robot), job.contact)
+    if job.box is not None:                   # the box is perturbed with the robot (its modulus)
+        robot = with_box(robot, job.box)
     u, incline, uphill = np.asarray(job.u, dtype=np.float64), job.incline_deg, job.heading_deg
     p = job.perturbation
     line = p is not None and job.motor_model == "torque-speed"      # motors that follow their line
@@ -217,12 +221,12 @@ def run_sample(job: SampleJob) -> dict[str, Any]:
         if line:
             env = SoftRobotEnv(robot, incline_deg=incline, target_heading_deg=uphill, timestep=job.dt,
                                substeps=job.substeps, reset_noise_scale=0.0, motor_model="torque-speed",
-                               terminate_when_unhealthy=False)
+                               terminate_when_unhealthy=False, ground=job.ground)
             env.reset(seed=0)
             traj = stepped_replay(env, u, lag_share(job.dt, p))
         else:
             env = make_gradient_env(robot, incline_deg=incline, heading_deg=uphill, timestep=job.dt,
-                                    substeps=job.substeps)
+                                    substeps=job.substeps, ground=job.ground)
             traj = env.rollout(u)
     except SimulationError as err:
         out.update(speed_bl_per_min=float("nan"), upright=False, heading_drift_deg_per_cycle=float("nan"),

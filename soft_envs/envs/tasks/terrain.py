@@ -81,6 +81,8 @@ def task_keywords(task: str, robot: str | os.PathLike | Robot, difficulty: str =
     if not isinstance(robot, Robot):
         robot = load_robot(robot)
     if task in ("carry", "push_box"):
+        if robot.box is not None:
+            raise ValueError(f"task {task!r} adds its own box; robot {robot.name!r} has one already")
         from .carry import payload_box          # they import this module's siblings: not at import time
         from .push import box_to_push
         return {"box": (payload_box if task == "carry" else box_to_push)(robot, lv)}
