@@ -21,7 +21,7 @@ from .optim.parameterization import GaitParameterization
 from .results.result import Result
 from .results.robot_match import check_robot, fingerprint_of, locate_robot
 
-__all__ = ["env_for_result", "result_ground", "result_box", "result_substeps", "result_parameterization", "result_controls", "replay",
+__all__ = ["env_for_result", "result_task_keywords", "result_ground", "result_box", "result_substeps", "result_parameterization", "result_controls", "replay",
            "RobotMismatchWarning"]
 
 
@@ -40,7 +40,7 @@ def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False, substeps
     robot = load_robot(locate_robot(res))
     note = check_robot(res, fingerprint_of(robot), list(robot.motor_names),      # before the task's box is added
                        src=res.path or "the result", ignore=ignore_robot_mismatch)
-    where = _task_keywords(res, robot)
+    where = result_task_keywords(res, robot)
     env = make_gradient_env(robot, incline_deg=float(s.get("incline_deg", 0.0)),
                             heading_deg=float(s.get("heading_deg", 0.0)), timestep=res.dt,
                             contact=s.get("contact", "paper"),
@@ -51,7 +51,10 @@ def env_for_result(res: Result, *, ignore_robot_mismatch: bool = False, substeps
     return env
 
 
-def _task_keywords(res: Result, robot: Any) -> dict[str, Any]:
+def result_task_keywords(res: Result, robot: Any) -> dict[str, Any]:
+    """The keywords that put ``robot`` where a benchmark task's gait was optimised
+    (``settings["env_task"]`` at its ``difficulty``: :func:`soft_envs.envs.tasks.task_keywords`,
+    its ``ground`` or ``box``), ``{}`` for a gait of no benchmark task."""
     s = res.settings
     if not s.get("env_task"):
         return {}
@@ -62,13 +65,13 @@ def _task_keywords(res: Result, robot: Any) -> dict[str, Any]:
 def result_ground(res: Result, robot: Any):
     """The ground a benchmark task's gait was optimised on (``settings["env_task"]`` at its
     ``difficulty``: :meth:`trajopt.tasks.Task.environment`), or None (the robot file's)."""
-    return _task_keywords(res, robot).get("ground")
+    return result_task_keywords(res, robot).get("ground")
 
 
 def result_box(res: Result, robot: Any):
     """The box a benchmark task's gait was optimised with (carry a payload, push a box: its
     ``settings["env_task"]`` at its ``difficulty``), or None."""
-    return _task_keywords(res, robot).get("box")
+    return result_task_keywords(res, robot).get("box")
 
 
 def result_substeps(res: Result) -> int:

@@ -11,7 +11,7 @@ run's ``rl_config.json``:
   methods see episodes of the same length (``gymnasium.make`` alone gives 300,
   ``soft_envs.MAX_EPISODE_STEPS``); the evaluation (:mod:`trajopt.rl.evaluate`) then plays
   24 + 6 x 72 steps, like ``trajopt``'s. A benchmark task id trains on its registered 300 steps,
-  over which its score is defined (:func:`trajopt.rl.options.train_with_options`).
+  over which its score is defined (:func:`trajopt.rl.training.episode_steps_for`).
 * **Translation-invariant observation** (:class:`DropHorizontalPosition`): the COM x and z
   relative to the start (two entries of the environment's ``com_position`` observation) are
   removed. They grow without bound as the robot walks and carry no information a walking

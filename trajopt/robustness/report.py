@@ -22,9 +22,11 @@ from typing import Any
 
 import numpy as np
 
+from soft_envs.envs import load_robot
+
 from ..results.files import atomic_write_png, decode_utf8
 from ..optim.motor_limit import motor_model_of
-from ..replay import env_for_result, result_box, result_controls, result_ground
+from ..replay import env_for_result, result_controls, result_task_keywords
 from ..results.robot_match import locate_robot
 from ..results.result import Result, atomic_write_bytes
 from .study import (DERIVED_NAMES, PERTURBATIONS, SampleJob, draw_perturbation, map_samples, run_sample,
@@ -41,10 +43,11 @@ def robustness_jobs(res: Result, cycles: int, samples: int, seed: int) -> tuple[
     u, n_prep, n_cycle = result_controls(res, env.robot, cycles)
     s = res.settings
     robot = locate_robot(res)                 # its file: the task's ground and box are built on it
+    where = result_task_keywords(res, load_robot(robot))
     common = dict(robot=robot, u=u, dt=float(res.dt), n_prep=n_prep, n_cycle=n_cycle,
                   heading_deg=float(s.get("heading_deg", 0.0)), incline_deg=float(s.get("incline_deg", 0.0)),
                   seed=int(seed), contact=env.contact_model, substeps=int(env.substeps),
-                  motor_model=motor_model_of(s), ground=result_ground(res, robot), box=result_box(res, robot))
+                  motor_model=motor_model_of(s), ground=where.get("ground"), box=where.get("box"))
     return (SampleJob(index=-1, **common),
             [SampleJob(index=i, perturbation=draw_perturbation(seed, i), **common) for i in range(samples)])
 
