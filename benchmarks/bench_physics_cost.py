@@ -54,7 +54,8 @@ def _main_job_seconds(root: Path, *extra: str) -> float:
     with tempfile.TemporaryDirectory() as out:
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         subprocess.run([sys.executable, "-m", "trajopt.cli", "optimize", "tripod", "--task", "walk", *extra,
-                        "--out", out, "--quiet"], check=True, env=env, stdout=subprocess.DEVNULL)
+                        "--out", out, "--quiet"], check=True, env=env, stdout=subprocess.DEVNULL,
+                       cwd=root)          # -m puts the working directory first on sys.path: the checkout's
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 

@@ -55,7 +55,7 @@ for env_id in ("SoftTripodCarry-v0", "SoftTripodPushBox-v0"):
 
 # d (the box's x at the end) / d amplitude over a 0.66 s push (0.2 s quick), at 90 % of the range: the
 # rollout with dudz that the environment's gradient hook runs, on a simulator of its robot and physics
-# solved to 1e-10 m per step (at the environment's default, 1e-7 m, a difference step of 1e-5 is a few % off)
+# solved to 1e-10 m per step (the environment's default, 1e-6 m, is the size of a difference step)
 from soft_envs.sim import NewtonOptions, Simulator  # noqa: E402
 
 env = gym.make("SoftTripodPushBox-v0").unwrapped

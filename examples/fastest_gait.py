@@ -9,7 +9,7 @@ the keyframe count with Gauss-Newton, coarse to fine, each candidate warm-starte
 neighbour, every step of the controls inside the limit (linear inequalities on the keyframes,
 a QP in each Gauss-Newton step). Keyframes are joined by straight lines here, so a cable can
 move at the motor's full speed (the paper's zero-tangent spline peaks at 1.5 times its mean
-slope). Each candidate is evaluated over 10 cycles. The two fastest are refined, then replayed
+slope). Each candidate is evaluated over 10 cycles. The three fastest are refined, then replayed
 with half, twice and four times the physics steps: the result is the fastest whose speed holds
 within 5 % at all of them (a fast gait that only works at one physics step is the model's, not
 the robot's), else the fastest upright one. The table lists every run with the simulation steps

@@ -136,9 +136,9 @@ def test_a_seeded_reset_replays_bit_for_bit(env_id):
 def test_the_gradient_hooks_give_the_rollouts_derivatives(monkeypatch):
     """``rollout`` with ``dudz`` from the reset state (the box's contact has sensitivities, checked
     exactly in tests/test_box.py): dCOM/dz and the box's dx/dz against central differences of
-    the environment's own rollouts, solved to 1e-9 m per physics step here (at the default, 1e-7 m,
-    the Newton tolerance and the stick-slip events bound the agreement to 0.14 % and 0.25 % at
-    h = 1e-6 m of contraction, 5 % and 11 % at 1e-4 m)."""
+    the environment's own rollouts, solved to 1e-9 m per physics step here (the default, 1e-6 m,
+    is the size of the difference step; the stick-slip events bound the agreement: 0.14 % and
+    0.25 % at h = 1e-6 m of contraction and 1e-7 m, 5 % and 11 % at 1e-4 m)."""
     from soft_envs.sim import substeps
     monkeypatch.setattr(substeps, "SUBSTEP_TOLERANCE", 1e-9)
     env = gym.make("SoftTripodCarry-v0").unwrapped

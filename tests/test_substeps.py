@@ -59,7 +59,7 @@ def test_the_maps_are_each_others_transpose():
 def test_a_substepped_rollout_is_the_fine_simulator_on_interpolated_controls():
     """Simulator(dt, substeps=n) = Simulator(dt / n) on the straight-line controls, read at the
     ends of the control steps: bit for bit (the same steps in the same order, at the same Newton
-    tolerance: a sub-stepped simulator's default is 1e-7 m, SUBSTEP_TOLERANCE)."""
+    tolerance: a sub-stepped simulator's default is 1e-6 m, SUBSTEP_TOLERANCE)."""
     robot = load_robot("tripod")
     n, K = 4, 12
     coarse = Simulator(robot, substeps=n)

@@ -22,8 +22,11 @@ cycle length and the keyframe count discretely, with several starts, coarse to f
    cycle reached 4.9 from the seeds and 30.9 revisited, and the result rose from 26.1 to 31.5.
    On the shipped Tripod the fastest coarse gait is the shortest cycle (nothing to revisit);
    within one PPO seed's budget (the RL comparison) the Puppy's revisits do not fit;
-3. **fine**: the ``n_fine`` fastest upright candidates continue for ``fine_iterations``
-   iterations from where they stopped;
+3. **fine**: the ``n_fine`` (3) fastest upright candidates continue for ``fine_iterations``
+   iterations from where they stopped. Three, not two: which coarse gaits come first moves with
+   the Gauss-Newton path (a Newton tolerance of 1e-6 m instead of 1e-7 per physics step took
+   the Tripod's first coarse candidate from 14.5 to 12.5 BL/min), and at 1e-6 neither of the
+   Tripod's two fastest refined gaits held (docs/fidelity.md, "Cost");
 4. **hold**: each refined gait is replayed with half, twice and four times its physics steps per
    control step (``hold_factors``, :mod:`trajopt.search.hold`), and the search returns the one
    whose speed holds within ``max_spread`` (5 %) at all of them with the highest slowest speed.

@@ -53,7 +53,7 @@ class Simulator:
     control : ``"length"`` (u = contracted cable length [m]) or ``"tension"`` (u = tension [N]).
     newton : :class:`NewtonOptions` (tolerance, iterations, linear solver); default
         ``NewtonOptions()``, with a sub-stepped simulator's tolerance
-        (:func:`~.substeps.newton_tolerance`: 1e-7 m per physics step).
+        (:func:`~.substeps.newton_tolerance`: 1e-6 m per physics step).
     """
 
     def __init__(self, robot: Robot, dt: float = DEFAULT_DT, gravity=(0.0, -9.81, 0.0),

@@ -26,11 +26,12 @@ __all__ = ["substep_weights", "substep_controls", "substep_jacobian", "control_s
 
 #: [m] the Newton tolerance of a physics step of a sub-stepped simulator (one step of 33 ms
 #: keeps 1e-8, and with it every figure made before sub-steps). Implicit Euler's own error in
-#: an 8.25 ms step is about h^2 |a|, 7e-5 m at 1 m/s^2: 1e-7 is 700 times below it and below
-#: 1 um, where a gait's speed moves by 0.004 BL/min at most (docs/fidelity.md). Measured on the
-#: gait of benchmarks/common.py with 4 sub-steps: 13 % less CPU time than 1e-8 (5.0 instead of
-#: 5.5 Newton iterations per step), the centre of mass the same to 1e-6 m after 168 steps.
-SUBSTEP_TOLERANCE = 1e-7
+#: an 8.25 ms step is about h^2 |a|, 7e-5 m at 1 m/s^2: 1e-6 is 70 times below it. Measured
+#: (docs/fidelity.md, "Cost"): the main job takes 0.71x the CPU time of 1e-7 (the value until
+#: 2026-12-07; 1e-8 before it cost 13 % more again), and results made at 1e-7 replay at 1e-6
+#: with speeds and headings within 0.012 % (Tripod and Puppy walks, slopes, turns, the fastest
+#: gaits). Re-optimised, they move: a Gauss-Newton path moves with the tolerance.
+SUBSTEP_TOLERANCE = 1e-6
 
 
 def check_substeps(n) -> int:

@@ -21,7 +21,7 @@ class SearchSettings:
     ``cycle_steps``: the cycle lengths [simulation steps]; ``keyframes``: keyframe counts per
     cycle (a count is tried on a cycle of at least ``min_steps_per_keyframe`` steps per
     keyframe); ``seeds``: random starts screened besides the mid-range and square-wave starts;
-    Gauss-Newton iterations per stage; ``n_fine``: candidates refined; the target speed rule;
+    Gauss-Newton iterations per stage; ``n_fine``: candidates refined (three: :mod:`trajopt.fastest`); the target speed rule;
     the interpolation of the keyframes; bilateral symmetry;
     ``revisit``: the shorter cycles again from the fastest coarse gait (:mod:`trajopt.fastest`).
     ``explore_under_speed``: under the torque-speed model, the coarse and revisit stages run
@@ -44,7 +44,7 @@ class SearchSettings:
     seeds: int = 1
     coarse_iterations: int = 3
     fine_iterations: int = 6
-    n_fine: int = 2
+    n_fine: int = 3
     min_target: float = 20.0
     target_margin: float = 1.25
     min_horizon_steps: int = 48
