@@ -243,6 +243,29 @@ def test_nan_is_written_as_null_and_resume_checks_settings(short_walk, tmp_path)
         optimize_gait(env, "walk", eval_cycles=0)
 
 
+def test_the_newton_tolerance_is_recorded_and_checked_on_resume(short_walk, tmp_path):
+    """A result says which Newton tolerance solved its physics steps (``settings["newton_tol"]``);
+    resuming it at another tolerance is refused naming the field, a result made before the field
+    existed resumes at today's; a search checkpoint's identity carries it too."""
+    from dataclasses import replace
+
+    from trajopt.search.checkpoint import search_identity
+    from trajopt.search.settings import SearchSettings
+    env, res = short_walk
+    assert res.settings["newton_tol"] == env.simulator.newton.options.tol == 1e-6       # sub-stepped: 1e-6 m
+    one = make_gradient_env("tripod", substeps=1)
+    assert search_identity(one, SearchSettings(), None, 0.0)["newton_tol"] == NewtonOptions().tol == 1e-8
+    tight = make_gradient_env(shipped("tripod")[0])
+    tight.simulator.newton.options = replace(tight.simulator.newton.options, tol=1e-7)
+    kw = dict(gait=GaitSpec(n_prep=12, n_cycle=36), options=GaussNewtonOptions(max_iter=0), robot_spec="tripod",
+              eval_cycles=1)
+    with pytest.raises(ValueError, match=r"cannot resume: .*'newton_tol': \(1e-06, 1e-07\)"):
+        optimize_gait(tight, "walk", resume=res, **kw)
+    older = Result.load(res.save(tmp_path / "older"))
+    del older.settings["newton_tol"]
+    assert optimize_gait(tight, "walk", resume=older, **kw).settings["newton_tol"] == 1e-7
+
+
 def test_incline_is_recorded_from_the_environment():
     env = make_gradient_env("tripod", incline_deg=15.0)
     assert env.incline_deg == 15.0 and env.simulator.gravity[0] < 0 and env.gravity[0] < 0

@@ -94,7 +94,7 @@ from .optim.optimize import optimize_gait
 from .optim.parameterization import GaitParameterization
 from .results.result import Result
 from .search.checkpoint import SearchCheckpoint, finish_search, search_checkpoint_dir, search_identity
-from .search.hold import FASTEST_HELD, choose_gait, hold_cost, hold_stage
+from .search.hold import FASTEST_HELD, SLOWEST_BEST, choose_gait, hold_cost, hold_stage
 from .search.settings import SEARCH_EVAL_CYCLES, SearchSettings
 from .search.table import TABLE_COLUMNS, search_table_paths, table_row, write_search_table
 
@@ -395,8 +395,10 @@ def fastest_gait(env: Any, *, settings: SearchSettings = SearchSettings(), cycle
     if chosen_by != FASTEST_HELD and any(isinstance(r["holds"], bool) for r, _ in upright):
         spread = (f", spread {100 * row['spread']:.1f} %" if isinstance(row["holds"], bool) and np.isfinite(row["spread"])
                   else ", it fell at another physics step" if isinstance(row["holds"], bool) else "")
+        which = ("the one with the highest slowest speed" if chosen_by.startswith(SLOWEST_BEST)
+                 else "the fastest upright one")
         search.say(f"no refined gait holds its speed within {100 * settings.max_spread:g} % at other physics "
-                   f"steps: returning the fastest upright one ({row['speed_bl_per_min']:.2f} BL/min{spread})")
+                   f"steps: returning {which} ({row['speed_bl_per_min']:.2f} BL/min{spread})")
     row["chosen"] = True
     res.settings["search"] = {"settings": asdict(settings), "cycle_steps_pinned": cycle_steps, "runs": len(rows),
                               "sim_steps": total, "wall_time_s": time.perf_counter() - search.t_start,

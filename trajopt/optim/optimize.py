@@ -42,7 +42,7 @@ from ..results.result import Result
 from ..results.robot_match import fingerprint_of
 from ..tasks.targets import bl_per_min_to_mps, from_array
 from ..tasks.registry import TASKS, Task, get_task
-from .start import RESUME_KEYS, Start, check_resume, choose_start   # noqa: F401  (re-exported)
+from .start import RESUME_KEYS, Start, check_resume, choose_start, newton_tol_of   # noqa: F401  (re-exported)
 
 __all__ = ["optimize_gait", "OptimizeSettings", "GaitProblem", "Start", "Recorder", "build_problem", "choose_start", "check_resume",
            "finish", "DEFAULT_SPEED", "TASKS", "TASK_CONTACT"]
@@ -303,7 +303,8 @@ def optimize_gait(env: Any, task: str = "walk", settings: OptimizeSettings | Non
                 "incline_deg": float(env.incline_deg), "weights": weights.to_dict(),
                 "gauss_newton": asdict(options), "eval_cycles": eval_cycles,
                 "warm_start": warm_start.settings.get("source") if warm_start is not None else None,
-                "control": "length", "contact": env.contact_model, "substeps": int(env.substeps)}
+                "control": "length", "contact": env.contact_model, "substeps": int(env.substeps),
+                "newton_tol": newton_tol_of(env)}
     model = choose_motor_model(env, s.motor_model, s.motor_limit)
     max_step = max_step_of_env(env) if model != IDEAL else None
     recorded["motor_limit"] = settings_entry(robot, max_step, env.timestep)

@@ -18,12 +18,19 @@ from .gait import GaitSpec
 from .motor_limit import gait_constraints, motor_model_of, project_start, rest_keyframes
 from .motor_torque import project_into_line
 
-__all__ = ["Start", "choose_start", "check_resume", "RESUME_KEYS"]
+__all__ = ["Start", "choose_start", "check_resume", "newton_tol_of", "RESUME_KEYS"]
 
 #: the settings a resumed run must share with the interrupted one (besides the task)
 RESUME_KEYS = ("n_prep", "n_cycle", "n_cycles", "n_keyframes", "symmetry", "interpolation", "speed_bl_per_min", "heading_deg",
                "turn", "incline_deg", "contact", "substeps", "motor_limit", "motor_model", "motor_line",
-               "ensemble")
+               "ensemble", "newton_tol")
+
+
+def newton_tol_of(env) -> float:
+    """The Newton tolerance [m] each physics step of ``env`` is solved to (recorded as a result's
+    ``settings["newton_tol"]``: 1e-6 m with sub-steps, 1e-8 m at one physics step per control
+    step; :func:`soft_envs.sim.substeps.newton_tolerance`)."""
+    return float(env.simulator.newton.options.tol)
 
 
 @dataclass
@@ -49,7 +56,9 @@ def check_resume(resume: Result, task: str, settings: dict[str, Any],
     saved = {**resume.settings, **GaitSpec.from_settings(resume.settings).to_settings(),
              "contact": resume.settings.get("contact", "paper"),        # older results: the paper's law,
              "substeps": resume.settings.get("substeps", 1),             # one physics step per control step
-             "motor_model": motor_model_of(resume.settings), "motor_line": resume.settings.get("motor_line")}
+             "motor_model": motor_model_of(resume.settings), "motor_line": resume.settings.get("motor_line"),
+             # results made before the tolerance was recorded resume at today's
+             "newton_tol": resume.settings.get("newton_tol", settings.get("newton_tol"))}
     differ = {k: (saved.get(k), settings[k]) for k in RESUME_KEYS if k in settings and saved.get(k) != settings[k]}
     source = resume.settings.get("source")
     if differ or resume.task != task:

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from ..optim.motor_limit import SPEED
+from ..optim.start import newton_tol_of
 from ..results.files import atomic_write_bytes
 from ..results.result import Result
 from .settings import SearchSettings
@@ -114,14 +115,14 @@ class SearchCheckpoint:
 def search_identity(env: Any, settings: SearchSettings, cycle_steps: int | None, heading_deg: float,
                     motor_model: str = SPEED) -> dict:
     """What a search checkpoint must match to be resumed: the settings, the pinned cycle, the
-    heading, the robot (its fingerprint), the contact law, the physics steps per control step and
-    the motor model."""
+    heading, the robot (its fingerprint), the contact law, the physics steps per control step, the
+    motor model and the Newton tolerance of a physics step."""
     from soft_envs.envs import robot_fingerprint
     fp = robot_fingerprint(env.robot) or {}
     return json.loads(json.dumps({"settings": asdict(settings), "cycle_steps": cycle_steps,
                                   "heading_deg": float(heading_deg), "robot": fp.get("sha256", env.robot.name),
                                   "contact": env.contact_model, "substeps": int(env.substeps),
-                                  "motor_model": motor_model}, default=float))
+                                  "motor_model": motor_model, "newton_tol": newton_tol_of(env)}, default=float))
 
 
 def finish_search(checkpoint: str | Path) -> None:

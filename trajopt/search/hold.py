@@ -31,7 +31,7 @@ from ..evaluation import evaluate_controls
 from ..optim.ensemble import member_env
 from ..replay import result_controls
 
-__all__ = ["HOLD_FACTORS", "MAX_SPREAD", "FASTEST_HELD", "FASTEST_UPRIGHT", "hold_steps", "hold_check", "hold_replays", "credible_rank", "hold_cost", "hold_stage", "choose_gait", "describe_hold", "hold_verdict"]
+__all__ = ["HOLD_FACTORS", "MAX_SPREAD", "FASTEST_HELD", "SLOWEST_BEST", "FASTEST_UPRIGHT", "hold_steps", "hold_check", "hold_replays", "credible_rank", "hold_cost", "hold_stage", "choose_gait", "describe_hold", "hold_verdict"]
 
 #: the physics steps per control step a candidate is replayed with, as factors of its own
 HOLD_FACTORS = (0.5, 2.0, 4.0)
@@ -148,6 +148,8 @@ def describe_hold(check: dict[str, Any]) -> str:
 
 #: ``choose_gait``'s rule when a gait held (``settings["search"]["chosen_by"]``)
 FASTEST_HELD = "the fastest gait whose speed holds at other physics steps, by its slowest speed"
+#: ``choose_gait``'s rule when none held but some were replayed upright at every physics step
+SLOWEST_BEST = "the gait with the highest slowest speed over the physics steps"
 #: ``choose_gait``'s rule otherwise
 FASTEST_UPRIGHT = "the fastest upright gait"
 
@@ -155,17 +157,25 @@ FASTEST_UPRIGHT = "the fastest upright gait"
 def choose_gait(upright: list[tuple[dict, Any]], max_spread: float = MAX_SPREAD) -> tuple[dict, Any, str]:
     """``(row, result, rule)``: of the upright runs ``(row, result)`` of a search, the one whose
     speed holds (``row["holds"] is True``, :func:`hold_check`) with the highest slowest speed
-    (``row["slowest_bl_per_min"]``); when none holds, the fastest (``row["credible_bl_per_min"]``:
-    its speed, or an ensemble's slowest member's). ``rule`` is :data:`FASTEST_HELD` or
-    :data:`FASTEST_UPRIGHT` (then saying how many were checked and did not hold)."""
+    (``row["slowest_bl_per_min"]``); when none holds, the one with the highest slowest speed among
+    those replayed upright and forwards at every physics step (the credible speed, as
+    :func:`credible_rank` orders co-design's gaits); when none was (a budget cut the replays, or
+    every replayed gait fell or went backwards at some step), the fastest
+    (``row["credible_bl_per_min"]``: its speed, or an ensemble's slowest member's). ``rule`` is :data:`FASTEST_HELD`, :data:`SLOWEST_BEST` or
+    :data:`FASTEST_UPRIGHT` (the last two saying how many were checked and did not hold)."""
     if not upright:
         raise ValueError("no upright gait to choose from")
     held = [p for p in upright if p[0].get("holds") is True]
     if held:
         row, res = max(held, key=lambda p: p[0]["slowest_bl_per_min"])
         return row, res, FASTEST_HELD
-    row, res = max(upright, key=lambda p: p[0]["credible_bl_per_min"])
     checked = sum(isinstance(p[0].get("holds"), bool) for p in upright)
-    rule = FASTEST_UPRIGHT + (f": none of the {checked} gait(s) checked holds its speed within "
-                              f"{100 * max_spread:g} % at other physics steps" if checked else "")
-    return row, res, rule
+    why = (f": none of the {checked} gait(s) checked holds its speed within {100 * max_spread:g} % at other "
+           "physics steps" if checked else "")
+    replayed = [p for p in upright if p[0].get("holds") is False
+                and credible_rank({"slowest": p[0]["slowest_bl_per_min"], "holds": False})[1] > -math.inf]
+    if replayed:
+        row, res = max(replayed, key=lambda p: p[0]["slowest_bl_per_min"])
+        return row, res, SLOWEST_BEST + why
+    row, res = max(upright, key=lambda p: p[0]["credible_bl_per_min"])
+    return row, res, FASTEST_UPRIGHT + why
