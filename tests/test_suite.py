@@ -107,7 +107,11 @@ def test_the_sweep_file_uses_the_suite_s_budget_on_every_id():
         assert b["args"]["timesteps"] == SUITE_TIMESTEPS and b["args"]["n_envs"] == SUITE_N_ENVS
         assert sorted(b["grid"]["robot"]) == sorted(SUITE_IDS) and b["grid"]["seed"] == [0, 1, 2]
     opt = [b for b in doc["runs"] if b["kind"] == "optimize"]
-    assert len(opt) == 1 and set(opt[0]["grid"]["task"]) == set(ENV_TASKS.values())
+    tasks = [b for b in opt if "speed" not in b["args"]]
+    assert len(tasks) == 1 and set(tasks[0]["grid"]["task"]) == set(ENV_TASKS.values())
+    fastest = [b for b in opt if "speed" in b["args"]]         # RL's like-for-like baseline on the walk
+    assert len(fastest) == 1 and fastest[0]["args"] == {"task": "walk", "speed": "max"}
+    assert fastest[0]["grid"]["robot"] == ["tripod", "puppy"]
     assert all(b.get("task_score") for b in doc["runs"])
 
 
@@ -136,14 +140,16 @@ def test_the_quick_suite_trains_every_id_and_its_report_has_every_row(tmp_path):
     text = bench.main(["--quick", "--serial", "--sweep-dir", str(tmp_path)])
     rows = [line.split(" | ") for line in text.splitlines() if line.startswith("| ") and " | Tripod | " in line
             or line.startswith("| ") and " | Puppy | " in line]
-    assert len(rows) == len(TASKS) * 2 * 3
+    assert len(rows) == len(TASKS) * 2 * 3 + 2                             # and the walk's --speed max rows
+    assert [r[2] for r in rows if r[0] == "| walk"] == ["trajopt (open loop)", "trajopt `--speed max` (open loop)",
+                                                        "PPO", "SAC"] * 2
     for task in TASKS:
         for robot in ("Tripod", "Puppy"):
             ppo = next(r for r in rows if r[0] == f"| {task}" and r[1] == robot and r[2] == "PPO")
             assert ppo[3].endswith(SCORES[task].unit) and "±" in ppo[3] and ppo[5] == "1/3", ppo
     step = next(r for r in rows if r[0] == "| climb_step" and r[1] == "Tripod" and r[2].startswith("trajopt"))
     assert step[3].endswith("BL") and "±" in step[3]
-    assert sum(r[3] == "not run" for r in rows) == len(TASKS) * 2 * 3 - len(SUITE_IDS) - 2 - 1
+    assert sum(r[3] == "not run" for r in rows) == len(TASKS) * 2 * 3 + 2 - len(SUITE_IDS) - 2 - 1
     assert all(f"`{i}`" in text for i in SUITE_IDS)                    # steps per second of every id
     assert all((tmp_path / "images" / f"{t}.png").is_file() for t in TASKS)
     assert "--only 'SoftPuppyWalk-v0_sac_seed*'" in text

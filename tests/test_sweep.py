@@ -234,6 +234,16 @@ def test_fractional_speed_run_and_status_files_that_lie(tmp_path):
     assert third.skipped == [] and third.count("done") == 1 and (out / "v5.5" / "v5.5.npz").is_file()
 
 
+def test_a_speed_max_run_counts_its_whole_search_s_steps(tmp_path):
+    """A ``--speed max`` run's summary counts every simulation step of its search (the candidates'
+    optimisations, evaluations and hold replays), not only its chosen gait's optimisation."""
+    spec = load_spec(ROOT / "examples" / "rl_seeds_coulomb.toml", tmp_path, quick=True).only(["tripod_trajopt_max"])
+    assert run_sweep(spec, tmp_path, serial=True).statuses["tripod_trajopt_max"]["status"] == "done"
+    ev = Result.load(tmp_path / "tripod_trajopt_max" / "tripod_trajopt_max.npz").evaluation
+    steps = read_status(tmp_path / "tripod_trajopt_max")["metrics"]["sim_steps"]
+    assert steps == ev["search_sim_steps"] > ev["optimization_sim_steps"]
+
+
 @pytest.mark.parametrize("name", ["sweep_speeds.toml", "rl_seeds.toml", "rl_seeds_coulomb.toml"])
 def test_example_sweep_files_load_full_and_quick(name):
     full = load_spec(ROOT / "examples" / name)

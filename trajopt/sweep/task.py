@@ -227,7 +227,9 @@ def _metrics(run: Run, run_dir: Path) -> dict[str, Any]:
         m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"),
                  target_bl_per_min=res.settings.get("speed_bl_per_min"), objective=ev.get("objective"),
                  gn_iterations=len(res.history), result_status=res.status,
-                 sim_steps=ev.get("optimization_sim_steps"), result=str(result_path(run, run_dir)))
+                 # a --speed max search: every step of it, not only the chosen gait's optimisation
+                 sim_steps=ev.get("search_sim_steps", ev.get("optimization_sim_steps")),
+                 result=str(result_path(run, run_dir)))
     elif run.kind == "rl-train":
         from ..rl.training import CONFIG_NAME
         cfg = json.loads((run_dir / CONFIG_NAME).read_text())
