@@ -72,7 +72,9 @@ CLOSED_LOOP_ONLY = {
 def group_of(run) -> tuple[str, str, str]:
     """(task, robot, method) of a suite run."""
     if run.kind == "optimize":
-        method = "trajopt_max" if run.params.get("speed") == "max" else "trajopt"
+        level = run.params.get("difficulty", "medium")
+        method = "trajopt_max" if run.params.get("speed") == "max" else "trajopt" if level == "medium" \
+            else f"trajopt@{level}"
         return get_task(run.params["task"]).env_task, robot_name(run.params["robot"]), method
     return task_of(run.params["robot"]), robot_name(run.params["robot"]), run.params["algo"]
 
@@ -108,6 +110,36 @@ def cell(group: dict) -> dict | None:
             "sim_steps": float(np.mean([st["metrics"].get("sim_steps") or 0 for st in done])),
             "wall": float(np.mean([st.get("wall_time_s", 0.0) for st in done])),
             "unit": tasks[0]["score_unit"], "name": tasks[0]["score_name"]}
+
+
+def levels_table(groups: dict[tuple[str, str, str], dict]) -> list[str]:
+    """The report's "Levels": trajopt's score (and success) at each level of each task and robot,
+    one optimisation per level (``{robot}_{task}_trajopt_{level}``; medium is the table's row)."""
+    levels = [("easy", "trajopt@easy"), ("medium", "trajopt"), ("hard", "trajopt@hard")]
+    if not any(m == "trajopt@easy" for _, _, m in groups):
+        return []
+    lines = ["", "## Levels: one optimised gait per level", "",
+             "trajopt (`trajopt optimize ROBOT --task TASK --difficulty LEVEL`, the budget above) at each level of "
+             "each task, scored on the id at that level (± over the evaluation episodes; the success rate in "
+             "brackets where the task has a success). How hard a level is for an optimised gait, and whether it "
+             "can be done at all by an open-loop gait (the runs: `trajopt sweep examples/suite.toml --out "
+             "results/sweeps/suite --only '*_trajopt_easy' --only '*_trajopt_hard'`):", "",
+             "| task | robot | easy | medium | hard |", "|---|---|---|---|---|"]
+    for task in TASKS:
+        for robot in ROBOTS:
+            row = [task, robot.capitalize()]
+            for _, method in levels:
+                g = groups.get((task, robot, method))
+                c = cell(g) if g is not None else None
+                if c is None:
+                    row.append("not run")
+                    continue
+                text = f"{_fmt(c)} {SCORES[task].unit}"
+                if TASK_DOCS[task].success:
+                    text += f" ({c['success']:.0%})"
+                row.append(text)
+            lines.append("| " + " | ".join(row) + " |")
+    return lines
 
 
 def measure_rates(steps: int) -> dict[str, float]:
@@ -170,7 +202,7 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
     lines = [f"# The task suite{' (quick: tiny budgets, no result)' if quick else ''}", "",
              f"Made by `python benchmarks/bench_suite.py{' --quick' if quick else ''}` on {platform.node()}, "
              f"{time.strftime('%Y-%m-%d')}; the runs of `examples/suite.toml` in `{rel}/` ({made} of "
-             f"{len(spec.runs)} made). Every run is scored on its task's Gymnasium id (difficulty medium, "
+             f"{len(spec.runs)} made). Every run is scored on its task's Gymnasium id (difficulty medium but in the Levels, "
              f"the registered 300-step episodes, {n_ep} episode{'s' * (n_ep > 1)}, seeds 0-{n_ep - 1}) with the "
              "task's own score (`trajopt.tasks.scores`):", ""]
     for task in TASKS:
@@ -198,6 +230,7 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
                        (f"{c['success']:.0%}" if TASK_DOCS[task].success else "–") if c else "", f"{c['n']}/{c['planned']}" if c else f"0/{len(g['planned'])}",
                        f"{c['sim_steps']:,.0f}" if c else "", f"{c['wall']:.0f} s" if c else ""]
                 lines.append("| " + " | ".join(row) + " |")
+    lines += levels_table(groups)
     lines += ["", "## Open loop or closed loop", "",
               "Every task is a trajopt objective (`trajopt optimize ROBOT --task TASK [--difficulty LEVEL]`): walk, "
               "turn, the slopes, rough terrain, the step and the trench on the task's own slope or ground, carry and "

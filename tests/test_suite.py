@@ -107,9 +107,12 @@ def test_the_sweep_file_uses_the_suite_s_budget_on_every_id():
         assert b["args"]["timesteps"] == SUITE_TIMESTEPS and b["args"]["n_envs"] == SUITE_N_ENVS
         assert sorted(b["grid"]["robot"]) == sorted(SUITE_IDS) and b["grid"]["seed"] == [0, 1, 2]
     opt = [b for b in doc["runs"] if b["kind"] == "optimize"]
-    tasks = [b for b in opt if "speed" not in b["args"]]
-    assert len(tasks) == 1 and set(tasks[0]["grid"]["task"]) == set(ENV_TASKS.values())
-    fastest = [b for b in opt if "speed" in b["args"]]         # RL's like-for-like baseline on the walk
+    medium = [b for b in opt if b.get("args", {}).get("difficulty") == "medium"]
+    assert len(medium) == 1 and set(medium[0]["grid"]["task"]) == set(ENV_TASKS.values())
+    levels = [b for b in opt if "difficulty" in b["grid"]]         # every task at its other levels
+    assert len(levels) == 1 and set(levels[0]["grid"]["task"]) == set(ENV_TASKS.values())
+    assert levels[0]["grid"]["difficulty"] == ["easy", "hard"] and "{difficulty}" in levels[0]["name"]
+    fastest = [b for b in opt if "speed" in b.get("args", {})]     # RL's like-for-like baseline on the walk
     assert len(fastest) == 1 and fastest[0]["args"] == {"task": "walk", "speed": "max"}
     assert fastest[0]["grid"]["robot"] == ["tripod", "puppy"]
     assert all(b.get("task_score") for b in doc["runs"])
@@ -140,6 +143,11 @@ def test_the_quick_suite_trains_every_id_and_its_report_has_every_row(tmp_path):
     text = bench.main(["--quick", "--serial", "--sweep-dir", str(tmp_path)])
     rows = [line.split(" | ") for line in text.splitlines() if line.startswith("| ") and " | Tripod | " in line
             or line.startswith("| ") and " | Puppy | " in line]
+    levels = [r for r in rows if len(r) == 5]                      # task, robot, easy, medium, hard
+    rows = [r for r in rows if len(r) == 8]                        # the table of task x robot x method
+    assert len(levels) == len(TASKS) * 2 and all(r[2] == "not run" and r[4] == "not run |" for r in levels)
+    step = next(r for r in levels if r[0] == "| climb_step" and r[1] == "Tripod")
+    assert step[3].endswith("%)") and "BL" in step[3]                # the medium run, with its success rate
     assert len(rows) == len(TASKS) * 2 * 3 + 2                             # and the walk's --speed max rows
     assert [r[2] for r in rows if r[0] == "| walk"] == ["trajopt (open loop)", "trajopt `--speed max` (open loop)",
                                                         "PPO", "SAC"] * 2

@@ -88,4 +88,5 @@ def gait_on_task(result: Any, *, task: str | None = None, difficulty: str | None
     finally:
         env.close()
     return {**ev, "env_id": task_id_of(task, res.robot), "method": "trajopt (open loop)",
-            "sim_steps": res.evaluation.get("optimization_sim_steps"), "result": str(res.path or "")}
+            "sim_steps": res.evaluation.get("search_sim_steps", res.evaluation.get("optimization_sim_steps")),
+            "result": str(res.path or "")}
