@@ -14,9 +14,11 @@ law) or ``examples/rl_seeds.toml`` (``--contact paper``). For each robot (Tripod
   three seeds each, every checkpoint scored with the shared metric.
 * **PPO with 5x the budget**, one seed per robot: does RL keep improving?
 
-Both sides are also replayed, the same way, at 2x, 4x and 8x finer physics steps (RL's policy
-closed loop through the environment, ``substeps``): the credible speed of a gait or a policy is
-the slowest of the four (:mod:`trajopt.fidelity`, :func:`trajopt.rl.evaluate.policy_fidelity`).
+Both sides are also replayed, the same way, with half the physics steps per control step (16.5 ms
+under the Coulomb law's default 4 steps of 8.25 ms; left out at one step per control step) and
+2x, 4x and 8x as many (RL's policy closed loop through the environment, ``substeps``): the steps
+of the headline's bar and one finer, :data:`COMPARISON_FACTORS`. The credible speed of a gait or a
+policy is the slowest of them (:mod:`trajopt.fidelity`, :func:`trajopt.rl.evaluate.policy_fidelity`).
 
 Same physics (robot files, contact law, motors) and the same evaluation on both sides:
 trajopt's ``evaluate_controls``, mean COM speed along +x in body lengths per minute over 432
@@ -56,9 +58,10 @@ from trajopt import Result
 from trajopt.evaluation import evaluate_controls
 from trajopt.optim.gait import GaitSpec
 from trajopt.replay import env_for_result, result_parameterization
-from trajopt.rl.envs import GAIT, env_id
+from trajopt.rl.envs import GAIT, env_id, run_substeps
 from trajopt.fidelity import fidelity
-from trajopt.rl.evaluate import play_controls_in_env, policy_fidelity, run_metric
+from trajopt.replay import result_substeps
+from trajopt.rl.evaluate import load_policy, play_controls_in_env, policy_fidelity, run_metric
 from trajopt.sweep import load_spec, quick_requested, read_status, run_sweep, write_summary
 from trajopt.sweep.summary import statuses_on_disk
 
@@ -69,6 +72,16 @@ REPORTS = {"coulomb": "rl_vs_trajopt_coulomb.md", "paper": "rl_vs_trajopt.md"}
 LAW_NAMES = {"coulomb": "Coulomb", "paper": "the paper's"}
 N_PREP = GAIT.n_prep
 EVAL_STEPS = 6 * GAIT.n_cycle                   # 432 steps after the prep phase
+
+
+#: the physics both sides are replayed at, as factors of their own physics steps per control step:
+#: half (16.5 ms: the hold stage of --speed max asks for it, so RL is asked too) and 2x, 4x, 8x
+COMPARISON_FACTORS = (0.5, 2, 4, 8)
+
+
+def comparison_factors(substeps: int) -> tuple[float, ...]:
+    """:data:`COMPARISON_FACTORS` that give a whole number of physics steps (no half of one step)."""
+    return tuple(f for f in COMPARISON_FACTORS if (substeps * f) == int(substeps * f) and substeps * f >= 1)
 
 
 def dominant_period(u: np.ndarray) -> float:
@@ -100,7 +113,7 @@ def trajopt_row(run_dir: Path, name: str) -> dict:
     in_env = run_metric(env, rec["u"], rec["x"], gait=gait)["speed_bl_per_min"]
     env.close()
     search = s["search"]
-    fid = fidelity(res, n_cycles=n_cycles)              # the same window at 2x, 4x and 8x finer physics steps
+    fid = fidelity(res, comparison_factors(result_substeps(res)), n_cycles=n_cycles)    # the same window, other physics
     return {"method": "trajopt `--speed max`", "kind": "trajopt", "fidelity": [_fine_speeds(fid)], "n_cycle": int(s["n_cycle"]),
             "n_keyframes": int(s["n_keyframes"]), "speeds": [float(window["speed_bl_per_min"])],
             "upright": [bool(window["upright"]) and bool(ev["upright"])],
@@ -137,7 +150,9 @@ def rl_group(rows: list[tuple[Path, dict]], kind: str, method: str) -> dict:
         curve[int(m["sim_steps"])] = float(m["speed_bl_per_min"])         # the final model
         out["curves"].append(sorted(curve.items()))
         out["hyperparams"] = cfg["hyperparams"]
-        out.setdefault("fidelity", []).append(_fine_speeds(policy_fidelity(run_dir / "model.zip")))
+        policy = load_policy(run_dir / "model.zip")
+        factors = comparison_factors(run_substeps(policy.config) or 1)
+        out.setdefault("fidelity", []).append(_fine_speeds(policy_fidelity(policy, factors)))
         out["n_envs"] = cfg["n_envs"]
     return out
 

@@ -7,7 +7,7 @@ A row is a dict with ``kind`` ("trajopt", "ppo", "sac" or "ppo5x"), ``method``, 
 trajopt row also has ``speed_10_cycles``, ``n_cycle``, ``n_keyframes``, ``budget``,
 ``optimisations``, ``in_env`` (the gait replayed in the environment, limit on) and
 ``limit_excess_m`` (the independent check of the motor limit). ``fidelity`` (per seed): the
-speed at each number of physics steps per control step (its own and 2x, 4x, 8x finer); the
+speed at each number of physics steps per control step (half, its own and 2x, 4x, 8x); the
 credible speed is the slowest of them (:func:`credible`).
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ def mean_spread(values: list[float]) -> str:
 
 
 def credible(r: dict) -> list[float]:
-    """Per seed, the slowest speed over its own and the finer physics (NaN: it fell on one)."""
+    """Per seed, the slowest speed over its own and the other physics (NaN: it fell on one)."""
     return [min(f.values()) if f and np.isfinite(list(f.values())).all() else float("nan")
             for f in r.get("fidelity", [{}] * len(r["speeds"]))]
 
@@ -55,7 +55,7 @@ def _trajopt_note(r: dict) -> str:
 def table(rows: list[dict]) -> str:
     """One line per method: runs, simulation steps, wall time, speed, upright, notes."""
     lines = ["| method | runs | simulation steps | wall time [s] | speed [BL/min] | credible [BL/min] | upright | "
-             "at finer physics [BL/min] | notes |",
+             "at other physics [BL/min] | notes |",
              "|---|---:|---:|---:|---|---|---|---|---|"]
     for r in rows:
         if r["kind"] == "trajopt":
@@ -92,7 +92,7 @@ def findings(rows: list[dict]) -> list[str]:
            f"steps against one PPO seed's {int(np.mean(k['ppo']['sim_steps'])) if 'ppo' in k else 0:,}, "
            f"{tj['wall_time_s'][0]:.0f} s."]
     c_tj = credible(tj)[0]
-    out.append(f"credible speeds (the slowest at its own and 2x, 4x, 8x finer physics steps): trajopt {c_tj:.2f} "
+    out.append(f"credible speeds (the slowest at half, its own and 2x, 4x, 8x its physics steps): trajopt {c_tj:.2f} "
                f"BL/min; " + "; ".join(f"{k[kind]['method']} best seed {np.nanmax(credible(k[kind])):.2f}"
                                       for kind in ("ppo", "sac") if kind in k and np.isfinite(credible(k[kind])).any()))
     for kind in ("ppo", "sac"):
@@ -192,8 +192,9 @@ def write_report(results: dict[str, list[dict]], meta: dict, md_path: Path, miss
           "Same physics, same motors, same evaluation on both sides. Physics: the robot files, "
           f"{meta['law']} contact law, {meta.get('physics', 'the environments')}; the gearmotors "
           f"({meta.get('motors', 'their limits')}) in trajopt's constraints and in the environment RL trains and is "
-          "scored in. Credible speed: the slowest of the speeds at the run's own physics and at 2x, 4x and 8x finer "
-          "physics steps (RL closed loop through the environment). "
+          "scored in. Credible speed: the slowest of the speeds at the run's own physics and with half (16.5 ms: "
+          "the steps the hold stage of `--speed max` asks for too; not at one step per control step) and 2x, 4x and "
+          "8x as many physics steps (RL closed loop through the environment). "
           f"Speed: trajopt's metric (`evaluate_controls`), mean COM speed along +x in body lengths per minute over "
           f"{meta['window']} steps after {meta['n_prep']} prep steps from the exact rest state; RL's deterministic "
           "policy closed loop in the environment; trajopt's keyframes repeated to fill the same window; upright = "

@@ -77,11 +77,14 @@ def test_results_record_their_physics_and_fidelity_replays_finer(tmp_path, capsy
                         options=__import__("trajopt").GaussNewtonOptions(max_iter=1))
     assert res.settings["substeps"] == 4 and res.settings["contact"] == "coulomb"
     path = res.save(tmp_path / "walk.npz")
-    fid = fidelity(Result.load(path), factors=(2,))
-    assert [r["substeps"] for r in fid["rows"]] == [4, 8]
+    fid = fidelity(Result.load(path), factors=(0.5, 2))                # 16.5 ms (coarser) and 4.125 ms
+    assert [r["substeps"] for r in fid["rows"]] == [4, 2, 8]
+    assert [r["physics_dt_ms"] for r in fid["rows"]] == pytest.approx([8.25, 16.5, 4.125])
     assert fid["rows"][0]["speed_bl_per_min"] == pytest.approx(res.evaluation["speed_bl_per_min"], abs=1e-9)
     s = [r["speed_bl_per_min"] for r in fid["rows"]]
-    assert fid["spread"] == pytest.approx(abs(s[1] - s[0]) / abs(s[0]))
+    assert fid["spread"] == pytest.approx((max(s) - min(s)) / abs(s[0]))
+    with pytest.raises(ValueError, match="a factor of 0.3 on 4 physics step"):
+        fidelity(Result.load(path), factors=(0.3,))
     assert main(["evaluate", str(path), "--fidelity"]) in (0, 1)
     out = capsys.readouterr().out
     assert "the same controls at finer physics steps" in out and "8.250 ms (its own)" in out

@@ -77,14 +77,15 @@ def test_a_policy_plays_closed_loop_at_finer_physics(runs, capsys):
     from trajopt.rl.evaluate import evaluate_policy_metric, load_policy, policy_fidelity
     policy = load_policy(runs["tripod", "ppo"].run_dir)
     own = evaluate_policy_metric(policy, n_cycles=1)
-    fid = policy_fidelity(policy, (2,), n_cycles=1)
+    fid = policy_fidelity(policy, (0.5, 2), n_cycles=1)              # 16.5 ms (coarser) and 4.125 ms
     assert own["substeps"] == fid["substeps"] == 4
-    assert [(r["factor"], r["substeps"]) for r in fid["rows"]] == [(1, 4), (2, 8)]
+    assert [(r["factor"], r["substeps"]) for r in fid["rows"]] == [(1, 4), (0.5, 2), (2, 8)]
+    assert fid["rows"][1]["speed_bl_per_min"] == evaluate_policy_metric(policy, n_cycles=1, substeps=2)["speed_bl_per_min"]
     assert fid["rows"][0]["speed_bl_per_min"] == own["speed_bl_per_min"]
     finer = evaluate_policy_metric(policy, n_cycles=1, substeps=8)
-    assert finer["substeps"] == 8 and fid["rows"][1]["speed_bl_per_min"] == finer["speed_bl_per_min"]
+    assert finer["substeps"] == 8 and fid["rows"][2]["speed_bl_per_min"] == finer["speed_bl_per_min"]
     assert not np.allclose(finer["com"], own["com"], rtol=0, atol=1e-9)
-    assert fid["rows"][1]["deviation"] == pytest.approx((finer["speed_bl_per_min"] - own["speed_bl_per_min"])
+    assert fid["rows"][2]["deviation"] == pytest.approx((finer["speed_bl_per_min"] - own["speed_bl_per_min"])
                                                         / abs(own["speed_bl_per_min"]))
     capsys.readouterr()
     main(["rl", "evaluate", str(runs["tripod", "ppo"].run_dir), "--cycles", "1", "--fidelity"])

@@ -4,7 +4,7 @@ A speed is a property of the robot only if it holds when the physics is resolved
 :func:`fidelity` replays a result's evaluation (prep + its cycles, the controls joined by
 straight lines in time inside each 0.033 s control step) with ``f`` times the physics steps it
 was made with (:attr:`~soft_envs.envs.GradientEnv.substeps`), for every factor ``f`` of
-``factors`` (default 2, 4 and 8), and reports each speed, the deviation of each from the speed
+``factors`` (default 2, 4 and 8; a factor below 1, such as 0.5, replays with coarser steps), and reports each speed, the deviation of each from the speed
 at the result's own physics and the spread of all of them, ``(max - min) / |speed at the
 result's physics|``. ``trajopt evaluate --fidelity`` prints it; every result ``trajopt
 optimize`` writes records the 4x-finer figure (:func:`fidelity_record`,
@@ -19,12 +19,23 @@ import numpy as np
 from .evaluation import evaluate_controls
 from .optim.gait import DEFAULT_EVAL_CYCLES
 
-__all__ = ["FIDELITY_FACTORS", "RECORDED_FACTOR", "fidelity", "fidelity_record", "fidelity_rows", "speed_at"]
+__all__ = ["FIDELITY_FACTORS", "RECORDED_FACTOR", "fidelity", "fidelity_record", "fidelity_rows", "speed_at",
+           "substeps_at"]
 
 #: the finer physics ``trajopt evaluate --fidelity`` replays at: 2x, 4x and 8x the physics steps
 FIDELITY_FACTORS = (2, 4, 8)
 #: the factor every result records (the converged-physics bar: within 3 % at 4x finer steps)
 RECORDED_FACTOR = 4
+
+
+def substeps_at(substeps: int, factor: float) -> int:
+    """``factor`` times ``substeps`` physics steps per control step, a whole number (a factor
+    below 1 replays with coarser steps: 0.5 of 4 is 2, 16.5 ms); anything else is refused."""
+    n = substeps * factor
+    if n < 1 or abs(n - round(n)) > 1e-9:
+        raise ValueError(f"a factor of {factor:g} on {substeps} physics step(s) per control step is no whole "
+                         "number of steps")
+    return int(round(n))
 
 
 def speed_at(res, substeps: int, n_cycles: int | None = None, *, ignore_robot_mismatch: bool = False
@@ -52,8 +63,9 @@ def fidelity(res, factors=FIDELITY_FACTORS, n_cycles: int | None = None, *, refe
     evaluation at the result's own physics when already made (not replayed again)."""
     from .replay import result_substeps
     n = result_substeps(res)
+    steps = {f: substeps_at(n, f) for f in (1, *factors)}            # a factor that is no whole step fails first
     evs = {f: reference if (f == 1 and reference is not None) else speed_at(
-        res, n * f, n_cycles, ignore_robot_mismatch=ignore_robot_mismatch) for f in (1, *factors)}
+        res, steps[f], n_cycles, ignore_robot_mismatch=ignore_robot_mismatch) for f in (1, *factors)}
     return fidelity_rows(n, 1e3 * res.dt, evs)
 
 
@@ -62,7 +74,8 @@ def fidelity_rows(substeps: int, control_dt_ms: float, evaluations: dict[int, di
     own physics of ``substeps`` steps per control step of ``control_dt_ms``)."""
     rows = []
     for f, ev in evaluations.items():
-        rows.append({"factor": f, "substeps": substeps * f, "physics_dt_ms": control_dt_ms / (substeps * f),
+        n = substeps_at(substeps, f)
+        rows.append({"factor": f, "substeps": n, "physics_dt_ms": control_dt_ms / n,
                      "speed_bl_per_min": float(ev["speed_bl_per_min"]), "upright": bool(ev.get("upright", False)),
                      "sim_failure": ev.get("sim_failure")})
     base = rows[0]["speed_bl_per_min"]

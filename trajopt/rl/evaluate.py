@@ -221,16 +221,18 @@ def policy_fidelity(model: str | os.PathLike | LoadedPolicy, factors=None, *, n_
                     seed: int = 0, reference: dict | None = None) -> dict[str, Any]:
     """How credible a policy's speed is, by the protocol of :func:`trajopt.fidelity.fidelity`:
     the policy closed loop (deterministic, from the exact rest state) with its run's physics
-    steps per control step and ``factors`` (default 2, 4 and 8) times as many; the same dict
+    steps per control step and ``factors`` (default 2, 4 and 8; 0.5: half as many) times as many; the same dict
     (``substeps``, ``rows`` with each speed and its deviation, ``spread``). ``reference``: the
     evaluation at the run's own physics when already made."""
-    from ..fidelity import FIDELITY_FACTORS, fidelity_rows
+    from ..fidelity import FIDELITY_FACTORS, fidelity_rows, substeps_at
     policy = model if isinstance(model, LoadedPolicy) else load_policy(model)
     own = reference if reference is not None else evaluate_policy_metric(policy, n_cycles=n_cycles, seed=seed)
     n = int(own["substeps"])
+    factors = FIDELITY_FACTORS if factors is None else factors
+    steps = {f: substeps_at(n, f) for f in factors}                   # a factor that is no whole step fails first
     evs = {1: own}
-    for f in (FIDELITY_FACTORS if factors is None else factors):
-        evs[f] = evaluate_policy_metric(policy, n_cycles=n_cycles, seed=seed, substeps=n * f)
+    for f in factors:
+        evs[f] = evaluate_policy_metric(policy, n_cycles=n_cycles, seed=seed, substeps=steps[f])
     return fidelity_rows(n, 1e3 * float(policy.config["env"].get("env_kwargs", {}).get("timestep", PAPER_TIMESTEP)), evs)
 
 
