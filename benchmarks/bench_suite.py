@@ -287,7 +287,9 @@ def update_docs(report_text: str, docs: Path = DOCS) -> None:
         start, end = f"<!-- baselines {task} -->", f"<!-- /baselines {task} -->"
         if start not in text or end not in text:
             raise ValueError(f"{docs}: no '{start}' ... '{end}' block for the task {task!r}")
-        rows = [line for line in report_text.splitlines() if line.startswith(f"| {task} | ")]
+        width = TABLE_HEAD[0].count("|")                       # the main table's rows, not the levels'
+        rows = [line for line in report_text.splitlines()
+                if line.startswith(f"| {task} | ") and line.count("|") == width]
         a, b = text.index(start) + len(start), text.index(end)
         text = text[:a] + "\n" + "\n".join(TABLE_HEAD + rows) + "\n" + text[b:]
     atomic_write_bytes(docs, text.encode())

@@ -131,6 +131,22 @@ def test_the_renderer_draws_a_relief_and_a_goal():
     assert (flat != step).any() and (flat != goal).any()
 
 
+def test_the_docs_get_each_task_s_rows_of_the_main_table_not_of_the_levels(tmp_path):
+    """bench_suite.update_docs copies each task's rows of the task x robot x method table into its
+    block of docs/tasks.md; the Levels table's rows (same first cells, fewer columns) stay out."""
+    spec = importlib.util.spec_from_file_location("bench_suite", ROOT / "benchmarks" / "bench_suite.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    docs = tmp_path / "tasks.md"
+    docs.write_text("".join(f"# {t}\n<!-- baselines {t} -->\nold\n<!-- /baselines {t} -->\n" for t in TASKS))
+    main_row = "| walk | Tripod | PPO | +17.00 ± 0.30 BL/min | – | 3/3 | 30,720 | 300 s |"
+    level_row = "| walk | Tripod | +7.58 ± 0.01 BL/min | +7.55 ± 0.04 BL/min | +7.49 ± 0.02 BL/min |"
+    bench.update_docs("\n".join([main_row, level_row]), docs)
+    text = docs.read_text()
+    assert main_row in text and level_row not in text and "old" not in text
+    assert text.count(bench.TABLE_HEAD[0]) == len(TASKS)
+
+
 @pytest.mark.rl
 def test_the_quick_suite_trains_every_id_and_its_report_has_every_row(tmp_path):
     """benchmarks/bench_suite.py --quick: PPO a few hundred steps on each of the 20 ids, SAC on two,
