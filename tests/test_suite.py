@@ -99,7 +99,16 @@ def test_difficulty_is_refused_for_a_task_that_is_no_benchmark_task(tmp_path):
         run_optimization(OptimizeRun("tripod", task="incline", difficulty="easy", out=tmp_path, quiet=True))
 
 
-def test_the_sweep_file_uses_the_suite_s_budget_on_every_id():
+def test_heading_is_refused_where_the_task_s_ground_and_score_lie_along_x(tmp_path):
+    from trajopt.optimize_run import OptimizeRun, run_optimization
+    for task in ("slope_up", "rough_terrain", "climb_step"):
+        with pytest.raises(ValueError, match=rf"--heading applies to the walk, the turn and reach_goal, not to "
+                                             rf"--task {task}: its slope, step, trench or terrain lies along \+x"):
+            run_optimization(OptimizeRun("tripod", task=task, heading=30.0, out=tmp_path, quiet=True))
+    assert not any(tmp_path.iterdir())                                    # refused before anything is written
+
+
+
     doc = tomllib.loads((ROOT / "examples" / "suite.toml").read_text())
     rl = [b for b in doc["runs"] if b["kind"] == "rl-train"]
     assert sorted(b["args"]["algo"] for b in rl) == sorted(ALGOS)

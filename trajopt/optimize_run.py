@@ -339,9 +339,11 @@ def _optimize_reserved(run: OptimizeRun, out: Path, partial: Path, gait: GaitSpe
     if run.difficulty is not None and task.env_task is None:
         raise ValueError(f"--difficulty applies to the benchmark's tasks ({', '.join(ENV_TASKS.values())}), "
                          f"not to --task {task.name}")
-    if task.env_task in ("carry", "push_box") and run.heading:
-        raise ValueError(f"--heading applies to the walk, the turn and reach_goal, not to --task {task.name}: its "
-                         "box sits for a walk along +x, and its id scores +x")
+    if task.env_task not in (None, "walk", "turn", "reach_goal") and run.heading:
+        why = ("its box sits for a walk along +x" if task.env_task in ("carry", "push_box")
+               else "its slope, step, trench or terrain lies along +x")
+        raise ValueError(f"--heading applies to the walk, the turn and reach_goal, not to --task {task.name}: {why}, "
+                         "and its id scores +x")
     where = task.environment(run.robot, run.difficulty)     # a benchmark task's slope or ground
     incline = run.angle if task.on_slope else where.get("incline_deg", 0.0)
     contact = run.contact or task.contact          # e.g. the turn pivots on feet that stick
