@@ -128,6 +128,9 @@ def test_spec_tables_match_the_environment(env_id):
     assert f"Box(low, high, ({u.observation_space.shape[0]},), float64)" in doc
     action_rows = rows("## Action Space", "## Observation Space")
     assert [r[4].strip() for r in action_rows] == list(u.robot.motor_names)
+    motor = u.robot.motors[0]                 # the no-load speed the spec states is the robot file's
+    v_max = motor.max_speed_rpm * 2 * np.pi / 60 * motor.spool_radius
+    assert f"{motor.max_speed_rpm:g} rpm" in doc and f"{1e3 * v_max:.0f} mm/s, {1e3 * v_max * 0.033:.2f} mm per" in doc
     assert f"Box(-1, 1, ({u.action_space.shape[0]},), float32)" in doc
     hooks = doc[doc.index("Gradient hooks"):doc.index("## Version History")]
     assert all(f"`{m}" in hooks for m in GRADIENT_ENV_MEMBERS)

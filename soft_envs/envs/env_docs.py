@@ -11,6 +11,7 @@ written here, and the list of gradient hooks comes from
 from __future__ import annotations
 
 import inspect
+import math
 import textwrap
 from dataclasses import dataclass
 
@@ -101,15 +102,17 @@ def _action_section(r: RobotDoc) -> str:
     model_rows = _MOTOR_MODEL_ROWS if "v0" in r.versions else [(m.replace(" (`-v0`, `-v1`)", ""), *rest)
                                                                 for m, *rest in _MOTOR_MODEL_ROWS]
     motor_table = markdown_table(("motor_model", "winding (u rises)", "unwinding (u falls)"), model_rows)
+    m = r.motor_figures()
+    v_max = m["rpm"] * 2 * math.pi / 60 * m["spool_radius_mm"]         # [mm/s]
     return f"""## Action Space
 The action space is a `Box(-1, 1, ({r.n_motors},), float32)`. Action *a* commands the cable
 contraction (metres of cable pulled in by the motor) `u_cmd = u_min + (a + 1) / 2 (u_max - u_min)`;
 values outside [-1, 1] are clipped, NaN/inf or a wrong shape raise `ValueError`.
 The applied contraction follows the command as the motors can (`motor_model`,
 `soft_envs.sim.motors`). With `v_max = motor_speed_rpm * 2 pi / 60 * spool_radius`, the
-no-load contraction speed (by default the robot's `[[motors]] max_speed_rpm`: 100 rpm for the
-shipped robots, a Pololu 298:1 HP micro metal gearmotor's no-load speed at 6 V; spool radius
-5 mm: 52 mm/s, 1.73 mm per 0.033 s step), in every control step it moves towards
+no-load contraction speed (by default the robot's `[[motors]] max_speed_rpm`: {m["rpm"]:g} rpm for this
+robot's file, a Pololu 298:1 HP micro metal gearmotor's no-load speed at 6 V; spool radius
+{m["spool_radius_mm"]:g} mm: {v_max:.0f} mm/s, {v_max * 0.033:.2f} mm per 0.033 s step), in every control step it moves towards
 `u_cmd`:
 
 {motor_table}
