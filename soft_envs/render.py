@@ -1,7 +1,7 @@
 """Offscreen rendering of a deformed soft robot (no display, no OpenGL).
 
 The :class:`Renderer` projects the boundary surface of a tetrahedral mesh with
-its own pinhole camera and draws the result as flat 2-D polygons on a single
+its own pinhole camera (:mod:`soft_envs.render_camera`) and draws the result as flat 2-D polygons on a single
 persistent Matplotlib Agg canvas (painter's algorithm with back-face culling).
 This is several times faster than ``mplot3d`` and fully deterministic: the
 same input always gives the same pixels.
@@ -34,6 +34,7 @@ from matplotlib.figure import Figure
 from . import render_overlays as overlays
 from .animation import write_animation
 from .render_ground import SKY as _SKY
+from .render_camera import FollowCamera
 from .render_ground import Relief, goal_ring, ground_tiles
 from .sim.mesh import boundary_faces
 
@@ -46,7 +47,6 @@ _GOAL = (0.1, 0.6, 0.25, 1.0)
 #: the body's colour unless one is given
 BODY_COLOUR = (0.45, 0.70, 0.92)
 _CABLE_WIDTH, _TRAIL_WIDTH = 2.2, 1.6
-_UP = np.array([0.0, 1.0, 0.0])
 
 #: boundary faces of a tet mesh, outward (the mesh module's function under the name used here)
 surface_triangles = boundary_faces
@@ -131,14 +131,8 @@ class Renderer:
         self.width, self.height = int(width), int(height)
         self.body_length = float(body_length)
         self.distance = float(distance) if distance is not None else 3.0 * self.body_length
-        el, az = np.radians(elevation), np.radians(azimuth)
-        self._offset = self.distance * np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
-        fwd = -self._offset / self.distance
-        right = np.cross(fwd, _UP)
-        right /= np.linalg.norm(right)
-        self._basis = np.stack([right, np.cross(right, fwd), fwd])  # rows: right, up, forward
-        self._focal = 0.5 * self.height / np.tan(np.radians(fov) / 2.0)
-        self._near = 1e-3 * self.distance
+        #: the pinhole camera that follows the look-at point (:mod:`soft_envs.render_camera`)
+        self.camera = FollowCamera(self.width, self.height, self.distance, elevation, azimuth, fov)
         self.color = np.asarray(color, dtype=float)
         if self.color.shape not in ((3,), (len(tris), 3)):
             raise ValueError(f"color must be one RGB triple or one per triangle ({len(tris)}, 3), got {self.color.shape}")
@@ -190,7 +184,7 @@ class Renderer:
         if (self.legend or self.scale_bar) and overlays.fits(self.width, self.height):
             self._overlay = overlays.OverlayLayer(
                 self.width, self.height, legend=self.legend, scale_bar=self.scale_bar,
-                pixels_per_metre=self._focal / self.distance, cmap=self._cmap, tension_max=self.tension_max or 1.0,
+                pixels_per_metre=self.camera.focal / self.distance, cmap=self._cmap, tension_max=self.tension_max or 1.0,
                 slack_color=_SLACK, trail_color=_TRAIL, cable_width=_CABLE_WIDTH, trail_width=_TRAIL_WIDTH)
             self.scale_bar_length = self._overlay.scale_bar_length
 
@@ -209,38 +203,21 @@ class Renderer:
     # ----------------------------------------------------------------- camera
     def camera_target(self, x: np.ndarray) -> np.ndarray:
         """Look-at point: mean node position (non-finite nodes ignored)."""
-        x = np.asarray(x, dtype=float)
-        ok = np.all(np.isfinite(x), axis=1)
-        return x[ok].mean(axis=0) if ok.any() else np.zeros(3)
+        return self.camera.target(x)
 
     def camera_position(self, target: np.ndarray) -> np.ndarray:
         """World position of the camera for a given look-at point."""
-        return np.asarray(target, dtype=float) + self._offset
+        return self.camera.position(target)
 
     def project(self, points: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Project world points to pixels.
-
-        Returns:
-            ``(pixels, depth)``: ``pixels[..., 0]`` is the column and
-            ``pixels[..., 1]`` the row (0 at the top) as floats; ``depth`` is
-            the distance along the view axis (points with depth below the
-            near plane are not drawable).
-        """
-        rel = np.asarray(points, dtype=float) - self.camera_position(target)
-        cam = rel @ self._basis.T
-        depth = cam[..., 2]
-        safe = np.where(depth > self._near, depth, self._near)
-        col = 0.5 * self.width + self._focal * cam[..., 0] / safe
-        row = 0.5 * self.height - self._focal * cam[..., 1] / safe
-        return np.stack([col, row], axis=-1), depth
+        """Project world points to pixels (:meth:`FollowCamera.project
+        <soft_envs.render_camera.FollowCamera.project>`): ``(pixels, depth)``, ``pixels[..., 0]``
+        the column and ``pixels[..., 1]`` the row (0 at the top); points with depth below the near
+        plane are not drawable."""
+        return self.camera.project(points, target)
 
     def _drawable(self, pix: np.ndarray, depth: np.ndarray) -> np.ndarray:
-        """Mask of primitives (axis -2 = vertices) in front of the camera and not fully off-screen."""
-        ok = np.all(depth > self._near, axis=-1) & np.all(np.isfinite(pix), axis=(-1, -2))
-        margin = 2.0
-        off = (np.all(pix[..., 0] < -margin, axis=-1) | np.all(pix[..., 0] > self.width + margin, axis=-1)
-               | np.all(pix[..., 1] < -margin, axis=-1) | np.all(pix[..., 1] > self.height + margin, axis=-1))
-        return ok & ~off
+        return self.camera.drawable(pix, depth)
 
     # ----------------------------------------------------------------- layers
     def _update_ground(self, target: np.ndarray, gy: float) -> None:
