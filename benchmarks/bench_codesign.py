@@ -55,6 +55,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=HERE / "results")
     ap.add_argument("--screen", choices=("warm", "scratch"), default="warm", help="the screening's score")
     ap.add_argument("--rounds", type=int, default=None, help="screening rounds at most (default: ScreenSettings')")
+    ap.add_argument("--screen-rank", choices=("slowest", "holds-first"), default="slowest",
+                    help="how the screening ranks its candidates (default: slowest, as trajopt codesign)")
     ap.add_argument("--workers", type=int, default=None, help="processes scoring the screening's candidates "
                     "(default: one per core)")
     ap.add_argument("--joint-ensemble", type=ensemble_counts, default=None, metavar="N[,N...]|off",
@@ -72,7 +74,7 @@ def main() -> None:
         out = args.out / "codesign" / robot
         t0 = time.perf_counter()
         run = CodesignRun(robot, out, contact=args.contact, baseline=base, overwrite=True, workers=args.workers)
-        run.screen = dataclasses.replace(run.screen, score=args.screen,
+        run.screen = dataclasses.replace(run.screen, score=args.screen, rank=args.screen_rank,
                                          rounds=run.screen.rounds if args.rounds is None else args.rounds)
         if args.joint_ensemble is not None:
             run.joint = dataclasses.replace(run.joint, ensemble=args.joint_ensemble)

@@ -1,5 +1,6 @@
-"""Co-design ranks designs by credible speeds (issue #43): the screening's and the joint stage's
-rule, ``(holds, slowest)`` over the hold stage's replays (trajopt.search.hold.credible_rank).
+"""Co-design ranks designs by credible speeds (issue #43): the screening by the slowest speed over
+the hold stage's replays (trajopt.search.hold.slowest_rank; ``rank="holds-first"`` as the joint
+stage), the joint stage by ``(holds, slowest)`` (trajopt.search.hold.credible_rank).
 
 The scores are fakes (a made-up Score per candidate, a made-up evaluation per joint stage): what
 is tested is the ranking, which a real run would take minutes to reach. The real scoring (the
@@ -85,10 +86,24 @@ def _screen(monkeypatch, labels, table=CANDIDATES, **settings):
                           ScreenSettings(rounds=1, **settings), workers=1)
 
 
+def test_the_screening_ranks_by_the_slowest_speed_and_never_keeps_a_gait_that_fell(monkeypatch):
+    """The default order (rank="slowest"): the fastest at 8.25 ms falls at 16.5 ms and walking
+    backwards ranks last; of the rest the slowest speed decides, so a gait faster at every step
+    wins though it spreads 25 % (30 at its slowest against 24.5 for one that holds)."""
+    end = _screen(monkeypatch, ["current design", "fast, falls at 16.5 ms", "backwards", "slower, holds",
+                                "faster, spreads 25 %"])
+    assert end.theta == [4.0] and end.speed == 30.0 and not end.holds and end.own == 38.0
+    only_fallen = _screen(monkeypatch, ["current design", "fast, falls at 16.5 ms", "backwards"])
+    assert only_fallen.finished and only_fallen.theta == [0.0] and only_fallen.speed == 21.0
+    with pytest.raises(ValueError, match="screening rank must be one of slowest, holds-first, got 'fastest'"):
+        ScreenSettings(rank="fastest")
+
+
 def test_a_candidate_faster_at_the_default_step_that_falls_at_16ms_loses_to_one_that_holds(monkeypatch):
-    """The issue's case: the fastest at 8.25 ms falls at 16.5 ms; the one that holds wins, ahead
-    of one that is faster at every step but spreads 25 %."""
-    end = _screen(monkeypatch, ["current design", "fast, falls at 16.5 ms", "faster, spreads 25 %", "slower, holds"])
+    """rank="holds-first" (the rule until 2026-12-07): the fastest at 8.25 ms falls at 16.5 ms;
+    the one that holds wins, ahead of one that is faster at every step but spreads 25 %."""
+    end = _screen(monkeypatch, ["current design", "fast, falls at 16.5 ms", "faster, spreads 25 %", "slower, holds"],
+                  rank="holds-first")
     assert end.theta == [3.0] and end.z == [25.0]
     assert end.speed == 24.5 and end.holds and end.own == 25.0
     rows = {r["candidate"]: r for r in end.rows}
@@ -99,14 +114,16 @@ def test_a_candidate_faster_at_the_default_step_that_falls_at_16ms_loses_to_one_
 def test_among_gaits_that_do_not_hold_the_slowest_speed_decides(monkeypatch):
     table = {**CANDIDATES, "current design": (22.0, _hold(15.0, 22.0, 21.0, 20.0)),
              "spreads, slowest 28": (45.0, _hold(28.0, 45.0, 40.0, 35.0))}
-    end = _screen(monkeypatch, ["current design", "spreads, slowest 28", "faster, spreads 25 %"], table)
+    end = _screen(monkeypatch, ["current design", "spreads, slowest 28", "faster, spreads 25 %"], table,
+                  rank="holds-first")
     assert end.theta == [2.0] and end.speed == 30.0 and not end.holds
 
 
 def test_nothing_beats_a_current_design_that_holds_but_a_design_that_holds_faster(monkeypatch):
     """A falling, a backwards and a spreading candidate, all faster at 8.25 ms than the current
     design, which holds: no better design, the screening ends."""
-    end = _screen(monkeypatch, ["current design", "fast, falls at 16.5 ms", "backwards", "faster, spreads 25 %"])
+    end = _screen(monkeypatch, ["current design", "fast, falls at 16.5 ms", "backwards", "faster, spreads 25 %"],
+                  rank="holds-first")
     assert end.finished and end.theta == [0.0] and end.speed == 21.0
 
 

@@ -62,6 +62,9 @@ def add_codesign_parser(sub) -> None:
                    help="the joint Gauss-Newton's ensemble: the default physics and these physics steps per control "
                         "step, their residuals stacked (default 2,8: 2x coarser and 2x finer; off: the default "
                         "physics alone; every stage is accepted by its credible speed either way)")
+    p.add_argument("--screen-rank", choices=("slowest", "holds-first"), default=None,
+                   help="how the screening ranks its candidates: slowest (default), by the slowest speed over the "
+                        "hold replays (the credible speed); holds-first, a gait that holds within 5 %% first")
     p.add_argument("--screen", choices=("warm", "scratch"), default=None,
                    help="how the screening scores a candidate design: warm, its gait warm-started from the current "
                         "keyframes (default; the fastest pairs), or scratch, as --speed max finds a gait for it "
@@ -95,7 +98,8 @@ def _cmd_codesign(args) -> int:
              if v is not None}
     if joint:
         run.joint = dataclasses.replace(run.joint, **joint)
-    screen = {k: v for k, v in (("score", args.screen), ("rounds", args.rounds)) if v is not None}
+    screen = {k: v for k, v in (("score", args.screen), ("rounds", args.rounds), ("rank", args.screen_rank))
+              if v is not None}
     if screen:
         run.screen = dataclasses.replace(run.screen, **screen)
     from ..codesign.run import PARTIAL

@@ -60,7 +60,7 @@ __all__ = ["CodesignRun", "CodesignOutcome", "run_codesign", "design_changes", "
 PARTIAL = "codesign.partial.json"
 #: what the screening's and the joint stage's scores are, in a checkpoint's settings: a checkpoint
 #: without it was made when they were the speeds at the own physics alone, and is refused
-SCORES = "credible: (holds, slowest) over the hold replays"
+SCORES = "credible: (holds, slowest) over the hold replays"   # the screening's order: ScreenSettings.rank
 
 
 @dataclass

@@ -17,12 +17,18 @@ speeds ``v_n`` at n = 2, 4, 8, 16 steps per control step and
 
     slowest = min_n v_n,    spread = (max_n v_n - slowest) / slowest,    holds = spread <= 5 %.
 
-Candidates rank by ``(holds, slowest)`` (:func:`~trajopt.search.hold.credible_rank`): a gait that
-holds beats every gait that does not, whatever their speeds (a design kept for a gain that belongs
-to the physics step would lose it on the next finer step); among gaits alike in that, the slowest
-speed decides. A gait that falls at any step or walks backwards is never better (the rank of
-not upright). ``hold_factors=()`` scores on the own physics alone (the slowest is then the
-speed and every upright forward gait holds).
+Candidates rank by the slowest speed, the credible speed (``rank="slowest"``, the default:
+:func:`~trajopt.search.hold.slowest_rank`): a design is kept for what its gait walks at the least
+favourable physics step, which is a speed of the design, not of the step, whether or not the gait
+spreads more than 5 % (the joint stage and the report ask that of the co-designed gait). A gait that
+falls at any step or walks backwards is never better (the rank of not upright). ``rank="holds-first"``
+ranks by ``(holds, slowest)`` (:func:`~trajopt.search.hold.credible_rank`, the rule until
+2026-12-07): a gait that holds beats every gait that does not, whatever their speeds. Measured on
+the Tripod (docs/codesign.md): holding first, its screening stopped at 16.62 BL/min at the slowest
+step, a flat neighbourhood of designs whose gaits hold; by the slowest speed, round 2 kept a design
+whose gait spread 6.2 % (17.23 at its slowest), and from there rounds 3 and 4 found designs whose
+gaits hold again at 17.51 and 17.87. ``hold_factors=()`` scores on the own physics alone (the
+slowest is then the speed and every upright forward gait holds).
 
 How the gait is found:
 
@@ -77,7 +83,7 @@ from soft_envs.envs import SimulationError
 
 from ..fastest import SearchSettings
 from ..optim.qp import QPError, nearest_feasible
-from ..search.hold import HOLD_FACTORS, MAX_SPREAD, credible_rank
+from ..search.hold import HOLD_FACTORS, MAX_SPREAD, credible_rank, slowest_rank
 from .problem import CodesignProblem
 from .score import Score, ScoreJob, Scorer, WorkerDied, score_gait
 
@@ -85,6 +91,8 @@ __all__ = ["ScreenSettings", "ScreenProgress", "Score", "candidates", "screen_de
 
 #: how a candidate design is scored (module docstring)
 SCORES = ("warm", "scratch")
+#: how the scored candidates are ranked (module docstring)
+RANKS = ("slowest", "holds-first")
 
 
 @dataclass(frozen=True)
@@ -101,10 +109,18 @@ class ScreenSettings:
     score: str = "warm"
     hold_factors: tuple[float, ...] = HOLD_FACTORS
     max_spread: float = MAX_SPREAD
+    rank: str = "slowest"
 
     def __post_init__(self):
         if self.score not in SCORES:
             raise ValueError(f"screening score must be one of {', '.join(SCORES)}, got {self.score!r}")
+        if self.rank not in RANKS:
+            raise ValueError(f"screening rank must be one of {', '.join(RANKS)}, got {self.rank!r}")
+
+    def rank_of(self, score: Score | None) -> tuple[int, float]:
+        """``score``'s place in this screening's order (None: not scored, never better)."""
+        check = None if score is None else score.hold
+        return slowest_rank(check) if self.rank == "slowest" else credible_rank(check)
 
     @classmethod
     def quick(cls) -> "ScreenSettings":
@@ -154,9 +170,9 @@ def candidates(problem: CodesignProblem, theta: np.ndarray, z: np.ndarray, setti
     return out
 
 
-def _better(a: Score, b: Score | None) -> bool:
-    """``a`` ranks above ``b`` (:func:`~trajopt.search.hold.credible_rank`; None: not scored)."""
-    return a.rank > (credible_rank(None) if b is None else b.rank)
+def _better(a: Score, b: Score | None, settings: ScreenSettings) -> bool:
+    """``a`` ranks above ``b`` in the screening's order (``settings.rank``; None: not scored)."""
+    return settings.rank_of(a) > settings.rank_of(b)
 
 
 @dataclass
@@ -261,10 +277,10 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
             done(row)
     current = scored[0][0] if scored and scored[0][1] == "current design" else None
     ranked = sorted((s for s in scored if s[1] != "current design" and s[0].hold is not None),
-                    key=lambda s: s[0].rank, reverse=True)          # stable: ties keep the candidates' order
+                    key=lambda s: settings.rank_of(s[0]), reverse=True)   # stable: ties keep the candidates' order
     winner = None
     for score, label, th in ranked[:settings.warm]:
-        if not _better(score, current):
+        if not _better(score, current, settings):
             break
         gait = score
         if settings.score == "scratch":       # also a gait from the current keyframes
@@ -274,7 +290,7 @@ def _screen_round(problem: CodesignProblem, state: ScreenProgress, target: float
             row = next(r for r in rows if r["candidate"] == label)
             row.update(warm_bl_per_min=warm.slowest, sim_steps=row["sim_steps"] + warm.steps)
             log(f"  screen round {rnd}: {label}: warm-started {_describe(warm.row())}")
-            gait = warm if _better(warm, score) else score
+            gait = warm if _better(warm, score, settings) else score
         if winner is None:
             winner = label
             state.theta, state.z = np.asarray(th).tolist(), np.asarray(gait.z).tolist()

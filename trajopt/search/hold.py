@@ -31,7 +31,7 @@ from ..evaluation import evaluate_controls
 from ..optim.ensemble import member_env
 from ..replay import result_controls
 
-__all__ = ["HOLD_FACTORS", "MAX_SPREAD", "FASTEST_HELD", "SLOWEST_BEST", "FASTEST_UPRIGHT", "hold_steps", "hold_check", "hold_replays", "credible_rank", "hold_cost", "hold_stage", "choose_gait", "describe_hold", "hold_verdict"]
+__all__ = ["HOLD_FACTORS", "MAX_SPREAD", "FASTEST_HELD", "SLOWEST_BEST", "FASTEST_UPRIGHT", "hold_steps", "hold_check", "hold_replays", "credible_rank", "slowest_rank", "hold_cost", "hold_stage", "choose_gait", "describe_hold", "hold_verdict"]
 
 #: the physics steps per control step a candidate is replayed with, as factors of its own
 HOLD_FACTORS = (0.5, 2.0, 4.0)
@@ -91,6 +91,16 @@ def credible_rank(check: dict[str, Any] | None) -> tuple[int, float]:
     if not math.isfinite(slowest) or slowest <= 0:
         return 0, -math.inf
     return int(bool(check["holds"])), slowest
+
+
+def slowest_rank(check: dict[str, Any] | None) -> tuple[int, float]:
+    """The order of co-design's screening (:class:`trajopt.codesign.screen.ScreenSettings`
+    ``rank="slowest"``): by the slowest speed alone, the credible speed, whether or not the gait
+    holds within the spread; compared with :func:`credible_rank`'s tuples, every upright forward
+    gait ranks ``(1, slowest)`` and one that fell, walks backwards or was not checked
+    ``(0, -inf)``."""
+    rank = credible_rank(check)
+    return (1, rank[1]) if rank[1] > -math.inf else rank
 
 
 def hold_verdict(speeds, max_spread: float = MAX_SPREAD) -> dict[str, Any]:
