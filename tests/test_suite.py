@@ -233,6 +233,7 @@ def test_docs_show_each_task_s_picture_and_its_rows_of_the_report():
     for task in TASKS:
         block = docs.split(f"<!-- baselines {task} -->")[1].split(f"<!-- /baselines {task} -->")[0]
         rows = [line for line in block.splitlines() if line.startswith(f"| {task} | ")]
-        assert rows and rows == [line for line in report if line.startswith(f"| {task} | ")], task
+        main = [line for line in report if line.startswith(f"| {task} | ") and line.count("|") == 9]   # not the Levels'
+        assert rows and rows == main, task
         assert f"](../benchmarks/results/suite/{task}.png)" in docs
         assert (ROOT / "benchmarks" / "results" / "suite" / f"{task}.png").is_file()
