@@ -59,7 +59,7 @@ from trajopt.evaluation import evaluate_controls
 from trajopt.optim.gait import GaitSpec
 from trajopt.replay import env_for_result, result_parameterization
 from trajopt.rl.envs import GAIT, env_id, run_substeps
-from trajopt.fidelity import fidelity
+from trajopt.fidelity import fidelity, substeps_at
 from trajopt.replay import result_substeps
 from trajopt.rl.evaluate import load_policy, play_controls_in_env, policy_fidelity, run_metric
 from trajopt.sweep import load_spec, quick_requested, read_status, run_sweep, write_summary
@@ -80,8 +80,16 @@ COMPARISON_FACTORS = (0.5, 2, 4, 8)
 
 
 def comparison_factors(substeps: int) -> tuple[float, ...]:
-    """:data:`COMPARISON_FACTORS` that give a whole number of physics steps (no half of one step)."""
-    return tuple(f for f in COMPARISON_FACTORS if (substeps * f) == int(substeps * f) and substeps * f >= 1)
+    """:data:`COMPARISON_FACTORS` that give a whole number of physics steps (no half of one step:
+    :func:`trajopt.fidelity.substeps_at` refuses it)."""
+    out = []
+    for f in COMPARISON_FACTORS:
+        try:
+            substeps_at(substeps, f)
+        except ValueError:
+            continue
+        out.append(f)
+    return tuple(out)
 
 
 def dominant_period(u: np.ndarray) -> float:

@@ -11,7 +11,6 @@ written here, and the list of gradient hooks comes from
 from __future__ import annotations
 
 import inspect
-import math
 import textwrap
 from dataclasses import dataclass
 
@@ -51,13 +50,16 @@ class RobotDoc:
     def motor_figures(self) -> dict[str, float]:
         """The shipped robot file's figures the Action Space states, read from it (not written
         here): ``u_min_mm``, ``u_max_mm`` (the first motor's range), ``rpm`` (its
-        ``max_speed_rpm``), ``spool_radius_mm``."""
-        from ..sim.robot import DEFAULT_MAX_SPEED_RPM
+        ``max_speed_rpm``), ``spool_radius_mm`` and ``v_max_mm_s``, its no-load contraction speed
+        (:attr:`~soft_envs.sim.drive.Motor.max_contraction_speed`); unset keys take
+        :class:`~soft_envs.sim.drive.Motor`'s defaults."""
+        from ..sim.drive import Motor
         from ..sim.robot_file import asset_path, read_robot_toml
-        motor = read_robot_toml(asset_path(self.name))["motors"][0]
-        return {"u_min_mm": 1e3 * float(motor.get("u_min", 0.0)), "u_max_mm": 1e3 * float(motor["u_max"]),
-                "rpm": float(motor.get("max_speed_rpm", DEFAULT_MAX_SPEED_RPM)),
-                "spool_radius_mm": 1e3 * float(motor.get("spool_radius", 0.005))}
+        entry = read_robot_toml(asset_path(self.name))["motors"][0]
+        motor = Motor(name=str(entry["name"]), tendons=(), **{k: float(entry[k]) for k in
+                      ("u_min", "u_max", "spool_radius", "max_speed_rpm") if k in entry})
+        return {"u_min_mm": 1e3 * motor.u_min, "u_max_mm": 1e3 * motor.u_max, "rpm": motor.max_speed_rpm,
+                "spool_radius_mm": 1e3 * motor.spool_radius, "v_max_mm_s": 1e3 * motor.max_contraction_speed}
 
     def motor_ranges_mm(self) -> list[tuple[float, float]]:
         """Each motor's ``(u_min, u_max)`` [mm], in robot.toml order, read from the shipped file."""
@@ -103,7 +105,7 @@ def _action_section(r: RobotDoc) -> str:
                                                                 for m, *rest in _MOTOR_MODEL_ROWS]
     motor_table = markdown_table(("motor_model", "winding (u rises)", "unwinding (u falls)"), model_rows)
     m = r.motor_figures()
-    v_max = m["rpm"] * 2 * math.pi / 60 * m["spool_radius_mm"]         # [mm/s]
+    v_max = m["v_max_mm_s"]
     return f"""## Action Space
 The action space is a `Box(-1, 1, ({r.n_motors},), float32)`. Action *a* commands the cable
 contraction (metres of cable pulled in by the motor) `u_cmd = u_min + (a + 1) / 2 (u_max - u_min)`;

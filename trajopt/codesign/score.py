@@ -3,8 +3,8 @@ credible speed, in this process or in worker processes.
 
 :func:`score_gait` finds a gait for a design (warm-started Gauss-Newton, or ``--speed max`` pinned to
 the current cycle and keyframes) and replays it at the hold stage's other physics steps
-(:func:`trajopt.search.hold.hold_check`); its :class:`Score` ranks by ``(holds, slowest)``
-(:func:`trajopt.search.hold.credible_rank`). :class:`Scorer` maps :func:`score_job` over a round's
+(:func:`trajopt.search.hold.hold_check`); the screening ranks its :class:`Score` by
+:meth:`ScreenSettings.rank_of <trajopt.codesign.screen.ScreenSettings.rank_of>`. :class:`Scorer` maps :func:`score_job` over a round's
 jobs (:class:`ScoreJob`, picklable) in this process or in a pool of ``spawn``-started processes, one
 compute thread each, in order, so that every figure is the same for any number of workers; it
 terminates its workers however the screening ends, and a worker that dies ends it with
@@ -27,7 +27,7 @@ from soft_envs.envs.threads import limit_threads
 from ..fastest import SearchSettings, fastest_gait
 from ..optim.gauss_newton import GaussNewtonOptions
 from ..optim.optimize import optimize_gait
-from ..search.hold import credible_rank, hold_check
+from ..search.hold import hold_check
 from ..workers import start_worker
 from .problem import design_env
 
@@ -46,10 +46,6 @@ class Score:
     z: np.ndarray | None
     steps: int
     status: str
-
-    @property
-    def rank(self) -> tuple[int, float]:
-        return credible_rank(self.hold)
 
     @property
     def slowest(self) -> float:
