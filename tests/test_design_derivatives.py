@@ -9,7 +9,11 @@ Whole rollouts (24 steps of the Tripod from its rest state): Newton tolerance 1e
 state to 1e-13 m, relative error of the COM's Jacobian <= 1e-6: every column on its own under
 the Coulomb law (23: two regional moduli, 18 via-point coordinates, three legs; measured at
 most 2.4e-7), a random direction per kind under the paper's law (measured 8.9e-9 to 8.3e-8).
-Leg steps are 3e-7 m (the error grows as the step squared: truncation).
+Leg steps are 3e-7 m (the error grows as the step squared: truncation). The same rollouts check
+the cable deformations' Jacobian ``dgammadtheta`` (the tensions' sensitivities, co-design's
+torque-speed rows; measured at most 2.7e-8 per column under Coulomb's law, 1.2e-7 in a random
+direction under the paper's), and ``dGamma/dtheta`` at fixed positions is checked per column
+(measured at most 6.6e-9).
 """
 from __future__ import annotations
 
@@ -195,6 +199,36 @@ def test_leg_morph_force_and_mass_jacobians(case):
     assert design.total_mass_jacobian()[0] > 0          # a longer leg is heavier
 
 
+@pytest.mark.parametrize("case", ["taut_cable_contact_friction", "tension_control"])
+@pytest.mark.parametrize("kinds", ["routing", "legs+routing", "moduli"])
+def test_deformation_jacobian_at_fixed_positions(case, kinds):
+    """``dGamma/dtheta`` at fixed x (the block's part of the rollout's ``dgammadtheta``): via points
+    move their cable points and the assembly lengths (a mirror pair: the follower's row through
+    its map), a leg morph only the assembly lengths (its points ride with their tets), moduli
+    nothing. Relative error <= 1e-6 per column, step 1e-7 m."""
+    sim0, x, _, u, _ = perturbed_state(case)
+    robot = mirrored_robot(contact=sim0.robot.contact)
+    sim = Simulator(robot, control=sim0.control, gravity=sim0.gravity)
+    parts = {"routing": [TendonRouting(robot, fixed=())],
+             "legs+routing": [LegMorph(robot, legs_below(robot, 0.012), 0.012), TendonRouting(robot)],
+             "moduli": [RegionalModuli(robot, two_regions(robot))]}[kinds]
+    design = DesignParameters(robot, parts)
+    J = design.deformation_jacobian(sim.system, x)
+    assert J.shape == (2, len(design))
+    if kinds == "moduli":
+        assert not J.any()
+        return
+    theta = design.values
+    for j in range(len(design)):
+        d = 1e-7 * np.eye(len(design))[j]
+        gam = [EnergySystem(design.robot_at(theta + s * d), control=sim.control).cables.deformation(x, u)
+               for s in (1, -1)]
+        fd = (gam[0] - gam[1]) / 2e-7
+        assert np.linalg.norm(fd) > 0, f"{design.names[j]}: finite differences vanish"
+        err = relative_error(J[:, j], fd)
+        assert err <= RTOL_TERM, f"{case}: dGamma / d {design.names[j]}: relative error {err:.2e}"
+
+
 def test_routing_ties_mirrors_and_pairs_of_the_puppy():
     """The Puppy's 16 tendons: the "_a" tendon of each left motor leads; its pair "_b" (same
     motor, 1 cm apart) and the right side's mirror images follow."""
@@ -303,6 +337,9 @@ def test_rollout_design_column_matches_finite_differences(kind, model):
         assert err <= RTOL_ROLLOUT, f"{what}: COM Jacobian column, relative error {err:.2e} > {RTOL_ROLLOUT:.0e}"
         errx = relative_error(traj.dxdtheta @ d, (runs[0].x - runs[1].x).reshape(K + 1, -1) / (2 * h))
         assert errx <= 10 * RTOL_ROLLOUT, f"{what}: state Jacobian column, relative error {errx:.2e}"
+        fdg = (runs[0].cable_deformation - runs[1].cable_deformation) / (2 * h)
+        errg = relative_error(traj.dgammadtheta @ d, fdg)
+        assert errg <= RTOL_ROLLOUT, f"{what}: cable deformations' Jacobian column, relative error {errg:.2e}"
 
 
 def test_design_parameters_refuse_another_robot():

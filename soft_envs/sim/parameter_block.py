@@ -12,7 +12,9 @@ these three partial derivatives at fixed states:
 * :meth:`ParameterBlock.mass_jacobian`: ``dm/dtheta`` per dof (3n, ntheta);
 * :meth:`ParameterBlock.history_jacobian`: per term ``d next_history/dtheta`` (or None);
 * :meth:`ParameterBlock.rest_position_jacobian`: ``dX/dtheta`` of the rest mesh (or None), where
-  the rest relaxation starts.
+  the rest relaxation starts;
+* :meth:`ParameterBlock.deformation_jacobian`: ``dGamma/dtheta`` (T, ntheta) of the cables'
+  deformations at fixed x (the rollout's ``dgammadtheta`` adds ``dL/dx dx/dtheta``).
 
 :class:`PhysicalParameters` is the block of the named physical parameters
 (:data:`~.parameters.PARAMETERS`, ``trajopt calibrate``); design parameters
@@ -54,6 +56,11 @@ class ParameterBlock:
     def history_jacobian(self, system, x, x_prev, history) -> tuple:
         """Per term ``d next_history/dtheta`` (flattened history, ntheta), None: no dependence."""
         return (None,) * len(system.terms)
+
+    def deformation_jacobian(self, system, x) -> np.ndarray:
+        """``dGamma/dtheta`` (T, ntheta) of the cables' deformations ``L(x) - alpha(u)`` at fixed
+        x (zero: the physical parameters move neither the cables' points nor their lengths)."""
+        return np.zeros((system.cables.n_tendons, len(self)))
 
 
 class PhysicalParameters(ParameterBlock):

@@ -58,7 +58,7 @@ def relax(sim, u: np.ndarray, tol: float, max_iter: int, params=()):
         exact = NewtonSolver(system, 1.0, solver.options)
         dx0, dh0 = placement_sensitivity(sim, system, params)
         sens = ForwardSensitivities(exact, sim.robot.body_node_masses, np.zeros((max_iter, sim.n_motors, 0)),
-                                    params=params, x0=x, dx0dtheta=dx0, dhistory0dtheta=dh0)
+                                    params=params, x0=x, dx0dtheta=dx0, dhistory0dtheta=dh0, deformations=False)
     cache = FactorCache()
     for j in range(max_iter):
         start = State(x, x, None, history, j)       # at rest (no x_{k-2}: the guess is x itself)

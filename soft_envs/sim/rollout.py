@@ -119,5 +119,5 @@ def run_rollout(newton, robot, start: State, u: np.ndarray, substeps: int, sens:
     if want_z:
         traj.dcomdz, traj.dgammadz, traj.dxdz = sens.dcomdz, sens.dgammadz, sens.dxdz
     if sens is not None and sens.params:
-        traj.dxdtheta, traj.dcomdtheta = sens.dxdtheta, sens.dcomdtheta
+        traj.dxdtheta, traj.dcomdtheta, traj.dgammadtheta = sens.dxdtheta, sens.dcomdtheta, sens.dgammadtheta
     return traj

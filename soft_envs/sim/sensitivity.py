@@ -56,8 +56,11 @@ class ForwardSensitivities:
     initial state's derivative ``dx0dtheta`` (3n, ntheta) (a rest state depends on the
     parameters; the rollout starts at rest, so ``x_{-1}`` has the same) and the initial
     histories' ``dhistory0dtheta`` (a tuple aligned with the terms) start it; ``x0`` gives the
-    COM's entry 0. Then ``dxdtheta`` (K+1, 3n, ntheta) and ``dcomdtheta`` (K+1, 3, ntheta)
-    (which includes the masses' own dependence) hold the results. Both blocks share each step's
+    COM's entry 0. Then ``dxdtheta`` (K+1, 3n, ntheta), ``dcomdtheta`` (K+1, 3, ntheta)
+    (which includes the masses' own dependence) and, with ``deformations`` (the default),
+    ``dgammadtheta`` (K+1, T, ntheta) ``= dL/dx dx/dtheta + dGamma/dtheta`` (the block's part at
+    fixed x, :meth:`~.parameter_block.ParameterBlock.deformation_jacobian`; entry 0 needs
+    ``x0``) hold the results. Both blocks share each step's
     one multi-right-hand-side solve. ``params`` may also be a
     :class:`~.parameter_block.ParameterBlock` (design parameters, :mod:`soft_envs.sim.design`):
     the block gives the three partial derivatives.
@@ -69,7 +72,7 @@ class ForwardSensitivities:
 
     def __init__(self, newton, masses: np.ndarray, dudz: np.ndarray, store_dxdz: bool = False,
                  params=(), dx0dtheta: np.ndarray | None = None, dhistory0dtheta: tuple | None = None,
-                 x0: np.ndarray | None = None, record_every: int = 1):
+                 x0: np.ndarray | None = None, record_every: int = 1, deformations: bool = True):
         self.newton = newton
         system = newton.system
         K, _, nz = dudz.shape
@@ -92,7 +95,7 @@ class ForwardSensitivities:
         self.dxdz = np.zeros((K + 1, system.n_dof, nz)) if store_dxdz else None
         self.P = None                               # dhistory_{k-1}/dz per term (x_0 is given: 0)
         self._dh0 = dhistory0dtheta
-        self.dxdtheta = self.dcomdtheta = None
+        self.dxdtheta = self.dcomdtheta = self.dgammadtheta = None
         if nt:
             self.mass_jacobian = self.block.mass_jacobian(system)           # (3n, nt)
             self.dxdtheta = np.zeros((K + 1, system.n_dof, nt))
@@ -100,6 +103,10 @@ class ForwardSensitivities:
             self.dcomdtheta = np.zeros((K + 1, 3, nt))
             if x0 is not None:
                 self.dcomdtheta[0] = self._dcom(x0, self.S1[:, nz:])
+            if deformations:
+                self.dgammadtheta = np.zeros((K + 1, system.cables.n_tendons, nt))
+                if x0 is not None:
+                    self.dgammadtheta[0] = self._dgamma(x0, self.S1[:, nz:])
 
     def _dcom(self, x: np.ndarray, St: np.ndarray) -> np.ndarray:
         """d COM/dtheta (3, nt) at x: positions move (St) and masses change."""
@@ -108,6 +115,16 @@ class ForwardSensitivities:
         dm = self.mass_jacobian[::3]                                         # (n, nt)
         dcom = (self.masses @ St.reshape(-1, 3 * nt)).reshape(3, nt) + (x - com).T @ dm
         return dcom / self.total_mass
+
+    def _dgamma(self, x: np.ndarray, St: np.ndarray, dL: np.ndarray | None = None) -> np.ndarray:
+        """d Gamma/dtheta (T, nt) at x: positions move (St, through ``dL`` = dL/dx at x) and the
+        block moves the cables' points and lengths."""
+        system = self.newton.system
+        cables = system.cables
+        if not cables.n_tendons:
+            return np.zeros((0, St.shape[1]))
+        dL = cables.length_gradients(x) if dL is None else dL
+        return dL @ St + self.block.deformation_jacobian(system, x)
 
     def hold(self) -> None:
         """The next step starts at rest, ``x_{k-2} = x_{k-1}`` (the relaxation steps of
@@ -167,16 +184,20 @@ class ForwardSensitivities:
         controls' ``du/dz`` of the step that reached it)."""
         system = self.newton.system
         nz = self.nz
+        cables = system.cables
+        dL = None
         if nz:
             Sz = S[:, :nz]
             self.dcomdz[k + 1] = (self.masses @ Sz.reshape(-1, 3 * nz)).reshape(3, nz) / self.total_mass
-            cables = system.cables
-            self.dgammadz[k + 1] = cables.deformation_jacobian(cables.length_gradients(x), Sz, U)
+            dL = cables.length_gradients(x)
+            self.dgammadz[k + 1] = cables.deformation_jacobian(dL, Sz, U)
             if self.dxdz is not None:
                 self.dxdz[k + 1] = Sz
         if self.params and k + 1 < len(self.dxdtheta):
             self.dxdtheta[k + 1] = S[:, nz:]
             self.dcomdtheta[k + 1] = self._dcom(x, S[:, nz:])
+            if self.dgammadtheta is not None:
+                self.dgammadtheta[k + 1] = self._dgamma(x, S[:, nz:], dL)
 
 
 def adjoint_pass(newton, xs: np.ndarray, us: np.ndarray, dobj_dx: np.ndarray, history0=None, *,

@@ -17,9 +17,9 @@ class Trajectory:
     tendon (entry 0 with the motors at ``robot.u_rest``); ``u`` (K, n_motors) the controls;
     ``newton_iterations`` (K,). With ``dudz``: ``dcomdz`` (K+1, 3, nz), ``dgammadz``
     (K+1, T, nz) (asked for without ``dudz``, they raise AttributeError saying so) and, when
-    requested, ``dxdz`` (K+1, 3n, nz). With physical ``params``:
-    ``dxdtheta`` (K+1, 3n, ntheta) and ``dcomdtheta`` (K+1, 3, ntheta), the parameters' names in
-    ``info["parameters"]``."""
+    requested, ``dxdz`` (K+1, 3n, nz). With ``params`` (physical parameters or a design block):
+    ``dxdtheta`` (K+1, 3n, ntheta), ``dcomdtheta`` (K+1, 3, ntheta) and ``dgammadtheta`` (K+1, T,
+    ntheta), the parameters' names in ``info["parameters"]``."""
 
     x: np.ndarray
     com: np.ndarray
@@ -29,6 +29,7 @@ class Trajectory:
     dxdz: np.ndarray | None = None
     dxdtheta: np.ndarray | None = None
     dcomdtheta: np.ndarray | None = None
+    dgammadtheta: np.ndarray | None = None
     info: dict = field(default_factory=dict)
     _dcomdz: np.ndarray | None = field(default=None, repr=False)
     _dgammadz: np.ndarray | None = field(default=None, repr=False)

@@ -18,7 +18,7 @@ take it from there, so they linearise at the same design. Trial points: a design
 clearance or the mass floor is refused by the default member; a trial whose rollout at any
 member's physics breaks the motors' torque-speed line is refused too. The constraints are the
 default member's (:meth:`CodesignProblem.linearised_constraints`) and every other member's
-torque-speed rows on z, linearised on its own rollout.
+torque-speed rows on w, linearised on its own rollout.
 
 Simulation steps are counted in steps of the default physics (a member with ``n`` physics steps
 per control step counts ``n / n_0`` per control step) and added to the default member's

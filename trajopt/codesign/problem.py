@@ -29,10 +29,11 @@ the current block's :meth:`~DesignParameters.robot_at`.
 
 Constraints. Linear in w: the motors' speed limit on z (:mod:`trajopt.optim.motor_limit`) and the
 bounds of z and theta. Under the motors' torque-speed line (``motor_model="torque-speed"``,
-:mod:`trajopt.optim.motor_torque`) its rows on z, linearised at every accepted iterate through
-``dgammadz`` of the design's rollout; the tensions' dependence on the design is not in the rows
-(no ``dGamma/dtheta``), so a trial whose own rollout breaks the line beyond its 1 % tolerance is
-refused like a trial that breaks the clearance. Nonlinear in theta, linearised at every accepted iterate
+:mod:`trajopt.optim.motor_torque`) its rows on w, linearised at every accepted iterate through
+``dgammadz`` and ``dgammadtheta`` of the design's rollout (the tensions depend on the design:
+stiffer legs, moved via points and longer legs load the motors differently); a trial whose own
+rollout breaks the line beyond its 1 % tolerance (the line is not linear) is refused like a
+trial that breaks the clearance. Nonlinear in theta, linearised at every accepted iterate
 (:meth:`CodesignProblem.linearised_constraints`): every routed via point stays
 ``min_clearance`` (2 mm) inside the body (``TendonRouting.clearance``), and the total mass
 stays at least ``mass_floor`` (98 %) of the shipped robot's. A trial point that breaks either
@@ -249,7 +250,7 @@ class CodesignProblem:
         if self.motor_rows is not None:
             rows.append(np.hstack([self.motor_rows.G, np.zeros((len(self.motor_rows.h), self.ntheta))]))
             rhs.append(self.motor_rows.h)
-        if self.line is not None:               # the line on z, at the current design (module docstring)
+        if self.line is not None:               # the line on w, at the current design (module docstring)
             lin = self.line_constraints(w)
             rows.append(lin.G)
             rhs.append(lin.h)
@@ -276,11 +277,14 @@ class CodesignProblem:
         return LinearConstraints(np.vstack(rows), np.concatenate(rhs))
 
     def line_constraints(self, w: np.ndarray) -> LinearConstraints:
-        """The motors' torque-speed line's rows on ``w`` (zero on theta), linearised on the rollout
+        """The motors' torque-speed line's rows on ``w`` (z and theta), linearised on the rollout
         of the last Jacobian (call after ``self(w, True)``; ``self.line`` must be set)."""
         traj = self.last_traj
-        lin = self.line.linearised(self.split(w)[0], traj.cable_deformation, traj.dgammadz)
-        return LinearConstraints(np.hstack([lin.G, np.zeros((len(lin.h), self.ntheta))]), lin.h)
+        z, theta = self.split(w)
+        if not self.ntheta:
+            return self.line.linearised(z, traj.cable_deformation, traj.dgammadz)
+        return self.line.linearised(z, traj.cable_deformation, traj.dgammadz, theta0=theta,
+                                    dgammadtheta=traj.dgammadtheta)
 
     # ------------------------------------------------------------------ residuals
     def __call__(self, w: np.ndarray, need_jac: bool = True):

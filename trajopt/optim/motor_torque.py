@@ -130,26 +130,36 @@ class MotorLine:
         return best
 
     def linearised(self, z0: np.ndarray, gamma: np.ndarray, dgammadz: np.ndarray, margin: float = 0.0,
-                   clamp: bool = True) -> LinearConstraints:
+                   clamp: bool = True, theta0: np.ndarray | None = None,
+                   dgammadtheta: np.ndarray | None = None) -> LinearConstraints:
         """``G z <= h``: the conditions linearised at ``z0`` (rollout deformations ``gamma``
         (K+1, T) and their sensitivities ``dgammadz`` (K+1, T, nz)), tightened by ``margin``
         (normalised). With ``clamp``, a condition ``z0`` breaks (a trial accepted within the
-        tolerance) is relaxed to where ``z0`` stands: it may not get worse (``z0`` is feasible)."""
+        tolerance) is relaxed to where ``z0`` stands: it may not get worse (``z0`` is feasible).
+        With ``theta0`` and ``dgammadtheta`` (K+1, T, ntheta), other parameters the tensions
+        depend on (co-design: the robot's design), the rows are on ``[z; theta]``, linearised at
+        ``[z0; theta0]`` (the speeds depend on z only)."""
         z0 = np.asarray(z0, dtype=np.float64)
+        nz = len(z0)
+        w0, dgammadw = z0, np.asarray(dgammadz, dtype=np.float64)
+        if dgammadtheta is not None:
+            w0 = np.concatenate([z0, np.asarray(theta0, dtype=np.float64)])
+            dgammadw = np.concatenate([dgammadw, np.asarray(dgammadtheta, dtype=np.float64)], axis=-1)
+        nw = len(w0)
         tau = self.law.torque(np.asarray(gamma, dtype=np.float64))                  # (K+1, M)
-        J = self.law.torque_jacobian(gamma, dgammadz)                               # (K+1, M, nz)
-        tau_fixed = tau - J @ z0                                                    # tau(z) = tau_fixed + J z
-        speed_G = self.D / self.step[None, :, None]
+        J = self.law.torque_jacobian(gamma, dgammadw)                               # (K+1, M, nw)
+        tau_fixed = tau - J @ w0                                                    # tau(w) = tau_fixed + J w
+        speed_G = np.zeros((*self.D.shape[:2], nw))
+        speed_G[:, :, :nz] = self.D / self.step[None, :, None]
         speed_h = 1.0 - self.c / self.step[None, :]
         blocks = [(speed_G + J[self.before] / self.stall[None, :, None],
                    speed_h - tau_fixed[self.before] / self.stall),
                   (speed_G[self._has_after] + J[self.after[self._has_after]] / self.stall[None, :, None],
                    speed_h[self._has_after] - tau_fixed[self.after[self._has_after]] / self.stall),
                   (J[1:] / self.limit[None, :, None], 1.0 - tau_fixed[1:] / self.limit)]
-        nz = len(z0)
-        G = np.concatenate([g.reshape(-1, nz) for g, _ in blocks])
+        G = np.concatenate([g.reshape(-1, nw) for g, _ in blocks])
         h = np.concatenate([b.ravel() for _, b in blocks]) - margin
-        return LinearConstraints(G, np.maximum(h, G @ z0) if clamp else h)
+        return LinearConstraints(G, np.maximum(h, G @ w0) if clamp else h)
 
 
 def project_into_line(z: np.ndarray, line: MotorLine, rollout: Callable[[np.ndarray, bool], Any],

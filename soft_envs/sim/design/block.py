@@ -126,6 +126,15 @@ class DesignParameters(ParameterBlock):
     def mass_jacobian(self, system) -> np.ndarray:
         return np.repeat(self.node_mass_jacobian(), 3, axis=0)
 
+    def deformation_jacobian(self, system, x) -> np.ndarray:
+        """``dGamma/dtheta`` (T, len) at fixed x: routing and leg morphs move the cables' points
+        and assembly lengths, moduli do not."""
+        out = np.zeros((system.cables.n_tendons, len(self)))
+        for k, sl in zip(self.kinds, self._slices):
+            if hasattr(k, "deformation_jacobian"):
+                out[:, sl] = k.deformation_jacobian(system, x)
+        return out
+
     def node_mass_jacobian(self) -> np.ndarray:
         """``dm_i/dtheta`` (n_nodes, len): zero for moduli and routing, the volumes' change for
         leg morphs."""

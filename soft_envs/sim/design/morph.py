@@ -40,7 +40,8 @@ from scipy.spatial import cKDTree
 
 from ..mesh import TetMesh
 from .regions import Region
-from .rest_shape import cable_rest_derivative, elastic_rest_derivative, lumped_mass_rest_derivative
+from .rest_shape import (cable_rest_derivative, deformation_rest_derivative, elastic_rest_derivative,
+                         lumped_mass_rest_derivative)
 
 __all__ = ["legs_below", "mirror_groups", "LegMorph"]
 
@@ -187,6 +188,13 @@ class LegMorph:
             out[:, l] += cable_rest_derivative(system, x, u, dX, self._embedded_moves(robot, dX))
             out[:, l] -= (dm[:, l, None] * system.gravity[None, :]).ravel()
         return out
+
+    def deformation_jacobian(self, system, x) -> np.ndarray:
+        """``dGamma/ds_g`` (T, n_groups) at fixed x: the points ride with their tets (their
+        positions in x stay), the assembly lengths follow the rest polylines."""
+        robot = system.robot
+        return np.column_stack([deformation_rest_derivative(system, x, dX, self._embedded_moves(robot, dX))
+                                for dX in np.moveaxis(self.node_moves(), 2, 0)]).reshape(len(robot.tendons), -1)
 
     def node_mass_jacobian(self, robot) -> np.ndarray:
         """``dm_i/ds_g`` (n, n_groups)."""

@@ -27,10 +27,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .routing import cable_rest_length_jacobian, rest_length_gradient, tendon_points_jacobian
+from .routing import cable_rest_length_jacobian, deformation_point_gradients, rest_length_gradient, tendon_points_jacobian
 
 __all__ = ["elastic_rest_derivative", "lumped_mass_rest_derivative", "embedding_rest_derivative",
-           "cable_rest_derivative", "touched_elements"]
+           "cable_rest_derivative", "deformation_rest_derivative", "touched_elements"]
 
 
 def touched_elements(tets: np.ndarray, dX: np.ndarray) -> np.ndarray:
@@ -110,4 +110,19 @@ def cable_rest_derivative(system, x: np.ndarray, u: np.ndarray, dX: np.ndarray, 
         dalpha = sum(rest_length_gradient(pts, r) @ dq[t][r] for r in range(len(pts)))
         if dalpha:
             out -= cable_rest_length_jacobian(system, x, u, t) * dalpha
+    return out
+
+
+def deformation_rest_derivative(system, x: np.ndarray, dX: np.ndarray, dq: list) -> np.ndarray:
+    """``dGamma`` (T,) at fixed x for the rest-node move ``dX`` and the moves ``dq`` (one (P_t, 3)
+    array per tendon) of the tendons' rest points: each point acts as if its rest position moved
+    by ``dq - sum_b w_b dX_b`` (module docstring), the assembly length follows ``dq``."""
+    robot = system.robot
+    out = np.zeros(len(robot.tendons))
+    for t, tendon in enumerate(robot.tendons):
+        tets, ws = robot._binding[t]
+        delta = dq[t] - np.einsum("sa,sai->si", ws, dX[robot.mesh.tets[tets]])
+        pts = np.asarray(tendon.points)
+        out[t] = (np.einsum("sk,sk->", deformation_point_gradients(system, x, t, rest_length=False), delta)
+                  - sum(rest_length_gradient(pts, r) @ dq[t][r] for r in range(len(pts))))
     return out

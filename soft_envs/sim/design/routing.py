@@ -29,6 +29,10 @@ so its derivative is the same):
 
 In tension control ``Q'`` is the tension ``u`` and the first term vanishes.
 
+Cable deformation. At fixed x the same two paths move ``Gamma_t`` itself: ``dGamma_t/dq_r =
+F_r^T dL/dp_r - d alpha0/dq_r`` (:func:`deformation_point_gradients`), the design's part of the
+tensions' sensitivities (``dGamma/dtheta``, the motors' torque-speed rows of co-design).
+
 Relations kept (not free): a routed tendon follows an earlier one (its points are an affine
 image ``q' = R q + c`` of the leader's, so its columns add ``dg/dq' R``) when its rest points are
 
@@ -53,7 +57,7 @@ from ..cables import LENGTH_CONTROL, one_sided_quadratic
 from .clearance import signed_distance
 
 __all__ = ["embedding_jacobian", "tendon_points_jacobian", "cable_gradient_point_jacobian",
-           "cable_rest_length_jacobian", "rest_length_gradient", "TendonRouting"]
+           "cable_rest_length_jacobian", "rest_length_gradient", "deformation_point_gradients", "TendonRouting"]
 
 AXES = "xyz"
 
@@ -116,6 +120,24 @@ def _tendon_state(system, x, u, t):
         _, c1, c2 = one_sided_quadratic(gam, cables.stiffness[t], cables.blend)
         return nodes, w, p, dLp, h, float(c1), float(c2)
     return nodes, w, p, dLp, h, float(cables.tension(x, u)[t]), 0.0
+
+
+def deformation_point_gradients(system, x: np.ndarray, t: int, rest_length: bool = True) -> np.ndarray:
+    """``dGamma_t/dq_s`` (P, 3) at fixed x: tendon t's deformation against the rest position of
+    each of its P points, ``F_s^T dL/dp_s - d alpha0/dq_s`` (module docstring; in tension control
+    Gamma = L - alpha0 too). ``rest_length=False`` leaves out the assembly length's part."""
+    mesh = system.robot.mesh
+    cables = system.cables
+    p0, p1 = cables.ptr[t], cables.ptr[t + 1]
+    nodes, w = cables.pt_nodes[p0:p1], cables.pt_w[p0:p1]
+    _, dLp, _ = _polyline(np.einsum("sa,sai->si", w, x[nodes]))
+    tets = system.robot._binding[t][0]
+    F = np.einsum("sai,sak->sik", x[mesh.tets[tets]], mesh.dN[tets])         # dp_s/dq_s per point
+    out = np.einsum("sik,si->sk", F, dLp)
+    if rest_length:
+        pts = np.asarray(system.robot.tendons[t].points)
+        out -= np.array([rest_length_gradient(pts, r) for r in range(len(pts))])
+    return out
 
 
 def cable_rest_length_jacobian(system, x: np.ndarray, u: np.ndarray, t: int) -> np.ndarray:
@@ -279,6 +301,18 @@ class TendonRouting:
                     local[t] = tendon_points_jacobian(system, x, u, t)
                 dofs, J = local[t]
                 np.add.at(out, (dofs[:, None], np.arange(3 * j, 3 * j + 3)[None, :]), J[:, 3 * s:3 * s + 3] @ R)
+        return out
+
+    def deformation_jacobian(self, system, x) -> np.ndarray:
+        """``dGamma/dtheta`` (T, 3 n_free) at fixed x: every tendon's deformation against the free
+        points (a follower's through its map)."""
+        out = np.zeros((system.cables.n_tendons, len(self.names)))
+        local = {}
+        for j, moved in self._columns():
+            for t, s, R in moved:
+                if t not in local:
+                    local[t] = deformation_point_gradients(system, x, t)
+                out[t, 3 * j:3 * j + 3] += local[t][s] @ R
         return out
 
     def clearance(self, robot) -> tuple[np.ndarray, np.ndarray]:
