@@ -163,6 +163,22 @@ def test_the_constrained_step_is_the_kkt_point_of_the_damped_subproblem():
     assert 2 - c * 0.5 > 0          # the multiplier of the active constraint (-g - c dz = mu (1, 1))
 
 
+def test_a_badly_scaled_qp_is_solved_in_jacobi_variables():
+    """Variables of very different units (co-design: keyframes in metres, a modulus in pascals,
+    whose damped Hessian entry is 1e12 times the others'): min 0.5 x'Px + q'x with P = diag(1, 2,
+    3, 5e12), q = -(1, 1, 1, 0), under x0 + x1 + x2 <= 1 and |x3| <= 1. The KKT point is x_i =
+    (1 / d_i) / (11/6) for the first three. Scaled by the bounds' ranges alone, the solver's
+    tolerances, relative to the largest entry, lost the small ones: it answered "optimal" at
+    (0.086, 0.043, 0.029), 0.46 off."""
+    from trajopt.optim.qp import MAX_DIAGONAL_SPREAD, solve_qp
+    P = np.diag([1.0, 2.0, 3.0, 5e12])
+    assert 5e12 / 3.0 > MAX_DIAGONAL_SPREAD
+    G = np.array([[1.0, 1.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, -1.0]])
+    x = solve_qp(P, np.array([-1.0, -1.0, -1.0, 0.0]), LinearConstraints(G, np.ones(3)), scale=np.full(4, 2.0))
+    assert x[:3] == pytest.approx(np.array([1.0, 1 / 2, 1 / 3]) * 6 / 11, abs=1e-8)
+    assert abs(x[3]) <= 1e-12 and LinearConstraints(G, np.ones(3)).feasible(x)
+
+
 @pytest.mark.parametrize("a, upper, expected", [
     ((2.0, 2.0), (10.0, 10.0), (0.5, 0.5)),      # the limit active: the projection of a onto z0 + z1 = 1
     ((2.0, 0.2), (0.7, 10.0), (0.7, 0.2)),       # a bound active, the limit not
