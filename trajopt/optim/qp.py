@@ -74,14 +74,15 @@ def solve_qp(P: np.ndarray, q: np.ndarray, constraints: LinearConstraints, scale
     in metres beside moduli in pascals), the variables are ``x / s`` with ``s = 1/sqrt(diag P)``
     instead, and each row's margin is relative to its own ``h``: the solver's tolerances are
     relative to the largest entry, and the small ones would otherwise be lost (measured on
-    co-design's joint step: "optimal" answers 16 mm from the optimum, worse than no step). Raises :class:`QPError` when the program is infeasible or the
-    solver fails."""
+    co-design's joint step: "optimal" answers 16 mm from the optimum, worse than no step).
+    Raises :class:`QPError` when the program is infeasible or the solver fails."""
     from cvxopt import matrix, solvers
 
     n = len(q)
     s = np.ones(n) if scale is None else np.asarray(scale, dtype=np.float64)
     diag = np.diag(P) * s * s
-    jacobi = bool(diag.min(initial=np.inf) > 0 and diag.max(initial=0.0) > MAX_DIAGONAL_SPREAD * diag.min(initial=np.inf))
+    smallest = diag.min(initial=np.inf)
+    jacobi = bool(smallest > 0 and diag.max(initial=0.0) > MAX_DIAGONAL_SPREAD * smallest)
     if jacobi:
         s = 1.0 / np.sqrt(np.diag(P))
     Ps = P * np.outer(s, s)

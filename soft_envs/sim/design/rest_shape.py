@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .routing import cable_rest_length_jacobian, deformation_point_gradients, rest_length_gradient, tendon_points_jacobian
+from .routing import (cable_rest_length_jacobian, deformation_point_gradients, rest_length_gradient,
+                      tendon_points_jacobian)
 
 __all__ = ["elastic_rest_derivative", "lumped_mass_rest_derivative", "embedding_rest_derivative",
            "cable_rest_derivative", "deformation_rest_derivative", "touched_elements"]
