@@ -24,7 +24,9 @@ members' mean objective, :class:`~trajopt.codesign.ensemble.CodesignEnsemble`. D
 the default 4, as ``trajopt optimize --ensemble``; ``()``: the default physics alone. Chosen by
 measurement (docs/codesign.md, "On the converged physics"): the screened Puppy's stages, refused
 on the default physics alone and with ``(8,)``, were all accepted with ``(2, 8)``, +12 % at the
-slowest step; the Tripod's were refused by all three.
+slowest step; the Tripod's were refused by all three (measured before the joint step's QP was
+solved in Jacobi-scaled variables, :func:`trajopt.optim.qp.solve_qp`: until then no Tripod step was
+accepted at all; since, its four stages are, +6.8 % at the slowest step, docs/codesign.md).
 
 Resumable: the :class:`JointState` (JSON) is handed to ``checkpoint`` after every iteration. It
 holds the designs Gauss-Newton linearised at, in order (``path``): a design block's derivatives
