@@ -281,10 +281,8 @@ class CodesignProblem:
         of the last Jacobian (call after ``self(w, True)``; ``self.line`` must be set)."""
         traj = self.last_traj
         z, theta = self.split(w)
-        if not self.ntheta:
-            return self.line.linearised(z, traj.cable_deformation, traj.dgammadz)
         return self.line.linearised(z, traj.cable_deformation, traj.dgammadz, theta0=theta,
-                                    dgammadtheta=traj.dgammadtheta)
+                                    dgammadtheta=traj.dgammadtheta)      # None without design parameters
 
     # ------------------------------------------------------------------ residuals
     def __call__(self, w: np.ndarray, need_jac: bool = True):

@@ -96,7 +96,7 @@ def solve_qp(P: np.ndarray, q: np.ndarray, constraints: LinearConstraints, scale
     Gs, hs = Gs[keep] / norm[keep, None], constraints.h[keep] / norm[keep]
     # the margin: relative to the largest row's h; in Jacobi's variables a row's h can be of any size
     # (a modulus's bound in pascals), so there each row's own
-    hs = hs - _MARGIN * (np.maximum(1.0, np.abs(hs)) if jacobi else np.maximum(1.0, np.abs(hs).max(initial=1.0)))
+    hs = hs - _MARGIN * np.maximum(1.0, np.abs(hs) if jacobi else np.abs(hs).max(initial=1.0))
     pscale = max(float(np.abs(Ps).max(initial=0.0)), 1e-300)
     out = solvers.qp(matrix(Ps / pscale), matrix(qs / pscale), matrix(Gs), matrix(hs),
                      options={"show_progress": False, "abstol": 1e-12, "reltol": 1e-11, "feastol": 1e-11,

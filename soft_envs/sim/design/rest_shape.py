@@ -96,19 +96,25 @@ def embedding_rest_derivative(mesh, tet: int, w: np.ndarray, x: np.ndarray, dX: 
     return mesh.dN[tet] @ delta, x[mesh.tets[tet]].T @ mesh.dN[tet] @ delta
 
 
+def _tendon_rest_moves(robot, t: int, dX: np.ndarray, dq: list) -> tuple[np.ndarray, float]:
+    """``(delta (P, 3), d alpha0)`` of tendon t for the rest-node move ``dX`` and its points'
+    moves ``dq[t]``: each point acts as if its rest position moved by ``delta = dq - sum_b w_b
+    dX_b`` (module docstring), its assembly length follows ``dq``."""
+    tets, ws = robot._binding[t]
+    pts = np.asarray(robot.tendons[t].points)
+    delta = dq[t] - np.einsum("sa,sai->si", ws, dX[robot.mesh.tets[tets]])
+    return delta, sum(rest_length_gradient(pts, r) @ dq[t][r] for r in range(len(pts)))
+
+
 def cable_rest_derivative(system, x: np.ndarray, u: np.ndarray, dX: np.ndarray, dq: list) -> np.ndarray:
     """``d(dE_cables/dx)`` (3n,) at fixed x for the rest-node move ``dX`` and the moves ``dq``
     (one (P_t, 3) array per tendon) of the tendons' rest points."""
-    robot = system.robot
     out = np.zeros(x.size)
-    for t, tendon in enumerate(robot.tendons):
-        tets, ws = robot._binding[t]
-        pts = np.asarray(tendon.points)
-        delta = dq[t] - np.einsum("sa,sai->si", ws, dX[robot.mesh.tets[tets]])
+    for t in range(len(system.robot.tendons)):
+        delta, dalpha = _tendon_rest_moves(system.robot, t, dX, dq)
         if np.any(delta):
             dofs, J = tendon_points_jacobian(system, x, u, t, rest_length=False)
             np.add.at(out, dofs, J @ delta.ravel())
-        dalpha = sum(rest_length_gradient(pts, r) @ dq[t][r] for r in range(len(pts)))
         if dalpha:
             out -= cable_rest_length_jacobian(system, x, u, t) * dalpha
     return out
@@ -116,14 +122,12 @@ def cable_rest_derivative(system, x: np.ndarray, u: np.ndarray, dX: np.ndarray, 
 
 def deformation_rest_derivative(system, x: np.ndarray, dX: np.ndarray, dq: list) -> np.ndarray:
     """``dGamma`` (T,) at fixed x for the rest-node move ``dX`` and the moves ``dq`` (one (P_t, 3)
-    array per tendon) of the tendons' rest points: each point acts as if its rest position moved
-    by ``dq - sum_b w_b dX_b`` (module docstring), the assembly length follows ``dq``."""
-    robot = system.robot
-    out = np.zeros(len(robot.tendons))
-    for t, tendon in enumerate(robot.tendons):
-        tets, ws = robot._binding[t]
-        delta = dq[t] - np.einsum("sa,sai->si", ws, dX[robot.mesh.tets[tets]])
-        pts = np.asarray(tendon.points)
-        out[t] = (np.einsum("sk,sk->", deformation_point_gradients(system, x, t, rest_length=False), delta)
-                  - sum(rest_length_gradient(pts, r) @ dq[t][r] for r in range(len(pts))))
+    array per tendon) of the tendons' rest points (a leg morph's points ride with their tets:
+    only the assembly lengths move)."""
+    out = np.zeros(len(system.robot.tendons))
+    for t in range(len(out)):
+        delta, dalpha = _tendon_rest_moves(system.robot, t, dX, dq)
+        if np.any(delta):
+            out[t] += np.einsum("sk,sk->", deformation_point_gradients(system, x, t, rest_length=False), delta)
+        out[t] -= dalpha
     return out

@@ -126,14 +126,25 @@ def deformation_point_gradients(system, x: np.ndarray, t: int, rest_length: bool
     """``dGamma_t/dq_s`` (P, 3) at fixed x: tendon t's deformation against the rest position of
     each of its P points, ``F_s^T dL/dp_s - d alpha0/dq_s`` (module docstring; in tension control
     Gamma = L - alpha0 too). ``rest_length=False`` leaves out the assembly length's part."""
-    mesh = system.robot.mesh
     cables = system.cables
     p0, p1 = cables.ptr[t], cables.ptr[t + 1]
-    nodes, w = cables.pt_nodes[p0:p1], cables.pt_w[p0:p1]
-    _, dLp, _ = _polyline(np.einsum("sa,sai->si", w, x[nodes]))
+    _, dLp, _ = _polyline(np.einsum("sa,sai->si", cables.pt_w[p0:p1], x[cables.pt_nodes[p0:p1]]))
+    return _deformation_gradients(system, x, t, dLp, rest_length)
+
+
+def _point_jacobians(system, x: np.ndarray, t: int) -> np.ndarray:
+    """``dp_s/dq_s`` (P, 3, 3) of tendon t's points: their tets' deformation gradients at x."""
+    mesh = system.robot.mesh
     tets = system.robot._binding[t][0]
-    F = np.einsum("sai,sak->sik", x[mesh.tets[tets]], mesh.dN[tets])         # dp_s/dq_s per point
-    out = np.einsum("sik,si->sk", F, dLp)
+    return np.einsum("sai,sak->sik", x[mesh.tets[tets]], mesh.dN[tets])
+
+
+def _deformation_gradients(system, x: np.ndarray, t: int, dLp: np.ndarray, rest_length: bool,
+                           F: np.ndarray | None = None) -> np.ndarray:
+    """:func:`deformation_point_gradients` from the polyline's ``dL/dp`` (P, 3) (and the points'
+    ``F``, :func:`_point_jacobians`, when at hand)."""
+    F = _point_jacobians(system, x, t) if F is None else F
+    out = np.einsum("rik,ri->rk", F, dLp)                                       # F_r^T dL/dp_r
     if rest_length:
         pts = np.asarray(system.robot.tendons[t].points)
         out -= np.array([rest_length_gradient(pts, r) for r in range(len(pts))])
@@ -160,13 +171,10 @@ def tendon_points_jacobian(system, x: np.ndarray, u: np.ndarray, t: int,
     nodes, w, p, dLp, h, c1, c2 = _tendon_state(system, x, u, t)
     tets = system.robot._binding[t][0]
     P = len(p)
-    F = np.einsum("sai,sak->sik", x[mesh.tets[tets]], mesh.dN[tets])         # dp_s/dq_s per point
+    F = _point_jacobians(system, x, t)                                         # dp_s/dq_s per point
     J = np.zeros((P, 4, 3, P, 3))                                              # (s, a, i) x (r, k)
     if c2:
-        dgam = np.einsum("rik,ri->rk", F, dLp)                                 # F_r^T dL/dp_r
-        if rest_length:
-            pts = np.asarray(system.robot.tendons[t].points)
-            dgam -= np.array([rest_length_gradient(pts, r) for r in range(P)])
+        dgam = _deformation_gradients(system, x, t, dLp, rest_length, F)       # dGamma/dq_r
         J += c2 * (w[:, :, None] * dLp[:, None, :])[:, :, :, None, None] * dgam[None, None, None]
     if c1:
         dN = mesh.dN[tets]                                                     # (P, 4, 3)
