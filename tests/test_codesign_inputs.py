@@ -263,6 +263,28 @@ def test_workers_end_with_their_parent(tmp_path, baseline, signum):
 
 
 @needs_proc
+class _ReapedElsewhere:
+    """A dead worker whose exit status another thread (the pool's manager) is reaping: the first
+    joins see no exit code (multiprocessing's waitpid gets ECHILD and reports None)."""
+
+    def __init__(self, code: int, unknown_for: int):
+        self.code, self.unknown_for, self.exitcode = code, unknown_for, None
+
+    def join(self, timeout=None):
+        self.unknown_for -= 1
+        if self.unknown_for < 0:
+            self.exitcode = self.code
+
+
+def test_a_worker_reaped_by_the_pool_is_still_named_by_its_signal():
+    """The race behind a flaky "ended abruptly" for a SIGKILL: how_they_died read the exit code
+    after one join, while the pool's manager thread was reaping the same child."""
+    from trajopt.codesign.score import Scorer
+    scorer = Scorer(2)
+    scorer._seen = {_ReapedElsewhere(-signal.SIGTERM, 0), _ReapedElsewhere(-signal.SIGKILL, 3)}
+    assert scorer.how_they_died() == "killed by SIGKILL"
+
+
 def test_a_worker_killed_says_what_to_do(tmp_path, baseline):
     """Defect 7: a worker killed (as the out-of-memory killer does) gave two tracebacks and
     advice about ``if __name__ == "__main__":`` that does not apply to the command line."""

@@ -15,6 +15,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from typing import Any, Iterator
@@ -171,9 +172,15 @@ class Scorer:
 
     def how_they_died(self) -> str:
         """How the first worker that died unasked ended ("killed by SIGKILL", "exit code 1")."""
+        manager = getattr(self.pool, "_executor_manager_thread", None)
+        if manager is not None:             # it reaps the workers of a broken pool: let it finish first
+            manager.join(timeout=5.0)
         for proc in self._seen:
-            if proc.exitcode is None:
-                proc.join(timeout=5.0)      # the pool's manager may not have reaped it yet (slow on a loaded machine)
+            # join() again while the exit code is unknown: a wait that races the pool's manager thread
+            # for the same child gets ECHILD, and multiprocessing then reports None for a dead process
+            deadline = time.monotonic() + 5.0
+            while proc.exitcode is None and time.monotonic() < deadline:
+                proc.join(timeout=0.05)
             code = proc.exitcode
             if code is None or code == 0 or code == -signal.SIGTERM:      # alive, or terminated by the pool
                 continue
