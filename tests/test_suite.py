@@ -147,12 +147,12 @@ def test_the_docs_get_each_task_s_rows_of_the_main_table_not_of_the_levels(tmp_p
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
     docs = tmp_path / "tasks.md"
-    docs.write_text("".join(f"# {t}\n<!-- baselines {t} -->\nold\n<!-- /baselines {t} -->\n" for t in TASKS))
-    main_row = "| walk | Tripod | PPO | +17.00 ± 0.30 BL/min | – | 3/3 | 30,720 | 300 s |"
+    docs.write_text("".join(f"# {t}\n<!-- baselines {t} -->\nstale row\n<!-- /baselines {t} -->\n" for t in TASKS))
+    main_row = "| walk | Tripod | PPO | +17.00 ± 0.30 BL/min | +16.80 (3/3) | – | 3/3 | 30,720 | 300 s |"
     level_row = "| walk | Tripod | +7.58 ± 0.01 BL/min | +7.55 ± 0.04 BL/min | +7.49 ± 0.02 BL/min |"
     bench.update_docs("\n".join([main_row, level_row]), docs)
     text = docs.read_text()
-    assert main_row in text and level_row not in text and "old" not in text
+    assert main_row in text and level_row not in text and "stale row" not in text
     assert text.count(bench.TABLE_HEAD[0]) == len(TASKS)
 
 
@@ -169,7 +169,7 @@ def test_the_quick_suite_trains_every_id_and_its_report_has_every_row(tmp_path):
     rows = [line.split(" | ") for line in text.splitlines() if line.startswith("| ") and " | Tripod | " in line
             or line.startswith("| ") and " | Puppy | " in line]
     levels = [r for r in rows if len(r) == 5]                      # task, robot, easy, medium, hard
-    rows = [r for r in rows if len(r) == 8]                        # the table of task x robot x method
+    rows = [r for r in rows if len(r) == 9]                        # the table of task x robot x method
     assert len(levels) == len(TASKS) * 2 and all(r[2] == "not run" and r[4] == "not run |" for r in levels)
     step = next(r for r in levels if r[0] == "| climb_step" and r[1] == "Tripod")
     assert step[3].endswith("%)") and "BL" in step[3]                # the medium run, with its success rate
@@ -179,7 +179,15 @@ def test_the_quick_suite_trains_every_id_and_its_report_has_every_row(tmp_path):
     for task in TASKS:
         for robot in ("Tripod", "Puppy"):
             ppo = next(r for r in rows if r[0] == f"| {task}" and r[1] == robot and r[2] == "PPO")
-            assert ppo[3].endswith(SCORES[task].unit) and "±" in ppo[3] and ppo[5] == "1/3", ppo
+            assert ppo[3].endswith(SCORES[task].unit) and "±" in ppo[3] and ppo[6] == "1/3", ppo
+            assert ppo[4] == "–", ppo                                    # not replayed in the quick mode
+    replayed = [r for r in rows if r[4] != "–"]                       # bench.QUICK_HOLDS: the SAC walk, the trajopt step
+    assert [(r[0], r[1], r[2]) for r in replayed] == [("| walk", "Tripod", "SAC"),
+                                                      ("| climb_step", "Tripod", "trajopt (open loop)")], replayed
+    assert all(r[4].endswith("/1)") for r in replayed), replayed
+    import json
+    hold = json.loads((tmp_path / "SoftTripodWalk-v0_sac_seed0" / bench.HOLD_NAME).read_text())
+    assert hold["substeps"] == [2, 4, 8, 16] and hold["own_substeps"] == 4 and len(hold["scores"]) == 4
     step = next(r for r in rows if r[0] == "| climb_step" and r[1] == "Tripod" and r[2].startswith("trajopt"))
     assert step[3].endswith("BL") and "±" in step[3]
     assert sum(r[3] == "not run" for r in rows) == len(TASKS) * 2 * 3 + 2 - len(SUITE_IDS) - 2 - 1
@@ -190,6 +198,41 @@ def test_the_quick_suite_trains_every_id_and_its_report_has_every_row(tmp_path):
     from trajopt.results.result import Result
     res = Result.load(tmp_path / "tripod_climb_step_trajopt" / "tripod_climb_step_trajopt.npz")
     assert res.settings["env_task"] == "climb_step" and env_for_result(res).robot.ground is not None
+
+
+def test_a_task_score_s_hold_is_the_headline_s_protocol():
+    """trajopt.tasks.play.task_hold: the evaluation at half, twice and four times the physics steps,
+    the lowest score the credible one, NaN where a simulation failed, and holds within 5 %."""
+    from trajopt.tasks.play import task_hold
+
+    def ev(score, end="truncated"):
+        return {"score": score, "score_name": "speed", "score_unit": "BL/min", "control_dt_s": 0.033,
+                "episodes": [{"score": score, "end": "truncated"}, {"score": score, "end": end}]}
+
+    asked = []
+
+    def evaluate(n, scores={2: 19.8, 8: 20.3, 16: 20.5}):
+        asked.append(n)
+        return ev(scores[n])
+
+    out = task_hold(evaluate, 4, ev(20.0))
+    assert asked == [2, 8, 16] and out["substeps"] == [2, 4, 8, 16] and out["own_substeps"] == 4
+    assert out["physics_dt_ms"] == pytest.approx([16.5, 8.25, 4.125, 2.0625])
+    assert out["scores"] == [19.8, 20.0, 20.3, 20.5] and out["slowest"] == 19.8
+    assert out["spread"] == pytest.approx(0.7 / 19.8) and out["holds"] and out["episodes"] == 2
+    assert not task_hold(lambda n: ev(25.0), 4, ev(20.0))["holds"]                 # 25 % apart
+    assert not task_hold(lambda n: ev(-1.0), 4, ev(-1.0))["holds"]                 # backwards: spread 0
+    failed = task_hold(lambda n: ev(20.0, end="sim_failure") if n == 16 else ev(20.0), 4, ev(20.0))
+    assert np.isnan(failed["scores"][-1]) and np.isnan(failed["slowest"]) and not failed["holds"]
+    assert task_hold(evaluate, 1, ev(20.0), factors=(2.0,))["substeps"] == [1, 2]    # no half step of one
+
+
+@pytest.mark.parametrize("substeps", [0, 2.5, True, "4"])
+def test_a_task_score_at_other_physics_steps_refuses_what_is_no_step_count(substeps):
+    from trajopt.tasks.play import gait_on_task, policy_on_task
+    for play in (gait_on_task, policy_on_task):
+        with pytest.raises(ValueError, match=f"substeps must be a whole number >= 1, got {substeps!r}"):
+            play("no such run", substeps=substeps)
 
 
 def test_the_rl_zoo_files_are_the_baseline_s_hyperparameters(tmp_path):
@@ -228,12 +271,16 @@ def test_rl_zoo3_loads_every_id_with_its_own_loader(algo, tmp_path):
 def test_docs_show_each_task_s_picture_and_its_rows_of_the_report():
     """docs/tasks.md's rows under each task are benchmarks/results/suite.md's (bench_suite.py
     writes both), and the pictures it links exist."""
+    spec = importlib.util.spec_from_file_location("bench_suite", ROOT / "benchmarks" / "bench_suite.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    width = bench.TABLE_HEAD[0].count("|")
     report = (ROOT / "benchmarks" / "results" / "suite.md").read_text().splitlines()
     docs = (ROOT / "docs" / "tasks.md").read_text()
     for task in TASKS:
         block = docs.split(f"<!-- baselines {task} -->")[1].split(f"<!-- /baselines {task} -->")[0]
         rows = [line for line in block.splitlines() if line.startswith(f"| {task} | ")]
-        main = [line for line in report if line.startswith(f"| {task} | ") and line.count("|") == 9]   # not the Levels'
+        main = [line for line in report if line.startswith(f"| {task} | ") and line.count("|") == width]   # not the Levels'
         assert rows and rows == main, task
         assert f"](../benchmarks/results/suite/{task}.png)" in docs
         assert (ROOT / "benchmarks" / "results" / "suite" / f"{task}.png").is_file()

@@ -6,6 +6,10 @@ task's own score (:mod:`.scores`): the one evaluation of the task suite (``trajo
   SoftTripodClimbStep-v0``), closed loop, deterministic, through its normalisation statistics,
   on the id with the run's own keywords (difficulty, contact law, physics steps) and the
   registered episode length;
+* :func:`policy_task_hold`: how credible that score is, by the headline's protocol
+  (:mod:`trajopt.search.hold`): the same policy closed loop with half, twice and four times its
+  run's physics steps per control step (16.5, 4.125 and 2.06 ms around 8.25 ms); the lowest score
+  is the credible one, and it holds when the scores spread at most 5 % of it;
 * :func:`gait_on_task`: an optimised gait (``trajopt optimize ROBOT --task climb_step``) played
   open loop, its prep phase then its cycle repeated, each control step commanded as the
   environment's action (``control_to_action``), on the task id of its robot with its difficulty.
@@ -16,7 +20,7 @@ import math
 import os
 from typing import Any
 
-__all__ = ["policy_on_task", "gait_on_task", "task_id_of"]
+__all__ = ["policy_on_task", "policy_task_hold", "gait_on_task", "gait_task_hold", "task_hold", "task_id_of"]
 
 
 def task_id_of(task: str, robot: str) -> str:
@@ -31,20 +35,30 @@ def task_id_of(task: str, robot: str) -> str:
     return ids[robot]
 
 
-def policy_on_task(model: str | os.PathLike | Any, *, episodes: int | None = None) -> dict[str, Any]:
+def _check_substeps(substeps: Any) -> None:
+    if substeps is not None and (isinstance(substeps, bool) or not isinstance(substeps, (int, float))
+                                 or int(substeps) != substeps or int(substeps) < 1):
+        raise ValueError(f"substeps must be a whole number >= 1, got {substeps!r}")
+
+
+def policy_on_task(model: str | os.PathLike | Any, *, episodes: int | None = None,
+                   substeps: int | None = None) -> dict[str, Any]:
     """The task's score of an RL run trained on a task id (a run directory, model or
     :class:`~trajopt.rl.evaluate.LoadedPolicy`): :func:`.scores.evaluate_on_task` of its
-    deterministic policy, with ``env_id`` and the run's training budget added."""
+    deterministic policy, with ``env_id`` and the run's training budget added. ``substeps``:
+    physics steps per control step (default the run's own; more: finer physics, same control)."""
     from soft_envs import MAX_EPISODE_STEPS
     from ..rl.envs import make_env, run_contact, run_substeps, task_of
     from ..rl.evaluate import LoadedPolicy, load_policy
     from .scores import evaluate_on_task
+    _check_substeps(substeps)
     policy = model if isinstance(model, LoadedPolicy) else load_policy(model)
     cfg = policy.config["env"]
     if task_of(cfg["robot"]) is None:
         raise ValueError(f"{policy.path}: trained on {cfg['robot']!r}, not on a task id; its figure is "
                          "trajopt's metric (trajopt rl evaluate)")
-    kwargs = {**cfg.get("env_kwargs", {}), "contact": run_contact(policy.config), "substeps": run_substeps(policy.config)}
+    kwargs = {**cfg.get("env_kwargs", {}), "contact": run_contact(policy.config),
+              "substeps": run_substeps(policy.config) if substeps is None else int(substeps)}
     env = make_env(cfg["robot"], frame_skip=int(cfg.get("frame_skip", 1)), max_episode_steps=MAX_EPISODE_STEPS,
                    drop_com_xz=bool(cfg.get("drop_com_xz", True)), env_kwargs=kwargs)
     try:
@@ -55,12 +69,73 @@ def policy_on_task(model: str | os.PathLike | Any, *, episodes: int | None = Non
             "sim_steps": policy.config.get("sim_steps"), "wall_time_s": policy.config.get("wall_time_s")}
 
 
+def policy_task_hold(model: str | os.PathLike | Any, *, factors=None, max_spread: float | None = None,
+                     episodes: int | None = None, reference: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Whether an RL run's task score (:func:`policy_on_task`) holds at other physics steps: the
+    policy closed loop on its id with its run's physics steps per control step times each of
+    ``factors`` (default :data:`~trajopt.search.hold.HOLD_FACTORS`: half, twice and four times),
+    the control step unchanged, scored as at its own. ``reference``: :func:`policy_on_task`'s
+    evaluation at the run's own physics when already made (the sweep's ``task_score``).
+    Returns :func:`task_hold`'s dict."""
+    from ..rl.envs import run_substeps
+    from ..rl.evaluate import LoadedPolicy, load_policy
+    policy = model if isinstance(model, LoadedPolicy) else load_policy(model)
+    own = reference if reference is not None else policy_on_task(policy, episodes=episodes)
+    return task_hold(lambda n: policy_on_task(policy, episodes=len(own["episodes"]), substeps=n),
+                     int(run_substeps(policy.config) or 1), own, factors=factors, max_spread=max_spread)
+
+
+def gait_task_hold(result: Any, *, factors=None, max_spread: float | None = None, episodes: int | None = None,
+                   reference: dict[str, Any] | None = None) -> dict[str, Any]:
+    """:func:`policy_task_hold` of an optimised gait played open loop on its task's id
+    (:func:`gait_on_task`, its task and difficulty). Returns :func:`task_hold`'s dict."""
+    from ..replay import result_substeps
+    from ..results.result import Result
+    res = result if isinstance(result, Result) else Result.load(result)
+    own = reference if reference is not None else gait_on_task(res, episodes=episodes)
+    return task_hold(lambda n: gait_on_task(res, episodes=len(own["episodes"]), substeps=n),
+                     int(result_substeps(res)), own, factors=factors, max_spread=max_spread)
+
+
+def task_hold(evaluate, own_substeps: int, own: dict[str, Any], *, factors=None,
+              max_spread: float | None = None) -> dict[str, Any]:
+    """Whether a task score holds at other physics steps, by the headline's protocol
+    (:mod:`trajopt.search.hold`): ``own`` is the evaluation (:func:`.scores.evaluate_on_task`'s
+    dict) with ``own_substeps`` physics steps per control step, ``evaluate(n)`` the same
+    evaluation with ``n``, made for ``own_substeps`` times each of ``factors`` (default
+    :data:`~trajopt.search.hold.HOLD_FACTORS`: half, twice and four times; whole numbers only).
+
+    Returns ``substeps`` (increasing, the own included), ``physics_dt_ms`` and ``scores`` at each
+    (NaN where an episode's simulation failed), and :func:`~trajopt.search.hold.hold_verdict`'s
+    ``slowest`` (the credible score: the lowest), ``spread`` (``(max - min) / |slowest|``) and
+    ``holds`` (no failure, ``slowest > 0`` and ``spread <= max_spread``, default 5 %); with
+    ``own_substeps``, ``max_spread``, ``score_name``, ``score_unit`` and ``episodes``."""
+    from soft_envs.envs import PAPER_TIMESTEP
+    from ..search.hold import HOLD_FACTORS, MAX_SPREAD, hold_steps, hold_verdict
+    max_spread = MAX_SPREAD if max_spread is None else float(max_spread)
+    evs = {int(own_substeps): own}
+    for n in hold_steps(int(own_substeps), HOLD_FACTORS if factors is None else factors):
+        evs[n] = evaluate(n)
+
+    def score(ev: dict[str, Any]) -> float:
+        failed = any(e.get("end") == "sim_failure" for e in ev["episodes"])
+        return float("nan") if failed else float(ev["score"])
+
+    ns = sorted(evs)
+    scores = [score(evs[n]) for n in ns]
+    control_ms = 1e3 * float(own.get("control_dt_s", PAPER_TIMESTEP))       # evaluations made before it was recorded
+    return {"substeps": ns, "physics_dt_ms": [control_ms / n for n in ns], "scores": scores,
+            **hold_verdict(scores, max_spread), "max_spread": max_spread, "own_substeps": int(own_substeps),
+            "score_name": own["score_name"], "score_unit": own["score_unit"], "episodes": len(own["episodes"])}
+
+
 def gait_on_task(result: Any, *, task: str | None = None, difficulty: str | None = None,
-                 episodes: int | None = None) -> dict[str, Any]:
+                 episodes: int | None = None, substeps: int | None = None) -> dict[str, Any]:
     """The task's score of an optimised gait (a :class:`~trajopt.results.Result` or its path)
     played open loop on its task's id (``task``: a key of :data:`soft_envs.TASKS`, default the
     task the gait was optimised for, :attr:`trajopt.tasks.Task.env_task`) at ``difficulty``
-    (default: the gait's, else the task's default), with the gait's contact law and physics steps."""
+    (default: the gait's, else the task's default), with the gait's contact law and physics steps
+    (``substeps``: other physics steps per control step, the controls unchanged)."""
     import gymnasium as gym
     import numpy as np
     from soft_envs import MAX_EPISODE_STEPS
@@ -68,12 +143,14 @@ def gait_on_task(result: Any, *, task: str | None = None, difficulty: str | None
     from ..results.result import Result
     from .registry import get_task
     from .scores import evaluate_on_task
+    _check_substeps(substeps)
     res = result if isinstance(result, Result) else Result.load(result)
     task = task or get_task(res.task).env_task
     if task is None:
         raise ValueError(f"{res.path or 'the result'}: task {res.task!r} is no benchmark task; give task=")
     s = res.settings
-    kwargs: dict[str, Any] = {"contact": s.get("contact", "paper"), "substeps": result_substeps(res)}
+    kwargs: dict[str, Any] = {"contact": s.get("contact", "paper"),
+                              "substeps": result_substeps(res) if substeps is None else int(substeps)}
     level = difficulty or s.get("difficulty")
     if level is not None:
         kwargs["difficulty"] = level

@@ -153,7 +153,8 @@ def evaluate_on_task(env, act: Callable[[np.ndarray, int], Any], *, episodes: in
         rec = play_episode(env, act, s, n_steps=episode_steps)
         rows.append({"seed": s, "score": _episode_score(base.task_name, base, rec, episode_steps),
                      "return": rec["return"], "steps": rec["steps"], "success": rec["success"], "end": rec["end"]})
-    return summarise(base.task_name, rows, difficulty=base.difficulty, episode_steps=episode_steps)
+    return summarise(base.task_name, rows, difficulty=base.difficulty, episode_steps=episode_steps,
+                     control_dt_s=float(base.dt))
 
 
 def summarise(task: str, rows: list[dict[str, Any]], **extra: Any) -> dict[str, Any]:
