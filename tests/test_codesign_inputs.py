@@ -262,7 +262,6 @@ def test_workers_end_with_their_parent(tmp_path, baseline, signum):
         assert not (tmp_path / "D" / "codesign.lock").exists()
 
 
-@needs_proc
 class _ReapedElsewhere:
     """A dead worker whose exit status another thread (the pool's manager) is reaping: the first
     joins see no exit code (multiprocessing's waitpid gets ECHILD and reports None)."""
@@ -285,6 +284,7 @@ def test_a_worker_reaped_by_the_pool_is_still_named_by_its_signal():
     assert scorer.how_they_died() == "killed by SIGKILL"
 
 
+@needs_proc
 def test_a_worker_killed_says_what_to_do(tmp_path, baseline):
     """Defect 7: a worker killed (as the out-of-memory killer does) gave two tracebacks and
     advice about ``if __name__ == "__main__":`` that does not apply to the command line."""
