@@ -235,6 +235,36 @@ def test_a_task_score_at_other_physics_steps_refuses_what_is_no_step_count(subst
             play("no such run", substeps=substeps)
 
 
+@pytest.mark.rl
+def test_rl_evaluate_task_scores_a_task_run_and_replays_it(tmp_path, monkeypatch, capsys):
+    """``trajopt rl evaluate RUN --task [--fidelity]``: a run trained on a task id gets its task's
+    score on the id (as the suite scores it), with --fidelity at 16.5, 4.125 and 2.06 ms; a run
+    trained on a robot is refused with what to do instead."""
+    pytest.importorskip("stable_baselines3")
+    import json
+    from trajopt.cli import main
+    from trajopt.rl import train
+    from trajopt.tasks.play import policy_on_task
+    monkeypatch.setenv("SOFT_ENVS_QUICK", "1")                 # one evaluation episode
+    hp = dict(n_steps=32, batch_size=32, n_epochs=1)
+    run = train("SoftTripodPushBox-v0", "ppo", 32, seed=0, out=tmp_path, n_envs=1, vec_env="dummy", hyperparams=hp,
+                max_episode_steps=300, progress_bar=False)
+    assert main(["rl", "evaluate", str(run.run_dir), "--task", "--fidelity", "--json"]) == 0
+    ev = json.loads(capsys.readouterr().out)
+    assert ev["task"] == "push_box" and ev["score_unit"] == "BL" and len(ev["episodes"]) == 1
+    assert ev["score"] == policy_on_task(run.run_dir)["score"]                 # deterministic
+    hold = ev["hold"]
+    assert hold["substeps"] == [2, 4, 8, 16] and hold["scores"][1] == ev["score"]
+    assert hold["slowest"] == min(hold["scores"])
+    assert main(["rl", "evaluate", str(run.run_dir), "--task", "--fidelity"]) == 0
+    text = capsys.readouterr().out
+    assert "pushed" in text and "2.062 ms" in text and "credible" in text and "(its own)" in text
+    walk = train("tripod", "ppo", 32, seed=0, out=tmp_path, n_envs=1, vec_env="dummy", hyperparams=hp,
+                 progress_bar=False)
+    assert main(["rl", "evaluate", str(walk.run_dir), "--task"]) == 2
+    assert "was trained on 'SoftTripod-v2', not on a task id" in capsys.readouterr().err
+
+
 def test_the_rl_zoo_files_are_the_baseline_s_hyperparameters(tmp_path):
     from trajopt.rl.zoo import ZOO_DIR, write_zoo_files, zoo_ids, zoo_text
     for algo in ALGOS:

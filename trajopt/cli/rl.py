@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -81,6 +82,9 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--fidelity", action="store_true",
                    help="also play the policy closed loop at 2x, 4x and 8x finer physics steps (how credible its "
                         "speed is, as trajopt evaluate --fidelity)")
+    p.add_argument("--task", action="store_true",
+                   help="a run trained on a task id: its task's own score on the id instead (the suite's: 3 episodes, "
+                        "seeds 0-2); with --fidelity, also at 16.5, 4.125 and 2.06 ms physics steps, and whether it holds")
     p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
     p.set_defaults(func=_cmd_evaluate)
 
@@ -145,6 +149,8 @@ def _cmd_evaluate(args) -> int:
     try:
         from ..rl.evaluate import evaluate_policy_metric, load_policy
         policy = load_policy(args.model)
+        if args.task:
+            return _evaluate_on_task(policy, args)
         ev = evaluate_policy_metric(policy, n_cycles=args.cycles, seed=args.seed,
                                     reset_noise_scale=args.reset_noise)
         if args.fidelity:
@@ -163,6 +169,42 @@ def _cmd_evaluate(args) -> int:
             from .commands import fidelity_text
             print(fidelity_text(ev["fidelity"]))
     return 0 if ev["upright"] else 1
+
+
+def _evaluate_on_task(policy, args) -> int:
+    """``trajopt rl evaluate --task``: the task's own score of a run trained on a task id
+    (:func:`trajopt.tasks.play.policy_on_task`), with ``--fidelity`` its replays at other physics
+    steps (:func:`trajopt.tasks.play.policy_task_hold`)."""
+    from ..tasks.play import policy_on_task, policy_task_hold
+    if not policy.config.get("task"):
+        print(f"trajopt: error: --task: {policy.path} was trained on {policy.config.get('env_id') or policy.config['env']['robot']!r}, not on a task "
+              "id (trajopt rl evaluate without --task gives its speed)", file=sys.stderr)
+        return 2
+    ev = policy_on_task(policy)
+    if args.fidelity:
+        ev["hold"] = policy_task_hold(policy, reference=ev)
+    if args.json:
+        print(json.dumps(ev, indent=1))
+        return 0
+    cfg = policy.config
+    print(f"{cfg['env']['robot']} {cfg['algo'].upper()} seed {cfg.get('seed')}, "
+          f"{cfg.get('timesteps_done', '?')} training steps ({cfg.get('status', '?')}); {policy.path}")
+    unit = ev["score_unit"]
+    rows = [(ev["score_name"], f"{ev['score']:+.3f} {unit} (the task's score, mean of {len(ev['episodes'])} episodes)"),
+            ("per episode", " ".join(f"{e['score']:+.3f}" for e in ev["episodes"]) + f" {unit}"),
+            ("success", f"{ev['success_rate']:.0%}"),
+            ("ends", ", ".join(e["end"] for e in ev["episodes"]))]
+    print_table(rows)
+    if args.fidelity:
+        hold = ev["hold"]
+        print(f"\nthe same policy at other physics steps (control step {1e3 * ev['control_dt_s']:g} ms):")
+        for n, dt, v in zip(hold["substeps"], hold["physics_dt_ms"], hold["scores"]):
+            own = " (its own)" if n == hold["own_substeps"] else ""
+            print(f"  {dt:7.3f} ms{own:<10} {v:+9.3f} {unit}" if math.isfinite(v) else f"  {dt:7.3f} ms{own:<10}    failed")
+        verdict = "holds" if hold["holds"] else "does not hold"
+        print(f"  credible {hold['slowest']:+.3f} {unit} (the lowest), spread {100 * hold['spread']:.2f} % of it: "
+              f"{verdict} (within {100 * hold['max_spread']:g} %, above 0)")
+    return 0
 
 
 def _cmd_export(args) -> int:
