@@ -146,6 +146,19 @@ def run_evaluate(args) -> int:
     return 0 if ev["upright"] else 1
 
 
+def task_hold_text(hold: dict, control_dt_ms: float) -> str:
+    """The table of ``trajopt rl evaluate --task --fidelity`` (:func:`trajopt.tasks.play.task_hold`)."""
+    unit = hold["score_unit"]
+    lines = [f"\nthe same policy at other physics steps (control step {control_dt_ms:g} ms):"]
+    for n, dt, v in zip(hold["substeps"], hold["physics_dt_ms"], hold["scores"]):
+        own = " (its own)" if n == hold["own_substeps"] else ""
+        lines.append(f"  {dt:7.3f} ms{own:<10} " + (f"{v:+9.3f} {unit}" if np.isfinite(v) else "   failed"))
+    verdict = "holds" if hold["holds"] else "does not hold"
+    lines.append(f"  credible {hold['slowest']:+.3f} {unit} (the lowest), spread {100 * hold['spread']:.2f} % of it: "
+                 f"{verdict} (within {100 * hold['max_spread']:g} %, above 0)")
+    return "\n".join(lines)
+
+
 def fidelity_text(fid: dict) -> str:
     """The table of ``trajopt evaluate --fidelity`` (:func:`trajopt.fidelity.fidelity`)."""
     lines = [f"\nthe same controls at finer physics steps (control step {fid['control_dt_ms']:g} ms):",

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -196,14 +195,8 @@ def _evaluate_on_task(policy, args) -> int:
             ("ends", ", ".join(e["end"] for e in ev["episodes"]))]
     print_table(rows)
     if args.fidelity:
-        hold = ev["hold"]
-        print(f"\nthe same policy at other physics steps (control step {1e3 * ev['control_dt_s']:g} ms):")
-        for n, dt, v in zip(hold["substeps"], hold["physics_dt_ms"], hold["scores"]):
-            own = " (its own)" if n == hold["own_substeps"] else ""
-            print(f"  {dt:7.3f} ms{own:<10} {v:+9.3f} {unit}" if math.isfinite(v) else f"  {dt:7.3f} ms{own:<10}    failed")
-        verdict = "holds" if hold["holds"] else "does not hold"
-        print(f"  credible {hold['slowest']:+.3f} {unit} (the lowest), spread {100 * hold['spread']:.2f} % of it: "
-              f"{verdict} (within {100 * hold['max_spread']:g} %, above 0)")
+        from .commands import task_hold_text
+        print(task_hold_text(ev["hold"], 1e3 * ev["control_dt_s"]))
     return 0
 
 
