@@ -109,7 +109,7 @@ def hold_of(status: dict) -> dict | None:
         hold = json.loads((Path(status["run_dir"]) / HOLD_NAME).read_text())
     except (OSError, ValueError):
         return None
-    own = hold["scores"][hold["substeps"].index(hold["own_substeps"])]
+    own = hold.get("own_score", hold["scores"][hold["substeps"].index(hold["own_substeps"])])
     return hold if np.isclose(own, status["metrics"]["task"]["score"], rtol=1e-9, atol=1e-12) else None
 
 

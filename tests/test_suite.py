@@ -224,6 +224,8 @@ def test_a_task_score_s_hold_is_the_headline_s_protocol():
     assert not task_hold(lambda n: ev(-1.0), 4, ev(-1.0))["holds"]                 # backwards: spread 0
     failed = task_hold(lambda n: ev(20.0, end="sim_failure") if n == 16 else ev(20.0), 4, ev(20.0))
     assert np.isnan(failed["scores"][-1]) and np.isnan(failed["slowest"]) and not failed["holds"]
+    failed = task_hold(lambda n: ev(20.0), 4, ev(21.0, end="sim_failure"))
+    assert np.isnan(failed["scores"][1]) and failed["own_score"] == 21.0     # what the run's own score was
     assert task_hold(evaluate, 1, ev(20.0), factors=(2.0,))["substeps"] == [1, 2]    # no half step of one
 
 

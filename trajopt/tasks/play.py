@@ -109,7 +109,8 @@ def task_hold(evaluate, own_substeps: int, own: dict[str, Any], *, factors=None,
     (NaN where an episode's simulation failed), and :func:`~trajopt.search.hold.hold_verdict`'s
     ``slowest`` (the credible score: the lowest), ``spread`` (``(max - min) / |slowest|``) and
     ``holds`` (no failure, ``slowest > 0`` and ``spread <= max_spread``, default 5 %); with
-    ``own_substeps``, ``max_spread``, ``score_name``, ``score_unit`` and ``episodes``."""
+    ``own_substeps``, ``own_score`` (``own``'s score, even where a simulation failed), ``max_spread``,
+    ``score_name``, ``score_unit`` and ``episodes``."""
     from soft_envs.envs import PAPER_TIMESTEP
     from ..search.hold import HOLD_FACTORS, MAX_SPREAD, hold_steps, hold_verdict
     max_spread = MAX_SPREAD if max_spread is None else float(max_spread)
@@ -126,6 +127,7 @@ def task_hold(evaluate, own_substeps: int, own: dict[str, Any], *, factors=None,
     control_ms = 1e3 * float(own.get("control_dt_s", PAPER_TIMESTEP))       # evaluations made before it was recorded
     return {"substeps": ns, "physics_dt_ms": [control_ms / n for n in ns], "scores": scores,
             **hold_verdict(scores, max_spread), "max_spread": max_spread, "own_substeps": int(own_substeps),
+            "own_score": float(own["score"]),
             "score_name": own["score_name"], "score_unit": own["score_unit"], "episodes": len(own["episodes"])}
 
 
