@@ -107,16 +107,20 @@ def hold_of(status: dict) -> dict | None:
     import json
     try:
         hold = json.loads((Path(status["run_dir"]) / HOLD_NAME).read_text())
-    except (OSError, ValueError):
+        own = hold.get("own_score", hold["scores"][hold["substeps"].index(hold["own_substeps"])])
+        same = bool(np.isclose(float(own), status["metrics"]["task"]["score"], rtol=1e-9, atol=1e-12))
+    except (OSError, ValueError, KeyError, IndexError, TypeError, AttributeError):    # unreadable: as not made
         return None
-    own = hold.get("own_score", hold["scores"][hold["substeps"].index(hold["own_substeps"])])
-    return hold if np.isclose(own, status["metrics"]["task"]["score"], rtol=1e-9, atol=1e-12) else None
+    return hold if same else None
 
 
 def hold_jobs(spec, sweep_dir: Path, only: list[str] | None) -> list[tuple[str, str, Path]]:
-    """The runs made (``only``: matching a pattern) without their replays: (kind, run name, folder)."""
+    """The runs made (``only``: matching a pattern) of the main table (not the Levels') without
+    their replays: (kind, run name, folder)."""
     jobs = []
     for run in spec.only(only).runs:
+        if group_of(run)[2] not in METHODS:
+            continue
         st = read_status(sweep_dir / run.name) or {}
         if st.get("status") == "done" and (st.get("metrics") or {}).get("task") and hold_of(
                 {**st, "run_dir": str(sweep_dir / run.name)}) is None:
@@ -139,9 +143,17 @@ def make_hold(kind: str, name: str, folder: Path) -> str:
             f"{' / '.join(f'{d:.3g}' for d in hold['physics_dt_ms'])} ms, spread {hold['spread']:.1%}: {verdict}")
 
 
+def _make_hold_or_say(kind: str, name: str, folder: Path) -> str:
+    """:func:`make_hold`, or what went wrong (the other runs' replays go on; the run's row says "–")."""
+    try:
+        return make_hold(kind, name, folder)
+    except Exception as exc:                # noqa: BLE001 - reported by name, the suite goes on
+        return f"{name}: not replayed: {type(exc).__name__}: {exc}"
+
+
 def make_holds(jobs: list[tuple[str, str, Path]], workers: int | None) -> None:
     """The replays of ``jobs`` (:func:`make_hold`), ``workers`` processes at a time (default: all
-    cores), each printed as it ends."""
+    cores), each printed as it ends; one that fails is printed with why, and the others go on."""
     from concurrent.futures import ProcessPoolExecutor, as_completed
     import multiprocessing
     from trajopt.workers import start_worker
@@ -151,11 +163,11 @@ def make_holds(jobs: list[tuple[str, str, Path]], workers: int | None) -> None:
     print(f"replaying {len(jobs)} runs at other physics steps ({workers} at a time)", flush=True)
     if workers == 1:
         for job in jobs:
-            print("  " + make_hold(*job), flush=True)
+            print("  " + _make_hold_or_say(*job), flush=True)
         return
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"), initializer=start_worker,
                              initargs=(os.getpid(), "soft_envs.envs.threads:limit_threads")) as pool:
-        futures = [pool.submit(make_hold, *job) for job in jobs]
+        futures = [pool.submit(_make_hold_or_say, *job) for job in jobs]
         for fut in as_completed(futures):
             print("  " + fut.result(), flush=True)
 
@@ -419,7 +431,8 @@ def main(argv: list[str] | None = None) -> str:
                     help="report file (default benchmarks/results/suite.md; --quick: SWEEP_DIR/suite.md)")
     ap.add_argument("--quick", action="store_true", help="tiny budgets ([runs.quick]), also SOFT_ENVS_QUICK=1")
     ap.add_argument("--only", action="append", default=None, metavar="PATTERN", help="only the runs matching")
-    ap.add_argument("--workers", type=int, default=None, help="local Ray CPUs (default: all)")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="local Ray CPUs, and processes replaying runs at other physics steps (default: all)")
     ap.add_argument("--serial", action="store_true", help="no Ray: the runs one after another in this process")
     ap.add_argument("--holds", action="store_true",
                     help="no runs: the replays at other physics steps of the runs made (those missing), then the report")

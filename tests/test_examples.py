@@ -43,7 +43,7 @@ EXPECTED = {
                             r"(?m)^motors confirmed stopped: front, back$"],
     "task_suite.py": [r"trajopt, open loop +: advance [+-]\d+\.\d+ BL on SoftTripodClimbStep-v0 \(1 episodes, success \d+%",
                       r"PPO, 128 steps +: advance [+-]\d+\.\d+ BL on SoftTripodClimbStep-v0 \(1 episodes",
-                      r"trajopt +: ([+-]\d\.\d+ / ){3}[+-]\d\.\d+ BL at 16\.5 / 8\.25 / 4\.125 / 2\.0625 ms: credible",
+                      r"trajopt +: (\S+ / ){3}\S+ BL at 16\.5 / 8\.25 / 4\.125 / 2\.0625 ms: credible",
                       r"PPO +: (\S+ / ){3}\S+ BL at 16\.5 .* ms: credible .*, spread .*, (holds|does not hold)"],
     "rl_baseline.py": [r"trained 64 steps in \d+ s", r"PPO     : +[+-]?\d+\.\d+ BL/min, upright: (True|False)",
                        r"compared against: nothing here \(pass a trajopt result .*\); the headline "

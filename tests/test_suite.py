@@ -5,6 +5,7 @@ the rl_zoo3 files are trajopt/rl/hyperparams.py's values."""
 from __future__ import annotations
 
 import importlib.util
+import re
 import tomllib
 from pathlib import Path
 from types import SimpleNamespace
@@ -185,6 +186,8 @@ def test_the_quick_suite_trains_every_id_and_its_report_has_every_row(tmp_path):
     assert [(r[0], r[1], r[2]) for r in replayed] == [("| walk", "Tripod", "SAC"),
                                                       ("| climb_step", "Tripod", "trajopt (open loop)")], replayed
     assert all(r[4].endswith("/1)") for r in replayed), replayed
+    summary = text.split("## Which scores hold")[1].split("\n## ")[0]
+    assert "| trajopt (open loop) | 1 | " in summary and "| SAC | 1 | " in summary and "| PPO |" not in summary
     import json
     hold = json.loads((tmp_path / "SoftTripodWalk-v0_sac_seed0" / bench.HOLD_NAME).read_text())
     assert hold["substeps"] == [2, 4, 8, 16] and hold["own_substeps"] == 4 and len(hold["scores"]) == 4
@@ -205,36 +208,48 @@ def test_a_task_score_s_hold_is_the_headline_s_protocol():
     the lowest score the credible one, NaN where a simulation failed, and holds within 5 %."""
     from trajopt.tasks.play import task_hold
 
-    def ev(score, end="truncated"):
+    def ev(score, end="truncated", substeps=4, level="medium"):
         return {"score": score, "score_name": "speed", "score_unit": "BL/min", "control_dt_s": 0.033,
+                "substeps": substeps, "env_id": "SoftTripodWalk-v0", "difficulty": level,
                 "episodes": [{"score": score, "end": "truncated"}, {"score": score, "end": end}]}
 
     asked = []
 
     def evaluate(n, scores={2: 19.8, 8: 20.3, 16: 20.5}):
         asked.append(n)
-        return ev(scores[n])
+        return ev(scores[n], substeps=n)
 
-    out = task_hold(evaluate, 4, ev(20.0))
+    out = task_hold(evaluate, ev(20.0))
     assert asked == [2, 8, 16] and out["substeps"] == [2, 4, 8, 16] and out["own_substeps"] == 4
     assert out["physics_dt_ms"] == pytest.approx([16.5, 8.25, 4.125, 2.0625])
     assert out["scores"] == [19.8, 20.0, 20.3, 20.5] and out["slowest"] == 19.8
     assert out["spread"] == pytest.approx(0.7 / 19.8) and out["holds"] and out["episodes"] == 2
-    assert not task_hold(lambda n: ev(25.0), 4, ev(20.0))["holds"]                 # 25 % apart
-    assert not task_hold(lambda n: ev(-1.0), 4, ev(-1.0))["holds"]                 # backwards: spread 0
-    failed = task_hold(lambda n: ev(20.0, end="sim_failure") if n == 16 else ev(20.0), 4, ev(20.0))
+    assert not task_hold(lambda n: ev(25.0), ev(20.0))["holds"]                    # 25 % apart
+    assert not task_hold(lambda n: ev(-1.0), ev(-1.0))["holds"]                    # backwards: spread 0
+    failed = task_hold(lambda n: ev(20.0, end="sim_failure") if n == 16 else ev(20.0), ev(20.0))
     assert np.isnan(failed["scores"][-1]) and np.isnan(failed["slowest"]) and not failed["holds"]
-    failed = task_hold(lambda n: ev(20.0), 4, ev(21.0, end="sim_failure"))
+    failed = task_hold(lambda n: ev(20.0), ev(21.0, end="sim_failure"))
     assert np.isnan(failed["scores"][1]) and failed["own_score"] == 21.0     # what the run's own score was
-    assert task_hold(evaluate, 1, ev(20.0), factors=(2.0,))["substeps"] == [1, 2]    # no half step of one
+    assert task_hold(evaluate, ev(20.0, substeps=1), factors=(0.5, 2.0))["substeps"] == [1, 2]   # no half step of one
+    with pytest.raises(ValueError, match=r"factors \(0.5,\) of 1 physics steps per control step give no other whole"):
+        task_hold(evaluate, ev(20.0, substeps=1), factors=(0.5,))
+    with pytest.raises(ValueError, match="the replay with 2 physics steps is on difficulty 'hard', the evaluation it "
+                                         "is compared with on 'medium'"):
+        task_hold(lambda n: ev(20.0, level="hard"), ev(20.0))
 
 
-@pytest.mark.parametrize("substeps", [0, 2.5, True, "4"])
+@pytest.mark.parametrize("substeps", [0, 2.5, True, "4", float("nan"), float("inf"), np.int64(-2)])
 def test_a_task_score_at_other_physics_steps_refuses_what_is_no_step_count(substeps):
     from trajopt.tasks.play import gait_on_task, policy_on_task
     for play in (gait_on_task, policy_on_task):
-        with pytest.raises(ValueError, match=f"substeps must be a whole number >= 1, got {substeps!r}"):
+        with pytest.raises(ValueError, match=re.escape(f"substeps must be a whole number >= 1, got {substeps!r}")):
             play("no such run", substeps=substeps)
+
+
+def test_a_numpy_step_count_is_a_step_count():
+    from trajopt.tasks.play import _check_substeps
+    for ok in (None, 1, 8, 4.0, np.int64(4)):
+        _check_substeps(ok)
 
 
 @pytest.mark.rl
@@ -254,16 +269,22 @@ def test_rl_evaluate_task_scores_a_task_run_and_replays_it(tmp_path, monkeypatch
     ev = json.loads(capsys.readouterr().out)
     assert ev["task"] == "push_box" and ev["score_unit"] == "BL" and len(ev["episodes"]) == 1
     hold = ev["hold"]
-    assert hold["substeps"] == [2, 4, 8, 16] and hold["scores"][1] == ev["score"]
-    assert hold["slowest"] == min(hold["scores"])
+    assert ev["substeps"] == 4 and ev["control_dt_s"] == pytest.approx(0.033)
+    assert hold["substeps"] == [2, 4, 8, 16] and hold["physics_dt_ms"] == pytest.approx([16.5, 8.25, 4.125, 2.0625])
+    assert np.isfinite(hold["scores"]).all() and hold["slowest"] == min(hold["scores"])
+    from trajopt.tasks.play import policy_on_task
+    assert policy_on_task(run.run_dir, substeps=2)["substeps"] == 2            # the replays' physics is theirs
     assert main(["rl", "evaluate", str(run.run_dir), "--task"]) == 0
     text = capsys.readouterr().out
     assert f"pushed       {ev['score']:+.3f} BL (the task's score, mean of 1 episodes)" in text   # deterministic
     from trajopt.cli.commands import task_hold_text
-    text = task_hold_text({**hold, "scores": [0.5, 0.51, float("nan"), 0.52]}, 33.0)
+    text = task_hold_text({**hold, "scores": [0.5, 0.51, float("nan"), 0.52], "slowest": float("nan"),
+                           "holds": False}, 33.0)
     lines = text.splitlines()
     assert lines[2].split() == ["16.500", "ms", "+0.500", "BL"] and lines[3].split() == ["8.250", "ms", "(its", "own)", "+0.510", "BL"]
-    assert lines[4].split() == ["4.125", "ms", "failed"] and lines[-1].startswith("  credible")
+    assert lines[4].split() == ["4.125", "ms", "failed"] and lines[-1] == "  a simulation failed: does not hold"
+    assert main(["rl", "evaluate", str(run.run_dir), "--task", "--seed", "3"]) == 2
+    assert "--task scores the task's own episodes: --seed does not apply" in capsys.readouterr().err
     walk = train("tripod", "ppo", 32, seed=0, out=tmp_path, n_envs=1, vec_env="dummy", hyperparams=hp,
                  progress_bar=False)
     assert main(["rl", "evaluate", str(walk.run_dir), "--task"]) == 2

@@ -154,8 +154,11 @@ def task_hold_text(hold: dict, control_dt_ms: float) -> str:
         own = " (its own)" if n == hold["own_substeps"] else ""
         lines.append(f"  {dt:7.3f} ms{own:<10} " + (f"{v:+9.3f} {unit}" if np.isfinite(v) else "   failed"))
     verdict = "holds" if hold["holds"] else "does not hold"
-    lines.append(f"  credible {hold['slowest']:+.3f} {unit} (the lowest), spread {100 * hold['spread']:.2f} % of it: "
-                 f"{verdict} (within {100 * hold['max_spread']:g} %, above 0)")
+    if not np.isfinite(hold["slowest"]):
+        lines.append(f"  a simulation failed: {verdict}")
+    else:
+        lines.append(f"  credible {hold['slowest']:+.3f} {unit} (the lowest), spread {100 * hold['spread']:.2f} % of it: "
+                     f"{verdict} (within {100 * hold['max_spread']:g} %, above 0)")
     return "\n".join(lines)
 
 

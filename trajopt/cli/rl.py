@@ -80,10 +80,12 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
                    help="reset noise [m] (default 0: trajopt's start, the exact rest state)")
     p.add_argument("--fidelity", action="store_true",
                    help="also play the policy closed loop at 2x, 4x and 8x finer physics steps (how credible its "
-                        "speed is, as trajopt evaluate --fidelity)")
+                        "speed is, as trajopt evaluate --fidelity); with --task: at half, twice and four times its "
+                        "physics steps, the suite's protocol")
     p.add_argument("--task", action="store_true",
                    help="a run trained on a task id: its task's own score on the id instead (the suite's: 3 episodes, "
-                        "seeds 0-2); with --fidelity, also at 16.5, 4.125 and 2.06 ms physics steps, and whether it holds")
+                        "seeds 0-2, the id's reset noise; --cycles, --seed and --reset-noise do not apply); with "
+                        "--fidelity, also at 16.5, 4.125 and 2.06 ms physics steps, and whether it holds")
     p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
     p.set_defaults(func=_cmd_evaluate)
 
@@ -175,6 +177,11 @@ def _evaluate_on_task(policy, args) -> int:
     (:func:`trajopt.tasks.play.policy_on_task`), with ``--fidelity`` its replays at other physics
     steps (:func:`trajopt.tasks.play.policy_task_hold`)."""
     from ..tasks.play import policy_on_task, policy_task_hold
+    given = [f"--{k.replace('_', '-')}" for k, default in (("cycles", DEFAULT_EVAL_CYCLES), ("seed", 0), ("reset_noise", 0.0))
+             if getattr(args, k) != default]
+    if given:
+        print(f"trajopt: error: --task scores the task's own episodes: {', '.join(given)} does not apply", file=sys.stderr)
+        return 2
     if not policy.config.get("task"):
         print(f"trajopt: error: --task: {policy.path} was trained on {policy.config.get('env_id') or policy.config['env']['robot']!r}, not on a task "
               "id (trajopt rl evaluate without --task gives its speed)", file=sys.stderr)

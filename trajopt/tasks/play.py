@@ -17,6 +17,7 @@ task's own score (:mod:`.scores`): the one evaluation of the task suite (``trajo
 from __future__ import annotations
 
 import math
+import numbers
 import os
 from typing import Any
 
@@ -36,8 +37,11 @@ def task_id_of(task: str, robot: str) -> str:
 
 
 def _check_substeps(substeps: Any) -> None:
-    if substeps is not None and (isinstance(substeps, bool) or not isinstance(substeps, (int, float))
-                                 or int(substeps) != substeps or int(substeps) < 1):
+    """None, or a whole number >= 1 (an int, a NumPy integer or a whole float); ValueError naming it otherwise."""
+    if substeps is None:
+        return
+    if isinstance(substeps, bool) or not isinstance(substeps, numbers.Real) or not math.isfinite(substeps) \
+            or int(substeps) != substeps or int(substeps) < 1:
         raise ValueError(f"substeps must be a whole number >= 1, got {substeps!r}")
 
 
@@ -75,14 +79,17 @@ def policy_task_hold(model: str | os.PathLike | Any, *, factors=None, max_spread
     policy closed loop on its id with its run's physics steps per control step times each of
     ``factors`` (default :data:`~trajopt.search.hold.HOLD_FACTORS`: half, twice and four times),
     the control step unchanged, scored as at its own. ``reference``: :func:`policy_on_task`'s
-    evaluation at the run's own physics when already made (the sweep's ``task_score``).
-    Returns :func:`task_hold`'s dict."""
+    evaluation at the run's own physics when already made (the sweep's ``task_score``; the replays
+    then play as many episodes as it did, whatever ``episodes``). Returns :func:`task_hold`'s dict."""
     from ..rl.envs import run_substeps
     from ..rl.evaluate import LoadedPolicy, load_policy
     policy = model if isinstance(model, LoadedPolicy) else load_policy(model)
     own = reference if reference is not None else policy_on_task(policy, episodes=episodes)
-    return task_hold(lambda n: policy_on_task(policy, episodes=len(own["episodes"]), substeps=n),
-                     int(run_substeps(policy.config) or 1), own, factors=factors, max_spread=max_spread)
+    if "substeps" not in own:               # an evaluation made before it recorded them: the run's own
+        n = run_substeps(policy.config)
+        own = {**own, "substeps": n if n is not None else policy_on_task(policy, episodes=1)["substeps"]}
+    return task_hold(lambda n: policy_on_task(policy, episodes=len(own["episodes"]), substeps=n), own,
+                     factors=factors, max_spread=max_spread)
 
 
 def gait_task_hold(result: Any, *, factors=None, max_spread: float | None = None, episodes: int | None = None,
@@ -93,17 +100,19 @@ def gait_task_hold(result: Any, *, factors=None, max_spread: float | None = None
     from ..results.result import Result
     res = result if isinstance(result, Result) else Result.load(result)
     own = reference if reference is not None else gait_on_task(res, episodes=episodes)
-    return task_hold(lambda n: gait_on_task(res, episodes=len(own["episodes"]), substeps=n),
-                     int(result_substeps(res)), own, factors=factors, max_spread=max_spread)
+    if "substeps" not in own:               # an evaluation made before it recorded them: the gait's own
+        own = {**own, "substeps": int(result_substeps(res))}
+    return task_hold(lambda n: gait_on_task(res, episodes=len(own["episodes"]), substeps=n), own,
+                     factors=factors, max_spread=max_spread)
 
 
-def task_hold(evaluate, own_substeps: int, own: dict[str, Any], *, factors=None,
-              max_spread: float | None = None) -> dict[str, Any]:
+def task_hold(evaluate, own: dict[str, Any], *, factors=None, max_spread: float | None = None) -> dict[str, Any]:
     """Whether a task score holds at other physics steps, by the headline's protocol
     (:mod:`trajopt.search.hold`): ``own`` is the evaluation (:func:`.scores.evaluate_on_task`'s
-    dict) with ``own_substeps`` physics steps per control step, ``evaluate(n)`` the same
-    evaluation with ``n``, made for ``own_substeps`` times each of ``factors`` (default
-    :data:`~trajopt.search.hold.HOLD_FACTORS`: half, twice and four times; whole numbers only).
+    dict) with its ``substeps`` physics steps per control step, ``evaluate(n)`` the same
+    evaluation with ``n``, made for ``substeps`` times each of ``factors`` (default
+    :data:`~trajopt.search.hold.HOLD_FACTORS`: half, twice and four times; whole numbers only: none
+    left is refused). Every replay must be of the same id and level as ``own`` (ValueError).
 
     Returns ``substeps`` (increasing, the own included), ``physics_dt_ms`` and ``scores`` at each
     (NaN where an episode's simulation failed), and :func:`~trajopt.search.hold.hold_verdict`'s
@@ -114,9 +123,19 @@ def task_hold(evaluate, own_substeps: int, own: dict[str, Any], *, factors=None,
     from soft_envs.envs import PAPER_TIMESTEP
     from ..search.hold import HOLD_FACTORS, MAX_SPREAD, hold_steps, hold_verdict
     max_spread = MAX_SPREAD if max_spread is None else float(max_spread)
-    evs = {int(own_substeps): own}
-    for n in hold_steps(int(own_substeps), HOLD_FACTORS if factors is None else factors):
+    own_substeps = int(own["substeps"])
+    factors = HOLD_FACTORS if factors is None else tuple(factors)
+    steps = hold_steps(own_substeps, factors)
+    if not steps:
+        raise ValueError(f"factors {factors} of {own_substeps} physics steps per control step give no other whole "
+                         "number of steps: nothing to replay")
+    evs = {own_substeps: own}
+    for n in steps:
         evs[n] = evaluate(n)
+        for key in ("env_id", "difficulty"):
+            if evs[n].get(key) != own.get(key):
+                raise ValueError(f"the replay with {n} physics steps is on {key} {evs[n].get(key)!r}, the "
+                                 f"evaluation it is compared with on {own.get(key)!r}")
 
     def score(ev: dict[str, Any]) -> float:
         failed = any(e.get("end") == "sim_failure" for e in ev["episodes"])

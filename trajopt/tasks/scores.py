@@ -135,7 +135,9 @@ def evaluate_on_task(env, act: Callable[[np.ndarray, int], Any], *, episodes: in
     """The task's score of ``act`` on ``env`` (a task id made by the caller: ``gym.make(id,
     difficulty=...)``, or the RL baseline's wrapped one) over ``episodes`` episodes seeded
     ``first_seed, first_seed + 1, ...`` (None: :func:`default_episodes`): the per-episode scores, returns, lengths, successes and
-    ends, and their means (:func:`summarise`)."""
+    ends, and their means (:func:`summarise`), with the level, the episode length, the control step
+    ``control_dt_s`` (one simulation step: an environment step is ``frame_skip`` of them) and the
+    physics steps per control step ``substeps``."""
     from soft_envs import TASK_ENV_IDS
     from soft_envs.envs.tasks import TaskEnv
     base = env.unwrapped
@@ -154,7 +156,7 @@ def evaluate_on_task(env, act: Callable[[np.ndarray, int], Any], *, episodes: in
         rows.append({"seed": s, "score": _episode_score(base.task_name, base, rec, episode_steps),
                      "return": rec["return"], "steps": rec["steps"], "success": rec["success"], "end": rec["end"]})
     return summarise(base.task_name, rows, difficulty=base.difficulty, episode_steps=episode_steps,
-                     control_dt_s=float(base.dt))
+                     control_dt_s=float(base.timestep), substeps=int(base.substeps))
 
 
 def summarise(task: str, rows: list[dict[str, Any]], **extra: Any) -> dict[str, Any]:
