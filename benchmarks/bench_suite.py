@@ -300,7 +300,8 @@ def _fmt_credible(c: dict | None) -> str:
     digits = 1 if c["unit"] == "deg" else 2
     values = np.asarray(c["credible"])
     mean = "a simulation failed" if not np.isfinite(values).all() else f"{values.mean():+.{digits}f}"
-    return f"{mean} ({c['hold']}/{len(values)})"
+    missing = c["n"] - len(values)
+    return f"{mean} ({c['hold']}/{len(values)}{f', {missing} not replayed' if missing else ''})"
 
 
 def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, Path], path: Path,
@@ -331,9 +332,9 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
               "Credible (hold): each run played again, its policy or gait unchanged, with half, twice and four "
               "times its physics steps per control step (16.5, 4.125 and 2.06 ms around the runs' 8.25 ms; the "
               "headline's protocol, `trajopt.tasks.play.task_hold`); its credible score is the lowest of the four, "
-              "the column its mean over the runs replayed, and in brackets how many of them hold: score > 0 and "
-              "the four within 5 % of the lowest. A score that changes with the physics step is the model's, "
-              "not the task's.", "",
+              "the column its mean over the runs replayed, and in brackets how many of them hold (score > 0 and "
+              "the four within 5 % of the lowest) of how many replayed. A score that changes with the physics "
+              "step is the model's, not the task's.", "",
               *TABLE_HEAD]
     missing = []
     for task in TASKS:
