@@ -482,8 +482,11 @@ def test_unsupported_firmware_refused_before_motion(firmware: str, match: str) -
 
 
 def test_untested_firmware_allowed_with_a_warning() -> None:
-    with RoboClawEmulator(firmware="USB Roboclaw 2x7a v5.0.1") as emu:
+    """On virtual time: on a loaded machine a late step adds the re-timing warning (it did in CI)."""
+    from tests.test_hardware_playback import VirtualTime
+    time_ = VirtualTime()
+    with RoboClawEmulator(firmware="USB Roboclaw 2x7a v5.0.1", clock=time_.clock) as emu:
         summary = play_trajectory(smooth_u(10, 0.001), DT, NAMES, tripod_config(allow_untested_firmware=True),
-                                  port_override=emu.port)
+                                  port_override=emu.port, clock=time_.clock, sleep=time_.sleep)
     assert summary.steps_sent == 10 and len(summary.warnings) == 1
     assert "version 5.0.1" in summary.warnings[0] and "warning: " in str(summary)

@@ -537,6 +537,28 @@ def test_rl_runs_call_the_library_and_write_their_files(tmp_path):
     assert [r["substeps"] for r in rows] == [ev["substeps"] * f for f in (1, 2, 4, 8)]
 
 
+@pytest.mark.rl
+def test_an_rl_evaluate_run_with_task_gives_the_task_s_score(tmp_path, monkeypatch):
+    """``kind = "rl-evaluate"`` with ``task = true``: the run trained on a task id scored with its
+    task's own score on the id (as ``trajopt rl evaluate --task``), in evaluation.json and the
+    summary's metrics; the walk metric's options are refused with it."""
+    pytest.importorskip("stable_baselines3")
+    monkeypatch.setenv("SOFT_ENVS_QUICK", "1")                 # one evaluation episode
+    hp = '["n_steps=32", "batch_size=32", "n_epochs=1", "policy_kwargs=dict(net_arch=[8])"]'
+    text = ('[[runs]]\nkind = "rl-train"\nname = "ppo"\n[runs.args]\nrobot = "SoftTripodPushBox-v0"\ntimesteps = 32\n'
+            f'n_envs = 1\nhp = {hp}\n'
+            '[[runs]]\nkind = "rl-evaluate"\nname = "ppo_task"\n[runs.args]\nmodel = "{out}/ppo"\ntask = true\n'
+            '[[runs]]\nkind = "rl-evaluate"\nname = "ppo_bad"\n[runs.args]\nmodel = "{out}/ppo"\ntask = true\n'
+            'seed = 3\n')
+    out = tmp_path / "out"
+    outcome = run_sweep(load_spec(write(tmp_path, text), out), out, serial=True)
+    assert outcome.count("done") == 2 and outcome.statuses["ppo_bad"]["status"] == "failed", outcome.statuses
+    assert "task = true scores the task's own episodes: seed does not apply" in outcome.statuses["ppo_bad"]["reason"]
+    ev = json.loads((out / "ppo_task" / "evaluation.json").read_text())
+    assert ev["task"] == "push_box" and ev["env_id"] == "SoftTripodPushBox-v0" and len(ev["episodes"]) == 1
+    assert outcome.statuses["ppo_task"]["metrics"]["task"]["score"] == ev["score"]
+
+
 def test_a_sweep_off_a_terminal_beats_while_a_run_is_running(tmp_path, monkeypatch):
     """Off a terminal, a line per finished run (no carriage return), and a heartbeat line while
     a run takes longer than the heartbeat period (30 s, shortened here) (#41)."""

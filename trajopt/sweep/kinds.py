@@ -140,7 +140,7 @@ KINDS: Mapping[str, RunKind] = MappingProxyType({
                         positional_option=Option(rl_target)),
     "rl-evaluate": RunKind("rl-evaluate", ("rl", "evaluate"), "model", MappingProxyType({
         "cycles": Option(cycles), "seed": _SEED, "reset_noise": Option(nonnegative_float), "json": _BOOL,
-        "fidelity": _BOOL}),
+        "fidelity": _BOOL, "task": _BOOL}),
         frozenset({"json"}), phase=1),
     "evaluate": RunKind("evaluate", ("evaluate",), "result", MappingProxyType({
         "cycles": Option(cycles), "ignore_robot_mismatch": _BOOL, "json": _BOOL, "fidelity": _BOOL}),

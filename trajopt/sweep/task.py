@@ -190,6 +190,17 @@ def _call(run: Run, out: Path, run_dir: Path, robot_file: Path | None = None) ->
         if train_run.status == "interrupted":      # as the signal that stopped it (Ctrl-C, SIGTERM)
             from ..hardware.signals import interruption
             raise interruption(train_run.signal or signal.SIGINT)
+    elif run.kind == "rl-evaluate" and args.get("task", False):        # the task's own score (trajopt.tasks.play)
+        from ..rl.evaluate import load_policy
+        from ..tasks.play import policy_on_task, policy_task_hold
+        unused = sorted(k for k in ("cycles", "seed", "reset_noise") if k in args)
+        if unused:
+            raise ValueError(f"task = true scores the task's own episodes: {', '.join(unused)} does not apply")
+        policy = load_policy(args["model"])
+        ev = policy_on_task(policy)
+        if args.get("fidelity", False):
+            ev["hold"] = policy_task_hold(policy, reference=ev)
+        _write_evaluation(run_dir, ev)
     elif run.kind == "rl-evaluate":
         from ..rl.evaluate import evaluate_policy_metric, load_policy
         policy = load_policy(args["model"])
@@ -245,6 +256,10 @@ def _metrics(run: Run, run_dir: Path) -> dict[str, Any]:
     else:                                                  # evaluate, rl-evaluate: evaluation.json
         ev = json.loads((run_dir / EVALUATION_NAME).read_text())
         m.update(speed_bl_per_min=ev.get("speed_bl_per_min"), upright=ev.get("upright"))
+        if "score_name" in ev:                             # rl-evaluate with task = true: the task's score
+            m["task"] = {k: v for k, v in ev.items() if k not in ("episodes", "hold")}
+            if "hold" in ev:
+                m["task"].update(credible=ev["hold"]["slowest"], holds=ev["hold"]["holds"])
     if run.options.get("task_score"):
         m["task"] = _task_score(run, run_dir)
     return m
