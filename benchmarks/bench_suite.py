@@ -95,7 +95,8 @@ def collect(spec, sweep_dir: Path) -> dict[tuple[str, str, str], dict]:
         g["planned"].append(run.name)
         st = read_status(sweep_dir / run.name) or {}
         if st.get("status") == "done" and (st.get("metrics") or {}).get("task"):
-            g["done"].append({**st, "run_dir": str(sweep_dir / run.name)})
+            st = {**st, "run_dir": str(sweep_dir / run.name)}
+            g["done"].append({**st, "hold": hold_of(st)})       # read once: cell() and holds_summary() use it
         elif st.get("status") in ("failed", "interrupted"):
             g["failed"].append(f"{run.name}: {st.get('status')} ({st.get('reason', '')})")
     return groups
@@ -184,7 +185,7 @@ def cell(group: dict) -> dict | None:
         scores = [e["score"] for e in episodes]
     else:
         scores = [t["score"] for t in tasks]
-    holds = [h for h in (hold_of(st) for st in done) if h is not None]
+    holds = [st["hold"] for st in done if st["hold"] is not None]
     return {"mean": float(np.mean(scores)), "std": float(np.std(scores, ddof=1)) if len(scores) > 1 else 0.0,
             "credible": [h["slowest"] for h in holds], "hold": sum(h["holds"] for h in holds),
             "n": len(done), "planned": len(group["planned"]), "success": float(np.mean([t["success_rate"] for t in tasks])),
@@ -275,7 +276,7 @@ def holds_summary(groups: dict[tuple[str, str, str], dict]) -> list[str]:
     many hold, and the median spread (of the runs with a positive score)."""
     rows = []
     for method, label in METHODS.items():
-        holds = [h for (_, _, m), g in groups.items() if m == method for h in (hold_of(st) for st in g["done"]) if h]
+        holds = [st["hold"] for (_, _, m), g in groups.items() if m == method for st in g["done"] if st["hold"]]
         if not holds:
             continue
         spreads = [h["spread"] for h in holds if np.isfinite(h["slowest"]) and h["slowest"] > 0]
