@@ -99,6 +99,11 @@ EXPECTED = {
                               r"picture: results/quadruped_quick/quadruped\.png", r"iteration 1: objective \S+ -> \S+",
                               r"speed: [+-]?\d+\.\d+ body lengths/min over 1 cycles",
                               r"saved results/quadruped_quick/quadruped_walk\.npz"],
+    "tune_rl.py": [r"SoftTripodWalk-v0 PPO: 2 trials scored \(256 steps each, training seed 100, episodes from seed 100\)",
+                   r"trial +0: +[+-]\d+\.\d+ BL/min +\d+ s \(the defaults\)",
+                   r"best: trial \d \([+-]\d+\.\d+ BL/min\); train with it:",
+                   r"trajopt rl train SoftTripodWalk-v0 --algo ppo --n-envs 2 --timesteps 256 --vec-env dummy",
+                   r"best minus the defaults: [+-]\d+\.\d+ BL/min", r"wrote results/tuning/example_quick/tuning\.json"],
 }
 #: files (relative to the working directory) an example must leave behind
 WRITES = {
@@ -110,6 +115,7 @@ WRITES = {
     "rl_baseline.py": ["results/tripod_ppo_example_quick.npz"],
     "task_suite.py": ["results/tripod_climb_step_example_quick.npz", "results/runs/climb_step_ppo_example_quick/model.zip"],
     "motor_line.py": ["results/motor_line_example_quick.png"],
+    "tune_rl.py": ["results/tuning/example_quick/tuning.json", "results/tuning/example_quick/study.db"],
     "credible_gait.py": ["results/tripod_credible_example_quick.npz", "results/tripod_credible_example_quick.json"],
     "fastest_gait.py": ["results/tripod_fastest_example_quick.npz", "results/tripod_fastest_example_quick.search.csv",
                         "results/tripod_fastest_example_quick.search.md"],
@@ -123,7 +129,7 @@ WRITES = {
                               "results/quadruped_quick/quadruped_walk.json"],
 }
 #: modules an example needs beyond the core install (skipped with a reason when missing)
-NEEDS = {"rl_baseline.py": "stable_baselines3", "task_suite.py": "stable_baselines3", "play_on_emulator.py": "serial", "robot_from_surface.py": "gmsh"}
+NEEDS = {"rl_baseline.py": "stable_baselines3", "tune_rl.py": "optuna", "task_suite.py": "stable_baselines3", "play_on_emulator.py": "serial", "robot_from_surface.py": "gmsh"}
 
 
 def test_every_example_is_covered():

@@ -98,6 +98,24 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--reset-noise", type=nonnegative_float, default=0.0)
     p.add_argument("--overwrite", action="store_true", help="replace an existing result file")
     p.set_defaults(func=_cmd_export)
+
+    p = rsub.add_parser("tune", help="tune PPO's or SAC's hyper-parameters on a task id (an Optuna study, resumable)",
+                        description="Tune the RL baseline on a task id: each trial trains with the suite's budget "
+                                    "and is scored by the task's own score on held-out seeds; the first trial is "
+                                    "the documented defaults. The same command again goes on with the study. "
+                                    "Needs pip install soft-envs[tune]. (trajopt.rl.tuning says how.)")
+    p.add_argument("env", metavar="ID", help="a task id (SoftTripodWalk-v0 ... SoftPuppyPushBox-v0, docs/tasks.md)")
+    p.add_argument("--algo", choices=ALGOS, default="ppo")
+    p.add_argument("--trials", type=positive_int, default=20, help="trials to finish, the defaults' included (default 20)")
+    p.add_argument("--workers", type=positive_int, default=1, help="processes sharing the study (default 1)")
+    p.add_argument("--timesteps", type=positive_int, default=None,
+                   help="environment steps per trial (default the suite's budget, 30000)")
+    p.add_argument("--episodes", type=positive_int, default=None,
+                   help="evaluation episodes per trial (default the suite's 3)")
+    p.add_argument("--seed", type=SEED, default=0, help="seed of the TPE sampler (worker k: SEED + k)")
+    p.add_argument("--out", type=output_dir, default=None, help="study folder (default results/tuning/ID_ALGO)")
+    p.add_argument("--json", action="store_true", help="print the study's summary as JSON")
+    p.set_defaults(func=_cmd_tune)
     return rl
 
 
@@ -223,3 +241,50 @@ def _cmd_export(args) -> int:
     print(f"wrote {path}: {res.summary()}")
     print(f"  render: trajopt render {path}      # {RESULTS_DIR / (path.stem + '.gif')}")
     return 0
+
+
+def _cmd_tune(args) -> int:
+    from ..rl import MissingRLDependencies
+    from ..rl.hyperparams import SUITE_TIMESTEPS
+    try:
+        import optuna  # noqa: F401
+    except ImportError:
+        print("trajopt: error: trajopt rl tune needs Optuna: pip install soft-envs[tune]", file=sys.stderr)
+        return 2
+    from ..rl.tuning import TuningWorkerError, tune
+    try:
+        summary = tune(args.env, args.algo, trials=args.trials, out=args.out, workers=args.workers,
+                       timesteps=args.timesteps or SUITE_TIMESTEPS, episodes=args.episodes, seed=args.seed)
+    except MissingRLDependencies as exc:
+        return _missing(exc)
+    except TuningWorkerError as exc:
+        print(f"trajopt: error: {exc}; the same command goes on with the study", file=sys.stderr)
+        return 1
+    if args.json:
+        print(json.dumps(summary, indent=1))
+        return 0
+    print(tuning_text(summary))
+    return 0
+
+
+def tuning_text(summary: dict) -> str:
+    """A study's trials, best first, and the line that trains with the best."""
+    unit = summary.get("score_unit") or ""
+    done = sorted((t for t in summary["trials"] if t["score"] is not None), key=lambda t: -t["score"])
+    lines = [f"{summary['env_id']} {summary['algo'].upper()}: {summary['n_finished']} trials scored "
+             f"({summary['timesteps']} steps each, training seed {summary['seed']}, episodes from seed "
+             f"{summary['eval_first_seed']})"]
+    for t in done:
+        mark = " (the defaults)" if t["defaults"] else ""
+        lines.append(f"  trial {t['number']:3d}: {t['score']:+8.3f} {unit}  {t.get('wall_time_s', 0):6.0f} s{mark}")
+    failed = [t for t in summary["trials"] if t["score"] is None]
+    for t in failed:
+        lines.append(f"  trial {t['number']:3d}: {t['state'].lower()}{': ' + t['error'] if t.get('error') else ''}")
+    best = summary.get("best")
+    if best:
+        import shlex
+        hp = " ".join(f"--hp {shlex.quote(o)}" for o in summary["hp_overrides"])
+        lines.append(f"best: trial {best['number']} ({best['score']:+.3f} {unit}); train with it:")
+        lines.append(f"  trajopt rl train {summary['env_id']} --algo {summary['algo']} --n-envs {summary['n_envs']} "
+                     f"--timesteps {summary['timesteps']} --vec-env dummy {hp}".rstrip())
+    return "\n".join(lines)

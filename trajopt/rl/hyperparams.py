@@ -38,7 +38,8 @@ SAC
 
 Everything can be overridden (``trajopt rl train ... --hp learning_rate=1e-3 --hp
 batch_size=128``, or ``train(hyperparams={...})``); the values used are written to the run's
-``rl_config.json``.
+``rl_config.json``. ``trajopt rl tune ID`` (:mod:`trajopt.rl.tuning`) searches for better ones
+on a task id, starting from these.
 """
 from __future__ import annotations
 

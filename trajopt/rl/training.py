@@ -32,7 +32,7 @@ from .envs import TRAIN_HORIZON, env_id, make_env, robot_name, task_of
 from .hyperparams import ALGOS, default_hyperparams, jsonable, vecnormalize_kwargs
 
 __all__ = ["train", "TrainRun", "CONFIG_NAME", "MODEL_NAME", "VECNORM_NAME", "write_config",
-           "checkpoint_steps"]
+           "checkpoint_steps", "sb3_keywords", "ACTIVATIONS"]
 
 CONFIG_NAME = "rl_config.json"
 MODEL_NAME = "model.zip"
@@ -135,6 +135,7 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
         env_kwargs["substeps"] = int(CONTACT_LAWS[env_kwargs["contact"]].default_substeps)
     hp = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
     hp.update(hyperparams or {})
+    sb3_keywords(hp)                                # an unknown activation name: refused before the run folder exists
     checkpoint_every = int(checkpoint_every or max(timesteps // 10, 1))
 
     run_dir = Path(out) / (name or f"{robot}{'_' + task_of(target) if target != robot else ''}_{algo}_seed{seed}")
@@ -205,7 +206,7 @@ def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_su
     write_config(run_dir, config)
 
     # (a copy: SB3 writes into policy_kwargs, the config keeps what was asked for)
-    model = _algo_class(algo)("MlpPolicy", venv, seed=seed, device="cpu", verbose=verbose, **copy.deepcopy(hp))
+    model = _algo_class(algo)("MlpPolicy", venv, seed=seed, device="cpu", verbose=verbose, **sb3_keywords(hp))
     formats = ["csv"] + (["tensorboard"] if _available("torch.utils.tensorboard", "tensorboard") else [])
     formats += ["stdout"] if log_stdout else []
     if progress_bar and not _available("tqdm", "rich"):
@@ -240,6 +241,24 @@ def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_su
     return TrainRun(run_dir=run_dir, model_path=model_path, config=config, status=status,
                     timesteps=done, sim_steps=done * int(frame_skip), wall_time_s=wall,
                     checkpoints=checkpoints, signal=signum)
+
+
+#: activation functions by name (``policy_kwargs=dict(activation_fn="relu")``: what ``--hp``, the
+#: run's rl_config.json and the tuning study can write), as rl_zoo3 names them
+ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU"}
+
+
+def sb3_keywords(hp: dict[str, Any]) -> dict[str, Any]:
+    """A copy of ``hp`` for the algorithm's constructor: an ``activation_fn`` given by name (a key
+    of :data:`ACTIVATIONS`) becomes the PyTorch module; ValueError naming an unknown one."""
+    import torch
+    hp = copy.deepcopy(hp)
+    act = (hp.get("policy_kwargs") or {}).get("activation_fn")
+    if isinstance(act, str):
+        if act not in ACTIVATIONS:
+            raise ValueError(f"policy_kwargs: activation_fn must be one of {tuple(ACTIVATIONS)}, got {act!r}")
+        hp["policy_kwargs"]["activation_fn"] = getattr(torch.nn, ACTIVATIONS[act])
+    return hp
 
 
 def _available(*modules: str) -> bool:

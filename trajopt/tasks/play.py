@@ -46,11 +46,12 @@ def _check_substeps(substeps: Any) -> None:
 
 
 def policy_on_task(model: str | os.PathLike | Any, *, episodes: int | None = None,
-                   substeps: int | None = None) -> dict[str, Any]:
+                   substeps: int | None = None, first_seed: int = 0) -> dict[str, Any]:
     """The task's score of an RL run trained on a task id (a run directory, model or
     :class:`~trajopt.rl.evaluate.LoadedPolicy`): :func:`.scores.evaluate_on_task` of its
     deterministic policy, with ``env_id`` and the run's training budget added. ``substeps``:
-    physics steps per control step (default the run's own; more: finer physics, same control)."""
+    physics steps per control step (default the run's own; more: finer physics, same control).
+    ``first_seed``: the first episode's seed (the suite's 0; the tuning study holds its own out)."""
     from soft_envs import MAX_EPISODE_STEPS
     from ..rl.envs import make_env, run_contact, run_substeps, task_of
     from ..rl.evaluate import LoadedPolicy, load_policy
@@ -66,7 +67,7 @@ def policy_on_task(model: str | os.PathLike | Any, *, episodes: int | None = Non
     env = make_env(cfg["robot"], frame_skip=int(cfg.get("frame_skip", 1)), max_episode_steps=MAX_EPISODE_STEPS,
                    drop_com_xz=bool(cfg.get("drop_com_xz", True)), env_kwargs=kwargs)
     try:
-        ev = evaluate_on_task(env, lambda obs, k: policy.act(obs), episodes=episodes)
+        ev = evaluate_on_task(env, lambda obs, k: policy.act(obs), episodes=episodes, first_seed=first_seed)
     finally:
         env.close()
     return {**ev, "env_id": cfg["robot"], "method": f"{policy.algo} (closed loop)",

@@ -1,0 +1,168 @@
+"""The RL baseline's hyper-parameter study (trajopt.rl.tuning, ``trajopt rl tune``): its search
+space gives keywords Stable-Baselines3 takes, its first trial is the documented defaults, a study
+goes on where it stopped (a trial cut short is tried again with its parameters), and bad input
+is refused before anything is written."""
+from __future__ import annotations
+
+import json
+import time
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.rl
+pytest.importorskip("stable_baselines3")
+optuna = pytest.importorskip("optuna")
+
+from trajopt.cli import main  # noqa: E402
+from trajopt.rl import tuning  # noqa: E402
+from trajopt.rl.hyperparams import default_hyperparams, parse_overrides  # noqa: E402
+from trajopt.rl.training import sb3_keywords, train  # noqa: E402
+from trajopt.rl.tuning import (DEFAULT_PARAMS, EVAL_FIRST_SEED, SPACES, TUNING_SEED, hp_overrides,  # noqa: E402
+                               hyperparams_of, sample_hyperparams, tune)
+
+ID = "SoftTripodWalk-v0"
+TINY = dict(timesteps=256, episodes=1)           # a trial of a few seconds: two PPO updates, one episode
+
+
+def test_the_defaults_point_is_the_documented_defaults():
+    for algo in ("ppo", "sac"):
+        for name, (how, *range_) in SPACES[algo].items():       # a point of the space
+            value = DEFAULT_PARAMS[algo][name]
+            assert value in range_[0] if how == "choice" else range_[0] <= value <= range_[1], (algo, name)
+        hp = hyperparams_of(DEFAULT_PARAMS[algo], algo)
+        base = default_hyperparams(algo, n_envs=2, timesteps=30_000)
+        if algo == "ppo":       # ent_coef 0 is the log range's floor; tanh is SB3's own default for PPO
+            assert hp.pop("ent_coef") == 1e-8 and base.pop("ent_coef") == 0.0
+            assert hp["policy_kwargs"].pop("activation_fn") == "tanh"
+        assert hp == base, algo
+
+
+def test_every_point_of_the_space_makes_a_model():
+    """Random points of each space (and its corners) are accepted by Stable-Baselines3 (on a
+    small stand-in environment: the keywords are what is checked)."""
+    from stable_baselines3 import PPO, SAC
+    from stable_baselines3.common.vec_env import DummyVecEnv
+    venv = DummyVecEnv([lambda: gym.make("Pendulum-v1")] * 2)
+    for algo, cls in (("ppo", PPO), ("sac", SAC)):
+        study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=3))
+        for _ in range(12):
+            trial = study.ask()
+            hp = hyperparams_of(sample_hyperparams(trial, algo), algo)
+            if algo == "ppo":
+                assert hp["batch_size"] <= hp["n_steps"] * 2 and hp["n_steps"] * 2 in (256, 512, 1024, 2048)
+                assert 0.95 <= hp["gamma"] <= 0.999 and 0.8 <= hp["gae_lambda"] <= 0.99
+            else:
+                assert hp["gradient_steps"] == hp["train_freq"] and hp["buffer_size"] == 30_000
+            model = cls("MlpPolicy", venv, device="cpu", **sb3_keywords(hp))
+            assert model.gamma == pytest.approx(hp["gamma"])
+            study.tell(trial, 0.0)
+    venv.close()
+
+
+def test_points_outside_the_space_are_refused():
+    with pytest.raises(ValueError, match="missing.*tau"):
+        hyperparams_of({k: v for k, v in DEFAULT_PARAMS["sac"].items() if k != "tau"}, "sac")
+    with pytest.raises(ValueError, match="unknown.*n_epochs"):
+        hyperparams_of({**DEFAULT_PARAMS["sac"], "n_epochs": 3}, "sac")
+    with pytest.raises(ValueError, match="algo must be one of"):
+        hyperparams_of(DEFAULT_PARAMS["ppo"], "td3")
+
+
+def test_the_overrides_train_with_the_point():
+    """``--hp`` of :func:`hp_overrides`, parsed as ``trajopt rl train`` does, gives the point back."""
+    for algo in ("ppo", "sac"):
+        study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=5))
+        hp = hyperparams_of(sample_hyperparams(study.ask(), algo), algo)
+        back = default_hyperparams(algo, n_envs=2, timesteps=30_000)
+        back.update(parse_overrides(hp_overrides(hp, algo)))
+        assert back == hp
+
+
+def test_an_unknown_activation_is_refused_before_the_run_exists(tmp_path):
+    with pytest.raises(ValueError, match="activation_fn must be one of"):
+        train(ID, "ppo", timesteps=64, out=tmp_path, name="r", n_envs=1, progress_bar=False,
+              hyperparams={"policy_kwargs": {"activation_fn": "sigmoid"}})
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_study_scores_the_defaults_first_and_goes_on(tmp_path):
+    out = tmp_path / "study"
+    s = tune(ID, "ppo", trials=2, out=out, **TINY)
+    assert s["n_finished"] == 2 and [t["number"] for t in s["trials"]] == [0, 1]
+    assert s["defaults"]["number"] == 0 and s["defaults"]["params"] == DEFAULT_PARAMS["ppo"]
+    assert s["trials"][1]["params"] != DEFAULT_PARAMS["ppo"]
+    assert s["best"]["score"] == max(t["score"] for t in s["trials"])
+    assert s["seed"] == TUNING_SEED and s["eval_first_seed"] == EVAL_FIRST_SEED and s["score_unit"] == "BL/min"
+    assert json.loads((out / "tuning.json").read_text()) == json.loads(json.dumps(s))
+    # each trial is a run of the RL baseline, trained with the trial's keywords and the tuning seed
+    cfg = json.loads((out / "trials" / "trial_0001" / "rl_config.json").read_text())
+    assert cfg["seed"] == TUNING_SEED and cfg["timesteps_done"] >= 256
+    assert cfg["hyperparams"] == s["trials"][1]["hyperparams"]
+    # its score is the task's on the held-out episodes
+    from trajopt.tasks.play import policy_on_task
+    ev = policy_on_task(out / "trials" / "trial_0001", episodes=1, first_seed=EVAL_FIRST_SEED)
+    assert ev["episodes"][0]["seed"] == EVAL_FIRST_SEED and ev["score"] == pytest.approx(s["trials"][1]["score"])
+
+    # the same study again: the two kept, one more made
+    s3 = tune(ID, "ppo", trials=3, out=out, **TINY)
+    assert s3["n_finished"] == 3 and s3["trials"][:2] == s["trials"]
+    # other settings in the same folder: refused, nothing changed
+    before = (out / "tuning.json").read_bytes()
+    with pytest.raises(ValueError, match="a study made with"):
+        tune(ID, "ppo", trials=4, out=out, timesteps=512, episodes=1)
+    assert (out / "tuning.json").read_bytes() == before
+
+
+@pytest.mark.filterwarnings("ignore:Heartbeat of storage is supposed to be used with Study.optimize")
+def test_a_trial_cut_short_is_tried_again_with_its_parameters(tmp_path, monkeypatch):
+    """A trial whose process died (its heartbeat stopped) is marked failed when the study goes on,
+    and a copy of it, with the same parameters, is run and scored."""
+    monkeypatch.setattr(tuning, "_HEARTBEAT_S", 1)
+    monkeypatch.setattr(tuning, "_GRACE_S", 1)
+    out = tmp_path / "study"
+    tune(ID, "sac", trials=1, out=out, **TINY)
+    study = optuna.load_study(study_name=f"{ID}_sac", storage=tuning._storage(out))
+    dead = study.ask()                                # a trial that starts, beats once and dies
+    params = sample_hyperparams(dead, "sac")
+    study._storage.record_heartbeat(dead._trial_id)
+    time.sleep(2.5)
+    s = tune(ID, "sac", trials=2, out=out, **TINY)
+    states = {t["number"]: t["state"] for t in s["trials"]}
+    assert states[dead.number] == "FAIL" and "error" not in s["trials"][dead.number]
+    retried = [t for t in s["trials"] if t["number"] > dead.number]
+    assert len(retried) == 1 and retried[0]["state"] == "COMPLETE" and retried[0]["params"] == params
+    assert s["n_finished"] == 2
+
+
+def test_bad_input_is_refused_before_anything_is_written(tmp_path):
+    for kwargs, match in ((dict(env="SoftTripod-v2"), "must be a task id"), (dict(algo="a2c"), "algo must be"),
+                          (dict(trials=0), "trials must be"), (dict(workers=1.5), "workers must be"),
+                          (dict(episodes=0), "episodes must be")):
+        args = {"env": ID, "algo": "ppo", "trials": 1, "out": tmp_path / "s", **kwargs}
+        with pytest.raises(ValueError, match=match):
+            tune(args.pop("env"), args.pop("algo"), **args)
+    assert not (tmp_path / "s").exists()
+
+
+def test_the_command(tmp_path, capsys):
+    out = tmp_path / "s"
+    assert main(["rl", "tune", ID, "--trials", "1", "--timesteps", "256", "--episodes", "1", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "trial   0:" in text and "(the defaults)" in text and f"trajopt rl train {ID} --algo ppo" in text
+    assert main(["rl", "tune", ID, "--trials", "1", "--timesteps", "256", "--episodes", "1", "--out", str(out),
+                 "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["n_finished"] == 1
+    assert main(["rl", "tune", "SoftTripod-v2", "--out", str(tmp_path / "t")]) == 2
+    assert "must be a task id" in capsys.readouterr().err
+
+
+def test_a_study_of_two_workers(tmp_path):
+    """Two processes share one study: three trials finished, none twice."""
+    s = tune(ID, "ppo", trials=3, out=tmp_path / "s", workers=2, **TINY)
+    numbers = [t["number"] for t in s["trials"] if t["state"] == "COMPLETE"]
+    assert 3 <= len(numbers) <= 4 and len(set(numbers)) == len(numbers)
+    params = [json.dumps(t["params"], sort_keys=True) for t in s["trials"]]
+    assert len(set(params)) == len(params)
+    assert np.isfinite([t["score"] for t in s["trials"] if t["score"] is not None]).all()

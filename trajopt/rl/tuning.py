@@ -1,0 +1,350 @@
+"""Tuning the RL baseline's hyper-parameters on a task id: an Optuna study.
+
+    trajopt rl tune SoftTripodWalk-v0 --algo ppo --trials 20 --workers 2
+    # -> results/tuning/SoftTripodWalk-v0_ppo/: study.db, tuning.json, trials/trial_0000 ...
+
+**A trial** trains ``algo`` on the id the way the suite does (examples/suite.toml: :data:`SUITE_TIMESTEPS`
+environment steps, :data:`SUITE_N_ENVS` environments stepped in one process, the registered
+300-step episodes; :func:`trajopt.rl.training.train`) with hyper-parameters drawn by
+:func:`sample_hyperparams`. Its value is the task's own score of the trained policy
+(:func:`trajopt.tasks.play.policy_on_task`, the suite's evaluation: deterministic, 3 episodes).
+Higher is better for every task's score.
+
+**Held out:** the trials train with seed :data:`TUNING_SEED` and are scored on the episodes seeded
+from :data:`EVAL_FIRST_SEED`, not the suite's training seeds 0-2 and evaluation episodes 0-2. The
+best of N trials on one seed is an optimistic figure; the suite's runs made with the tuned
+values are an independent measure of them.
+
+**Search space:** rl_zoo3's (``rl_zoo3.hyperparams_opt``: the same parameters, the discount and the
+learning rate log-uniform as ``1 - gamma`` and ``lr``), with ranges narrowed to budgets of
+10^4-10^5 steps on a CPU: PPO collects at most 2048 transitions per update (rl_zoo3's 4096 per
+environment would leave 3 updates in 30k steps) and takes batches of at least 32 (rl_zoo3's 4
+would cost hours of gradient steps per trial); SAC keeps one gradient step per vector step of
+``train_freq`` and the baseline's 1000 warm-up steps. PPO also draws its initial action noise
+(``log_std_init``): with 30 updates it matters (RL Zoo's tuned MuJoCo files set it). The names
+and ranges are in :data:`SPACES`.
+
+**The first trial is the documented defaults** (:func:`~trajopt.rl.hyperparams.default_hyperparams`,
+enqueued; PPO's ``ent_coef`` 0 is drawn as the range's floor, 1e-8), so the study says what tuning
+gains over them.
+
+**Sampler and stopping:** Optuna's TPE, seeded with ``seed``. No pruning: a trial's score exists
+only once the policy is trained and played (an evaluation during training would cost a tenth of
+the budget each time). The study stops when ``trials`` trials have finished, scored or failed
+with an error (a hyper-parameter choice whose training diverges, ``ValueError``); several
+``workers`` (processes) share the study, so the last ones may finish ``workers - 1`` more.
+
+**Resuming:** the study lives in ``out/study.db`` (SQLite). The same command with the same ``out``
+goes on where it stopped: the finished trials are kept; a trial stopped by Ctrl-C is marked
+failed and does not count, and one whose process was killed (a kill, a power cut) is found by
+Optuna's heartbeat, marked failed and tried again with its parameters.
+``out/tuning.json`` is written (atomically) after every trial: each trial's parameters and score,
+the defaults', the best, and the ``--hp`` overrides that train with the best (``trajopt rl train
+ID --hp ...``).
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+from .hyperparams import ALGOS, SUITE_N_ENVS, SUITE_TIMESTEPS, default_hyperparams
+
+__all__ = ["TuningWorkerError", "SPACES", "DEFAULT_PARAMS", "TUNING_SEED", "EVAL_FIRST_SEED", "TUNING_DIR", "sample_hyperparams",
+           "hyperparams_of", "tune", "tuning_summary", "hp_overrides"]
+
+#: training seed of every trial (the suite's runs use 0, 1, 2)
+TUNING_SEED = 100
+#: first evaluation episode's seed of a trial (the suite's episodes are seeded 0, 1, 2)
+EVAL_FIRST_SEED = 100
+#: where studies go by default (one folder per id and algorithm)
+TUNING_DIR = Path("results/tuning")
+#: SQLite file of the study, and the summary, inside ``out``
+STUDY_DB, SUMMARY = "study.db", "tuning.json"
+#: seconds between a running trial's heartbeats; one silent for ``_GRACE_S`` was cut short
+_HEARTBEAT_S, _GRACE_S = 60, 180
+
+#: the search space per algorithm: name -> ("log", low, high) | ("float", low, high) | ("choice", options)
+SPACES: dict[str, dict[str, tuple]] = {
+    "ppo": {
+        "n_steps_total": ("choice", (256, 512, 1024, 2048)),      # transitions per update, all environments
+        "batch_size": ("choice", (32, 64, 128, 256)),
+        "n_epochs": ("choice", (5, 10, 20)),
+        "learning_rate": ("log", 1e-4, 3e-3),
+        "one_minus_gamma": ("log", 1e-3, 5e-2),
+        "one_minus_gae_lambda": ("log", 1e-2, 2e-1),
+        "clip_range": ("choice", (0.1, 0.2, 0.3)),
+        "ent_coef": ("log", 1e-8, 1e-2),
+        "max_grad_norm": ("float", 0.3, 2.0),
+        "log_std_init": ("float", -2.0, 0.5),
+        "net_arch": ("choice", ("small", "medium")),
+        "activation_fn": ("choice", ("tanh", "relu")),
+    },
+    "sac": {
+        "learning_rate": ("log", 1e-4, 3e-3),
+        "batch_size": ("choice", (64, 128, 256, 512)),
+        "one_minus_gamma": ("log", 1e-3, 5e-2),
+        "tau": ("log", 1e-3, 5e-2),
+        "train_freq": ("choice", (1, 2, 4, 8)),                 # gradient_steps the same: one per vector step
+        "net_arch": ("choice", ("small", "medium", "big")),
+    },
+}
+#: network widths of the ``net_arch`` choices (two hidden layers)
+_WIDTHS = {"ppo": {"small": 64, "medium": 256}, "sac": {"small": 64, "medium": 128, "big": 256}}
+
+#: the documented defaults (:mod:`trajopt.rl.hyperparams`) as a point of :data:`SPACES`: the first trial
+DEFAULT_PARAMS: dict[str, dict[str, Any]] = {
+    "ppo": {"n_steps_total": 1024, "batch_size": 64, "n_epochs": 10, "learning_rate": 3e-4, "one_minus_gamma": 0.01,
+            "one_minus_gae_lambda": 0.05, "clip_range": 0.2, "ent_coef": 1e-8, "max_grad_norm": 0.5,
+            "log_std_init": 0.0, "net_arch": "small", "activation_fn": "tanh"},
+    "sac": {"learning_rate": 3e-4, "batch_size": 256, "one_minus_gamma": 0.01, "tau": 0.005, "train_freq": 1,
+            "net_arch": "medium"},
+}
+
+
+def _check_algo(algo: str) -> str:
+    if not isinstance(algo, str) or algo.lower() not in ALGOS:
+        raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
+    return algo.lower()
+
+
+def sample_hyperparams(trial, algo: str) -> dict[str, Any]:
+    """The parameters of :data:`SPACES` ``[algo]`` drawn by an Optuna ``trial`` (a dict of their values)."""
+    params: dict[str, Any] = {}
+    for name, (how, *range_) in SPACES[_check_algo(algo)].items():
+        if how == "choice":
+            params[name] = trial.suggest_categorical(name, list(range_[0]))
+        else:
+            params[name] = trial.suggest_float(name, range_[0], range_[1], log=how == "log")
+    return params
+
+
+def hyperparams_of(params: dict[str, Any], algo: str, *, n_envs: int = SUITE_N_ENVS,
+                   timesteps: int = SUITE_TIMESTEPS) -> dict[str, Any]:
+    """The Stable-Baselines3 keywords of a point of :data:`SPACES` (``params``): the documented
+    defaults with the drawn values in their place. ``activation_fn`` stays a name ("tanh", "relu"),
+    which :func:`trajopt.rl.training.train` turns into the PyTorch module (and ``--hp`` can
+    say). ValueError naming a parameter that is missing or not of the space."""
+    algo = _check_algo(algo)
+    space = SPACES[algo]
+    if set(params) != set(space):
+        raise ValueError(f"{algo} parameters must be exactly {sorted(space)}; missing "
+                         f"{sorted(set(space) - set(params))}, unknown {sorted(set(params) - set(space))}")
+    hp = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
+    width = _WIDTHS[algo][params["net_arch"]]
+    p = dict(params)
+    hp["gamma"] = 1.0 - float(p.pop("one_minus_gamma"))
+    hp["learning_rate"] = float(p.pop("learning_rate"))
+    hp["batch_size"] = int(p.pop("batch_size"))
+    if algo == "ppo":
+        total = int(p.pop("n_steps_total"))
+        hp["n_steps"] = max(total // max(int(n_envs), 1), 16)
+        hp["batch_size"] = min(hp["batch_size"], hp["n_steps"] * max(int(n_envs), 1))
+        hp["gae_lambda"] = 1.0 - float(p.pop("one_minus_gae_lambda"))
+        hp["n_epochs"] = int(p.pop("n_epochs"))
+        hp["clip_range"] = float(p.pop("clip_range"))
+        hp["ent_coef"] = float(p.pop("ent_coef"))
+        hp["max_grad_norm"] = float(p.pop("max_grad_norm"))
+        hp["policy_kwargs"] = dict(net_arch=dict(pi=[width, width], vf=[width, width]),
+                                   log_std_init=float(p.pop("log_std_init")), activation_fn=p.pop("activation_fn"))
+    else:
+        hp["tau"] = float(p.pop("tau"))
+        hp["train_freq"] = hp["gradient_steps"] = int(p.pop("train_freq"))
+        hp["policy_kwargs"] = dict(net_arch=[width, width])
+    p.pop("net_arch")
+    assert not p, p                                  # every parameter of the space is used
+    return hp
+
+
+def hp_overrides(hp: dict[str, Any], algo: str, *, n_envs: int = SUITE_N_ENVS,
+                 timesteps: int = SUITE_TIMESTEPS) -> list[str]:
+    """The ``KEY=VALUE`` overrides (``trajopt rl train --hp``) of ``hp`` that differ from the defaults."""
+    base = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
+    out = []
+    for key, value in hp.items():
+        if base.get(key) != value:
+            text = ("dict(" + ", ".join(f"{k}={v!r}" for k, v in value.items()) + ")") if isinstance(value, dict) \
+                else repr(value)
+            out.append(f"{key}={text}")
+    return out
+
+
+def _counted(study) -> int:
+    """Trials that count towards the budget: finished, scored or failed with an error (one
+    stopped by Ctrl-C or a kill does not count)."""
+    from optuna.trial import TrialState
+    return sum(t.state == TrialState.COMPLETE or (t.state == TrialState.FAIL and "error" in t.user_attrs)
+               for t in study.get_trials(deepcopy=False))
+
+
+def _storage(out: Path):
+    """The study's SQLite storage, with the heartbeat that finds a trial cut short and tries it again
+    (Optuna calls the heartbeat experimental: its warning is silenced here, where it is meant)."""
+    import warnings
+    import optuna
+    from optuna.storages import RDBStorage, RetryHeartbeatStaleTrialCallback
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        return RDBStorage(f"sqlite:///{(out / STUDY_DB).resolve()}", heartbeat_interval=_HEARTBEAT_S,
+                          grace_period=_GRACE_S,
+                          heartbeat_stale_trial_callback=RetryHeartbeatStaleTrialCallback(max_retry=3),
+                          engine_kwargs={"connect_args": {"timeout": 60}})
+
+
+def _study_name(env: str, algo: str) -> str:
+    return f"{env}_{algo}"
+
+
+def _objective(trial, env: str, algo: str, out: Path, timesteps: int, n_envs: int, episodes: int | None) -> float:
+    from ..tasks.play import policy_on_task
+    from .training import train
+    params = sample_hyperparams(trial, algo)
+    hp = hyperparams_of(params, algo, n_envs=n_envs, timesteps=timesteps)
+    t0 = time.perf_counter()
+    try:
+        run = train(env, algo, timesteps=timesteps, seed=TUNING_SEED, out=out / "trials",
+                    name=f"trial_{trial.number:04d}", n_envs=n_envs, vec_env="dummy", max_episode_steps=None,
+                    hyperparams=hp, checkpoint_every=timesteps, progress_bar=False, overwrite=True)
+        if run.status != "done":                    # stopped (Ctrl-C, SIGTERM): so is the study; the trial
+            import signal                            # is marked failed and does not count
+            from ..hardware.signals import Terminated
+            raise KeyboardInterrupt if run.signal in (None, signal.SIGINT) else Terminated(run.signal)
+        ev = policy_on_task(run.run_dir, episodes=episodes, first_seed=EVAL_FIRST_SEED)
+    except ValueError as exc:                       # a diverging choice (NaN in the networks): failed, counted
+        trial.set_user_attr("error", f"{type(exc).__name__}: {exc}"[:500])
+        raise
+    trial.set_user_attr("wall_time_s", time.perf_counter() - t0)
+    trial.set_user_attr("success_rate", float(ev["success_rate"]))
+    trial.set_user_attr("episode_scores", [float(e["score"]) for e in ev["episodes"]])
+    trial.set_user_attr("score_unit", ev["score_unit"])
+    trial.set_user_attr("score_name", ev["score_name"])
+    return float(ev["score"])
+
+
+def _worker(env: str, algo: str, out: str, trials: int, timesteps: int, n_envs: int, episodes: int | None,
+            seed: int) -> None:
+    """One process of a study: trials until ``trials`` are counted (:func:`_counted`); ``seed``
+    seeds its TPE sampler (each worker its own)."""
+    import optuna
+    from soft_envs.envs.threads import limit_threads
+    limit_threads()
+    out = Path(out)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = optuna.load_study(study_name=_study_name(env, algo), storage=_storage(out),
+                              sampler=optuna.samplers.TPESampler(seed=seed))
+    while _counted(study) < trials:
+        study.optimize(lambda t: _objective(t, env, algo, out, timesteps, n_envs, episodes), n_trials=1,
+                       catch=(ValueError,), callbacks=[lambda s, t: _write_summary(s, env, algo, out, timesteps,
+                                                                                   n_envs)])
+
+
+def tune(env: str, algo: str = "ppo", *, trials: int = 20, out: str | os.PathLike | None = None,
+         workers: int = 1, timesteps: int = SUITE_TIMESTEPS, n_envs: int = SUITE_N_ENVS,
+         episodes: int | None = None, seed: int = 0) -> dict[str, Any]:
+    """Tune ``algo`` on the task id ``env`` (the module docstring says how): ``trials`` trials in
+    ``workers`` processes, in ``out`` (default ``results/tuning/ENV_ALGO``; an existing study there
+    goes on). Returns :func:`tuning_summary` (also in ``out/tuning.json``). ``episodes``:
+    evaluation episodes per trial (default the suite's). A study made with other settings
+    (budget, environments) in ``out`` is refused rather than mixed."""
+    import optuna
+    from soft_envs import TASK_ENV_IDS
+    algo = _check_algo(algo)
+    if env not in TASK_ENV_IDS:
+        raise ValueError(f"env must be a task id ({sorted(TASK_ENV_IDS)[0]}, ...; docs/tasks.md), got {env!r}")
+    for name, value, low in (("trials", trials, 1), ("workers", workers, 1), ("timesteps", timesteps, 1),
+                             ("n_envs", n_envs, 1), ("episodes", 1 if episodes is None else episodes, 1)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    out = Path(out) if out is not None else TUNING_DIR / _study_name(env, algo)
+    out.mkdir(parents=True, exist_ok=True)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    settings = {"env_id": env, "algo": algo, "timesteps": timesteps, "n_envs": n_envs, "seed": TUNING_SEED,
+                "eval_first_seed": EVAL_FIRST_SEED, "episodes": episodes}
+    study = optuna.create_study(study_name=_study_name(env, algo), storage=_storage(out), direction="maximize",
+                                load_if_exists=True)
+    old = study.user_attrs.get("settings")
+    if old is None:
+        study.set_user_attr("settings", settings)
+        study.enqueue_trial(DEFAULT_PARAMS[algo], user_attrs={"defaults": True})
+    elif old != settings:
+        raise ValueError(f"{out / STUDY_DB}: a study made with {old}, not {settings}; choose another --out")
+    else:                       # trials left running by a process that died: failed, and queued again
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            optuna.storages.fail_stale_trials(study)
+    args = (env, algo, str(out), trials, timesteps, n_envs, episodes)
+    if workers == 1:
+        _worker(*args, seed)
+    else:
+        _run_workers([(*args, seed + k) for k in range(workers)])
+    study = optuna.load_study(study_name=_study_name(env, algo), storage=_storage(out))
+    return _write_summary(study, env, algo, out, timesteps, n_envs)
+
+
+class TuningWorkerError(RuntimeError):
+    """A worker process of a study ended with an error (printed by the worker); the study is kept."""
+
+
+def _worker_main(parent: int, args: tuple) -> None:
+    from ..workers import start_worker
+    start_worker(parent)
+    _worker(*args)
+
+
+def _run_workers(jobs: list[tuple]) -> None:
+    """:func:`_worker` of each of ``jobs`` in its own process; Ctrl-C (or any error here) ends
+    them all (their trials in progress are tried again when the study goes on)."""
+    import multiprocessing
+    ctx = multiprocessing.get_context("spawn")
+    procs = [ctx.Process(target=_worker_main, args=(os.getpid(), job), name=f"tune-{k}") for k, job in enumerate(jobs)]
+    try:
+        for p in procs:
+            p.start()
+        for p in procs:
+            p.join()
+    finally:
+        for p in procs:
+            if p.is_alive():
+                p.terminate()
+        for p in procs:
+            p.join()
+    failed = [p.name for p in procs if p.exitcode not in (0, None)]
+    if failed:
+        raise TuningWorkerError(f"tuning workers {failed} ended with exit codes "
+                           f"{[p.exitcode for p in procs if p.name in failed]} (their error is printed above)")
+
+
+def tuning_summary(study, env: str, algo: str, timesteps: int, n_envs: int) -> dict[str, Any]:
+    """What a study found: each trial (number, state, parameters, Stable-Baselines3 keywords,
+    score, wall time, error), the defaults' trial, the best one and its ``--hp`` overrides."""
+    from optuna.trial import TrialState
+    from .hyperparams import jsonable
+    rows = []
+    for t in study.get_trials(deepcopy=False):
+        if t.state == TrialState.WAITING:
+            continue
+        row = {"number": t.number, "state": t.state.name, "params": t.params,
+               "score": t.value if t.state == TrialState.COMPLETE else None,
+               "defaults": bool(t.user_attrs.get("defaults")), **{k: v for k, v in t.user_attrs.items()
+                                                                   if k != "defaults"}}
+        if set(t.params) == set(SPACES[algo]):
+            row["hyperparams"] = jsonable(hyperparams_of(t.params, algo, n_envs=n_envs, timesteps=timesteps))
+        rows.append(row)
+    done = [r for r in rows if r["score"] is not None]
+    best = max(done, key=lambda r: r["score"], default=None)
+    defaults = next((r for r in done if r["defaults"]), None)
+    summary = {**study.user_attrs.get("settings", {}), "n_finished": len(done), "trials": rows,
+               "defaults": defaults, "best": best, "score_unit": best and best.get("score_unit"),
+               "hp_overrides": hp_overrides(hyperparams_of(best["params"], algo, n_envs=n_envs, timesteps=timesteps),
+                                            algo, n_envs=n_envs, timesteps=timesteps) if best else []}
+    return summary
+
+
+def _write_summary(study, env: str, algo: str, out: Path, timesteps: int, n_envs: int) -> dict[str, Any]:
+    from ..results.files import atomic_write_bytes
+    summary = tuning_summary(study, env, algo, timesteps, n_envs)
+    atomic_write_bytes(out / SUMMARY, json.dumps(summary, indent=1).encode())
+    return summary
