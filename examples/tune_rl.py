@@ -33,9 +33,10 @@ def main() -> None:
     summary = tune("SoftTripodWalk-v0", "ppo", out=OUT, **STUDY)
     # 2. What it found, best first, and the command that trains with the best.
     print(tuning_text(summary))
-    gain = summary["best"]["score"] - summary["defaults"]["score"]
-    print(f"best minus the defaults: {gain:+.3f} {summary['score_unit']} (one training seed each: "
-          "train the best with seeds 0-2 before believing it)")
+    if summary["best"] and summary["defaults"]:
+        gain = summary["best"]["score"] - summary["defaults"]["score"]
+        print(f"best minus the defaults: {gain:+.3f} {summary['score_unit']} (one training seed each: "
+              "train the best with seeds 0-2 before believing it)")
     print(f"wrote {OUT}/tuning.json")
 
 

@@ -55,7 +55,6 @@ QUICK_ARGS = {
                               "--keyframes", "2", "--cycles", "1"],
     ("trajopt", "evaluate"): ["--cycles", "1"],
     ("trajopt", "render"): ["--cycles", "1", "--every", "4"],
-    ("trajopt", "rl", "tune"): ["--trials", "1", "--timesteps", "256", "--episodes", "1"],
     ("trajopt", "rl", "train"): ["--timesteps", "64", "--n-envs", "1", "--hp", "n_steps=32", "--hp", "batch_size=32"],
     ("trajopt", "sweep"): ["--quick"],
     ("trajopt", "robustness"): ["--samples", "2", "--cycles", "1"],

@@ -68,6 +68,10 @@ def test_points_outside_the_space_are_refused():
         hyperparams_of({**DEFAULT_PARAMS["sac"], "n_epochs": 3}, "sac")
     with pytest.raises(ValueError, match="algo must be one of"):
         hyperparams_of(DEFAULT_PARAMS["ppo"], "td3")
+    with pytest.raises(ValueError, match=r"net_arch must be one of \['small', 'medium'\], got 'big'"):
+        hyperparams_of({**DEFAULT_PARAMS["ppo"], "net_arch": "big"}, "ppo")
+    with pytest.raises(ValueError, match=r"learning_rate must be in \[0.0001, 0.003\], got 0.1"):
+        hyperparams_of({**DEFAULT_PARAMS["sac"], "learning_rate": 0.1}, "sac")
 
 
 def test_the_overrides_train_with_the_point():
@@ -105,9 +109,13 @@ def test_a_study_scores_the_defaults_first_and_goes_on(tmp_path):
     ev = policy_on_task(out / "trials" / "trial_0001", episodes=1, first_seed=EVAL_FIRST_SEED)
     assert ev["episodes"][0]["seed"] == EVAL_FIRST_SEED and ev["score"] == pytest.approx(s["trials"][1]["score"])
 
-    # the same study again: the two kept, one more made
+    # the same study again: the two kept, one more made, not a draw made before
     s3 = tune(ID, "ppo", trials=3, out=out, **TINY)
     assert s3["n_finished"] == 3 and s3["trials"][:2] == s["trials"]
+    assert s3["trials"][2]["params"] not in [t["params"] for t in s["trials"]]
+    # another algorithm's study in the same folder: refused
+    with pytest.raises(ValueError, match=f"holds the study {ID}_ppo, not {ID}_sac"):
+        tune(ID, "sac", trials=1, out=out, **TINY)
     # other settings in the same folder: refused, nothing changed
     before = (out / "tuning.json").read_bytes()
     with pytest.raises(ValueError, match="a study made with"):
@@ -164,5 +172,43 @@ def test_a_study_of_two_workers(tmp_path):
     numbers = [t["number"] for t in s["trials"] if t["state"] == "COMPLETE"]
     assert 3 <= len(numbers) <= 4 and len(set(numbers)) == len(numbers)
     params = [json.dumps(t["params"], sort_keys=True) for t in s["trials"]]
-    assert len(set(params)) == len(params)
+    assert len(set(params)) == len(params) and sum(t["defaults"] for t in s["trials"]) == 1
     assert np.isfinite([t["score"] for t in s["trials"] if t["score"] is not None]).all()
+
+
+def test_a_trial_stopped_by_ctrl_c_is_queued_again(tmp_path, monkeypatch):
+    """Ctrl-C during trial 0 (the defaults) stops the study; going on runs the defaults again."""
+    import trajopt.rl.training as training
+    real = training.train
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(training, "train", interrupted)
+    out = tmp_path / "s"
+    with pytest.raises(KeyboardInterrupt):
+        tune(ID, "ppo", trials=1, out=out, **TINY)
+    monkeypatch.setattr(training, "train", real)
+    s = tune(ID, "ppo", trials=1, out=out, **TINY)
+    assert [t["state"] for t in s["trials"]] == ["FAIL", "COMPLETE"] and "error" not in s["trials"][0]
+    assert s["defaults"]["number"] == 1 and s["trials"][1]["params"] == DEFAULT_PARAMS["ppo"]
+
+
+def test_a_diverging_trial_counts_and_other_errors_stop_the_study(tmp_path, monkeypatch, capsys):
+    import trajopt.rl.training as training
+
+    def diverges(*args, **kwargs):
+        raise ValueError("Expected parameter loc (Tensor of shape (2, 2)) of distribution Normal(...) to satisfy "
+                         "the constraint Real(), but found invalid values: tensor([[nan, nan]])")
+    monkeypatch.setattr(training, "train", diverges)
+    s = tune(ID, "ppo", trials=2, out=tmp_path / "s", **TINY)
+    assert [t["state"] for t in s["trials"]] == ["FAIL", "FAIL"] and s["n_finished"] == 0 and s["best"] is None
+    assert all(t["error"].startswith("training diverged: Expected parameter loc") for t in s["trials"])
+    assert main(["rl", "tune", ID, "--trials", "2", "--timesteps", "256", "--episodes", "1",
+                 "--out", str(tmp_path / "s")]) == 1
+    assert "no trial was scored" in capsys.readouterr().err
+
+    def bug(*args, **kwargs):
+        raise ValueError("some other mistake")
+    monkeypatch.setattr(training, "train", bug)
+    with pytest.raises(ValueError, match="some other mistake"):
+        tune(ID, "ppo", trials=1, out=tmp_path / "t", **TINY)

@@ -262,8 +262,11 @@ def _cmd_tune(args) -> int:
         return 1
     if args.json:
         print(json.dumps(summary, indent=1))
-        return 0
-    print(tuning_text(summary))
+    else:
+        print(tuning_text(summary))
+    if summary["best"] is None:
+        print("trajopt: error: no trial was scored (each one's error is listed)", file=sys.stderr)
+        return 1
     return 0
 
 

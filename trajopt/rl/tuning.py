@@ -28,16 +28,21 @@ and ranges are in :data:`SPACES`.
 enqueued; PPO's ``ent_coef`` 0 is drawn as the range's floor, 1e-8), so the study says what tuning
 gains over them.
 
-**Sampler and stopping:** Optuna's TPE, seeded with ``seed``. No pruning: a trial's score exists
+**Sampler and stopping:** Optuna's TPE (the defaults and 9 random trials, then TPE), seeded from
+``seed``, the worker's number and the trials already made. No pruning: a trial's score exists
 only once the policy is trained and played (an evaluation during training would cost a tenth of
 the budget each time). The study stops when ``trials`` trials have finished, scored or failed
-with an error (a hyper-parameter choice whose training diverges, ``ValueError``); several
-``workers`` (processes) share the study, so the last ones may finish ``workers - 1`` more.
+(:class:`TrainingDiverged`: a choice whose training diverges to NaN); several ``workers``
+(processes) share the study, so the last ones may finish ``workers - 1`` more. Any other error
+stops the study (the trial stays failed and does not count).
 
-**Resuming:** the study lives in ``out/study.db`` (SQLite). The same command with the same ``out``
-goes on where it stopped: the finished trials are kept; a trial stopped by Ctrl-C is marked
-failed and does not count, and one whose process was killed (a kill, a power cut) is found by
-Optuna's heartbeat, marked failed and tried again with its parameters.
+**Resuming:** the study lives in ``out/study.db`` (SQLite; one study per folder: another id or
+algorithm there is refused, and so are other settings). The same command with the same ``out``
+goes on where it stopped: the finished trials are kept; a trial stopped by Ctrl-C or SIGTERM is
+marked failed and its parameters are queued again; one whose process was killed outright (SIGKILL,
+a power cut) is found by Optuna's heartbeat when the study goes on, three minutes after its last
+beat, and queued again the same way. Worker processes take the next trial under a file lock
+(``out/study.lock``): SQLite cannot lock a row, and two could take the same trial.
 ``out/tuning.json`` is written (atomically) after every trial: each trial's parameters and score,
 the defaults', the best, and the ``--hp`` overrides that train with the best (``trajopt rl train
 ID --hp ...``).
@@ -50,9 +55,11 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .hyperparams import ALGOS, SUITE_N_ENVS, SUITE_TIMESTEPS, default_hyperparams
 
-__all__ = ["TuningWorkerError", "SPACES", "DEFAULT_PARAMS", "TUNING_SEED", "EVAL_FIRST_SEED", "TUNING_DIR", "sample_hyperparams",
+__all__ = ["TuningWorkerError", "TrainingDiverged", "SPACES", "DEFAULT_PARAMS", "TUNING_SEED", "EVAL_FIRST_SEED", "TUNING_DIR", "sample_hyperparams",
            "hyperparams_of", "tune", "tuning_summary", "hp_overrides"]
 
 #: training seed of every trial (the suite's runs use 0, 1, 2)
@@ -62,7 +69,7 @@ EVAL_FIRST_SEED = 100
 #: where studies go by default (one folder per id and algorithm)
 TUNING_DIR = Path("results/tuning")
 #: SQLite file of the study, and the summary, inside ``out``
-STUDY_DB, SUMMARY = "study.db", "tuning.json"
+STUDY_DB, SUMMARY, LOCK = "study.db", "tuning.json", "study.lock"
 #: seconds between a running trial's heartbeats; one silent for ``_GRACE_S`` was cut short
 _HEARTBEAT_S, _GRACE_S = 60, 180
 
@@ -126,12 +133,19 @@ def hyperparams_of(params: dict[str, Any], algo: str, *, n_envs: int = SUITE_N_E
     """The Stable-Baselines3 keywords of a point of :data:`SPACES` (``params``): the documented
     defaults with the drawn values in their place. ``activation_fn`` stays a name ("tanh", "relu"),
     which :func:`trajopt.rl.training.train` turns into the PyTorch module (and ``--hp`` can
-    say). ValueError naming a parameter that is missing or not of the space."""
+    say). ValueError naming a parameter that is missing, unknown or outside its range."""
     algo = _check_algo(algo)
     space = SPACES[algo]
     if set(params) != set(space):
         raise ValueError(f"{algo} parameters must be exactly {sorted(space)}; missing "
                          f"{sorted(set(space) - set(params))}, unknown {sorted(set(params) - set(space))}")
+    for name, (how, *range_) in space.items():
+        v = params[name]
+        inside = (v in range_[0]) if how == "choice" else (
+            isinstance(v, (int, float, np.number)) and not isinstance(v, bool) and range_[0] <= v <= range_[1])
+        if not inside:
+            where = f"one of {list(range_[0])}" if how == "choice" else f"in [{range_[0]:g}, {range_[1]:g}]"
+            raise ValueError(f"{algo} parameter {name} must be {where}, got {v!r}")
     hp = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
     width = _WIDTHS[algo][params["net_arch"]]
     p = dict(params)
@@ -197,7 +211,17 @@ def _study_name(env: str, algo: str) -> str:
     return f"{env}_{algo}"
 
 
-def _objective(trial, env: str, algo: str, out: Path, timesteps: int, n_envs: int, episodes: int | None) -> float:
+class TrainingDiverged(Exception):
+    """A trial's hyper-parameters made training diverge (NaN in the networks) or its score is not a
+    number: the trial failed, and counts."""
+
+
+class TuningWorkerError(RuntimeError):
+    """A worker process of a study ended with an error (printed by the worker); the study is kept."""
+
+
+def _objective(trial, env: str, algo: str, out: Path, timesteps: int, n_envs: int, episodes: int) -> float:
+    """Train with the trial's hyper-parameters and score the policy (the module docstring)."""
     from ..tasks.play import policy_on_task
     from .training import train
     params = sample_hyperparams(trial, algo)
@@ -207,14 +231,19 @@ def _objective(trial, env: str, algo: str, out: Path, timesteps: int, n_envs: in
         run = train(env, algo, timesteps=timesteps, seed=TUNING_SEED, out=out / "trials",
                     name=f"trial_{trial.number:04d}", n_envs=n_envs, vec_env="dummy", max_episode_steps=None,
                     hyperparams=hp, checkpoint_every=timesteps, progress_bar=False, overwrite=True)
-        if run.status != "done":                    # stopped (Ctrl-C, SIGTERM): so is the study; the trial
-            import signal                            # is marked failed and does not count
-            from ..hardware.signals import Terminated
-            raise KeyboardInterrupt if run.signal in (None, signal.SIGINT) else Terminated(run.signal)
-        ev = policy_on_task(run.run_dir, episodes=episodes, first_seed=EVAL_FIRST_SEED)
-    except ValueError as exc:                       # a diverging choice (NaN in the networks): failed, counted
-        trial.set_user_attr("error", f"{type(exc).__name__}: {exc}"[:500])
-        raise
+    except ValueError as exc:
+        if "invalid values" not in str(exc):        # torch's distributions refusing NaN parameters
+            raise
+        trial.set_user_attr("error", f"training diverged: {exc}"[:500])
+        raise TrainingDiverged(str(exc)) from exc
+    if run.status != "done":                        # stopped (Ctrl-C, SIGTERM): so is the study
+        import signal
+        from ..hardware.signals import Terminated
+        raise KeyboardInterrupt if run.signal in (None, signal.SIGINT) else Terminated(run.signal)
+    ev = policy_on_task(run.run_dir, episodes=episodes, first_seed=EVAL_FIRST_SEED)
+    if not np.isfinite(ev["score"]):
+        trial.set_user_attr("error", f"score {ev['score']}")
+        raise TrainingDiverged(f"score {ev['score']}")
     trial.set_user_attr("wall_time_s", time.perf_counter() - t0)
     trial.set_user_attr("success_rate", float(ev["success_rate"]))
     trial.set_user_attr("episode_scores", [float(e["score"]) for e in ev["episodes"]])
@@ -223,21 +252,111 @@ def _objective(trial, env: str, algo: str, out: Path, timesteps: int, n_envs: in
     return float(ev["score"])
 
 
-def _worker(env: str, algo: str, out: str, trials: int, timesteps: int, n_envs: int, episodes: int | None,
-            seed: int) -> None:
-    """One process of a study: trials until ``trials`` are counted (:func:`_counted`); ``seed``
-    seeds its TPE sampler (each worker its own)."""
+class _StudyLock:
+    """A lock on ``out/study.lock`` shared by a study's processes: SQLite ignores ``SELECT ... FOR
+    UPDATE``, so two processes taking the next queued trial, or failing a stale one, at the same
+    moment could take the same; under this lock only one does at a time. (POSIX ``flock``; where
+    there is none, a study has one worker.)"""
+
+    def __init__(self, out: Path) -> None:
+        self._file = open(out / LOCK, "a+")         # noqa: SIM115 - held for the process's study
+        self._held = False
+
+    def acquire(self) -> None:
+        import fcntl
+        fcntl.flock(self._file, fcntl.LOCK_EX)
+        self._held = True
+
+    def release(self) -> None:
+        if self._held:
+            import fcntl
+            fcntl.flock(self._file, fcntl.LOCK_UN)
+            self._held = False
+
+    def __enter__(self) -> "_StudyLock":
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+    def close(self) -> None:
+        self.release()
+        self._file.close()
+
+
+def _queue_again(study, trial) -> None:
+    """A trial stopped by Ctrl-C or SIGTERM: failed (if Optuna has not marked it), and its
+    parameters queued again (as the defaults' when they were)."""
+    from optuna.trial import TrialState
+    frozen = next(t for t in study.get_trials(deepcopy=False) if t.number == trial.number)
+    if frozen.state == TrialState.RUNNING:
+        study.tell(trial, state=TrialState.FAIL)
+    if frozen.params:
+        study.enqueue_trial(frozen.params, user_attrs={"defaults": True} if frozen.user_attrs.get("defaults")
+                            else {"again_of": frozen.number})
+
+
+def _worker(env: str, algo: str, out: str, trials: int, timesteps: int, n_envs: int, episodes: int,
+            seed: int, k: int) -> None:
+    """One process of a study: trials until ``trials`` are counted (:func:`_counted`). Its TPE
+    sampler is seeded from ``seed``, the worker's number ``k`` and the trials already in the study
+    (a study that goes on does not draw its first trials again)."""
     import optuna
-    from soft_envs.envs.threads import limit_threads
-    limit_threads()
+    from ..hardware.signals import Terminated
     out = Path(out)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    study = optuna.load_study(study_name=_study_name(env, algo), storage=_storage(out),
-                              sampler=optuna.samplers.TPESampler(seed=seed))
-    while _counted(study) < trials:
-        study.optimize(lambda t: _objective(t, env, algo, out, timesteps, n_envs, episodes), n_trials=1,
-                       catch=(ValueError,), callbacks=[lambda s, t: _write_summary(s, env, algo, out, timesteps,
-                                                                                   n_envs)])
+    lock = _StudyLock(out)
+    try:
+        with lock:
+            study = optuna.load_study(study_name=_study_name(env, algo), storage=_storage(out))
+            entropy = [int(seed), int(k), len(study.get_trials(deepcopy=False))]
+        study.sampler = optuna.samplers.TPESampler(seed=int(np.random.SeedSequence(entropy).generate_state(1)[0]))
+        current: dict[str, Any] = {}
+
+        def objective(trial) -> float:
+            lock.release()                          # the trial is taken: the others may take theirs
+            current["trial"] = trial
+            return _objective(trial, env, algo, out, timesteps, n_envs, episodes)
+
+        while _counted(study) < trials:
+            current.clear()
+            lock.acquire()                          # held while Optuna fails stale trials and takes the next
+            try:
+                study.optimize(objective, n_trials=1, catch=(TrainingDiverged,),
+                               callbacks=[lambda s, t: _write_summary(s, env, algo, out, timesteps, n_envs)])
+            except (KeyboardInterrupt, Terminated):
+                if "trial" in current:
+                    lock.release()
+                    with lock:
+                        _queue_again(study, current["trial"])
+                raise
+            finally:
+                lock.release()
+    finally:
+        lock.close()
+
+
+def _settings(study, env: str, algo: str, out: Path, settings: dict[str, Any]) -> None:
+    """A new study gets ``settings`` and the defaults queued; an existing one must have the same
+    settings (ValueError otherwise), gets its stale trials failed (and queued again) and the
+    defaults queued again if their trial was lost (stopped before it was scored)."""
+    import warnings
+    import optuna
+    from optuna.trial import TrialState
+    old = study.user_attrs.get("settings")
+    if old is not None and old != settings:
+        raise ValueError(f"{out / STUDY_DB}: a study made with {old}, not {settings}; choose another --out")
+    if old is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            optuna.storages.fail_stale_trials(study)
+    kept = (TrialState.COMPLETE, TrialState.RUNNING, TrialState.WAITING)
+    if not any(t.user_attrs.get("defaults") and (t.state in kept or "error" in t.user_attrs)
+               for t in study.get_trials(deepcopy=False)):
+        study.enqueue_trial(DEFAULT_PARAMS[algo], user_attrs={"defaults": True})
+    if old is None:
+        study.set_user_attr("settings", settings)
 
 
 def tune(env: str, algo: str = "ppo", *, trials: int = 20, out: str | os.PathLike | None = None,
@@ -246,57 +365,72 @@ def tune(env: str, algo: str = "ppo", *, trials: int = 20, out: str | os.PathLik
     """Tune ``algo`` on the task id ``env`` (the module docstring says how): ``trials`` trials in
     ``workers`` processes, in ``out`` (default ``results/tuning/ENV_ALGO``; an existing study there
     goes on). Returns :func:`tuning_summary` (also in ``out/tuning.json``). ``episodes``:
-    evaluation episodes per trial (default the suite's). A study made with other settings
-    (budget, environments) in ``out`` is refused rather than mixed."""
+    evaluation episodes per trial (default the suite's, :func:`trajopt.tasks.scores.default_episodes`);
+    ``seed`` seeds the TPE samplers. A study in ``out`` made with other settings (id, algorithm,
+    budget, environments, episodes) is refused rather than mixed; so is bad input, before
+    anything is written."""
     import optuna
     from soft_envs import TASK_ENV_IDS
+    from ..tasks.scores import default_episodes
     algo = _check_algo(algo)
     if env not in TASK_ENV_IDS:
         raise ValueError(f"env must be a task id ({sorted(TASK_ENV_IDS)[0]}, ...; docs/tasks.md), got {env!r}")
+    episodes = default_episodes() if episodes is None else episodes
     for name, value, low in (("trials", trials, 1), ("workers", workers, 1), ("timesteps", timesteps, 1),
-                             ("n_envs", n_envs, 1), ("episodes", 1 if episodes is None else episodes, 1)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                             ("n_envs", n_envs, 1), ("episodes", episodes, 1), ("seed", seed, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    if workers > 1:
+        try:
+            import fcntl  # noqa: F401
+        except ImportError:
+            raise ValueError("workers > 1 needs POSIX file locks (fcntl), which this system lacks") from None
     out = Path(out) if out is not None else TUNING_DIR / _study_name(env, algo)
+    settings = {"env_id": env, "algo": algo, "timesteps": int(timesteps), "n_envs": int(n_envs),
+                "seed": TUNING_SEED, "eval_first_seed": EVAL_FIRST_SEED, "episodes": int(episodes)}
+    if (out / STUDY_DB).exists():                   # another id or algorithm's study: refused, untouched
+        others = set(optuna.get_all_study_names(_storage(out))) - {_study_name(env, algo)}
+        if others:
+            raise ValueError(f"{out / STUDY_DB} holds the study {sorted(others)[0]}, not {_study_name(env, algo)}; "
+                             "choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    settings = {"env_id": env, "algo": algo, "timesteps": timesteps, "n_envs": n_envs, "seed": TUNING_SEED,
-                "eval_first_seed": EVAL_FIRST_SEED, "episodes": episodes}
-    study = optuna.create_study(study_name=_study_name(env, algo), storage=_storage(out), direction="maximize",
-                                load_if_exists=True)
-    old = study.user_attrs.get("settings")
-    if old is None:
-        study.set_user_attr("settings", settings)
-        study.enqueue_trial(DEFAULT_PARAMS[algo], user_attrs={"defaults": True})
-    elif old != settings:
-        raise ValueError(f"{out / STUDY_DB}: a study made with {old}, not {settings}; choose another --out")
-    else:                       # trials left running by a process that died: failed, and queued again
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            optuna.storages.fail_stale_trials(study)
-    args = (env, algo, str(out), trials, timesteps, n_envs, episodes)
+    lock = _StudyLock(out)
+    try:
+        with lock:
+            study = optuna.create_study(study_name=_study_name(env, algo), storage=_storage(out),
+                                        direction="maximize", load_if_exists=True)
+            _settings(study, env, algo, out, settings)
+    finally:
+        lock.close()
+    args = (env, algo, str(out), int(trials), int(timesteps), int(n_envs), int(episodes), int(seed))
     if workers == 1:
-        _worker(*args, seed)
+        _worker(*args, 0)
     else:
-        _run_workers([(*args, seed + k) for k in range(workers)])
+        _run_workers([(*args, k) for k in range(workers)])
     study = optuna.load_study(study_name=_study_name(env, algo), storage=_storage(out))
     return _write_summary(study, env, algo, out, timesteps, n_envs)
 
 
-class TuningWorkerError(RuntimeError):
-    """A worker process of a study ended with an error (printed by the worker); the study is kept."""
-
-
 def _worker_main(parent: int, args: tuple) -> None:
+    """A worker process: it ends with its parent, takes SIGTERM as the CLI does (the trial in
+    progress is queued again) and leaves the computing threads at one."""
+    import sys
+    from soft_envs.envs.threads import limit_threads
+    from ..hardware.signals import COMMAND_SIGNALS, StopSignals, Terminated
     from ..workers import start_worker
     start_worker(parent)
-    _worker(*args)
+    limit_threads()
+    try:
+        with StopSignals(signals=COMMAND_SIGNALS):
+            _worker(*args)
+    except Terminated as exc:
+        sys.exit(128 + exc.signum)
 
 
 def _run_workers(jobs: list[tuple]) -> None:
-    """:func:`_worker` of each of ``jobs`` in its own process; Ctrl-C (or any error here) ends
-    them all (their trials in progress are tried again when the study goes on)."""
+    """:func:`_worker` of each of ``jobs`` in its own process. Ctrl-C (or any error here) ends
+    them all with SIGTERM; each queues its trial in progress again."""
     import multiprocessing
     ctx = multiprocessing.get_context("spawn")
     procs = [ctx.Process(target=_worker_main, args=(os.getpid(), job), name=f"tune-{k}") for k, job in enumerate(jobs)]
@@ -314,7 +448,7 @@ def _run_workers(jobs: list[tuple]) -> None:
     failed = [p.name for p in procs if p.exitcode not in (0, None)]
     if failed:
         raise TuningWorkerError(f"tuning workers {failed} ended with exit codes "
-                           f"{[p.exitcode for p in procs if p.name in failed]} (their error is printed above)")
+                                f"{[p.exitcode for p in procs if p.name in failed]} (their error is printed above)")
 
 
 def tuning_summary(study, env: str, algo: str, timesteps: int, n_envs: int) -> dict[str, Any]:
