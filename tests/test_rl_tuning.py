@@ -16,7 +16,7 @@ pytest.importorskip("stable_baselines3")
 optuna = pytest.importorskip("optuna")
 
 from trajopt.cli import main  # noqa: E402
-from trajopt.rl import tuning  # noqa: E402
+from trajopt.rl.tuning import study as tuning_study  # noqa: E402
 from trajopt.rl.hyperparams import default_hyperparams, parse_overrides  # noqa: E402
 from trajopt.rl.training import sb3_keywords, train  # noqa: E402
 from trajopt.rl.tuning import (DEFAULT_PARAMS, EVAL_FIRST_SEED, SPACES, TUNING_SEED, hp_overrides,  # noqa: E402
@@ -127,11 +127,11 @@ def test_a_study_scores_the_defaults_first_and_goes_on(tmp_path):
 def test_a_trial_cut_short_is_tried_again_with_its_parameters(tmp_path, monkeypatch):
     """A trial whose process died (its heartbeat stopped) is marked failed when the study goes on,
     and a copy of it, with the same parameters, is run and scored."""
-    monkeypatch.setattr(tuning, "_HEARTBEAT_S", 1)
-    monkeypatch.setattr(tuning, "_GRACE_S", 1)
+    monkeypatch.setattr(tuning_study, "_HEARTBEAT_S", 1)
+    monkeypatch.setattr(tuning_study, "_GRACE_S", 1)
     out = tmp_path / "study"
     tune(ID, "sac", trials=1, out=out, **TINY)
-    study = optuna.load_study(study_name=f"{ID}_sac", storage=tuning._storage(out))
+    study = optuna.load_study(study_name=f"{ID}_sac", storage=tuning_study._storage(out))
     dead = study.ask()                                # a trial that starts, beats once and dies
     params = sample_hyperparams(dead, "sac")
     study._storage.record_heartbeat(dead._trial_id)
@@ -212,3 +212,40 @@ def test_a_diverging_trial_counts_and_other_errors_stop_the_study(tmp_path, monk
     monkeypatch.setattr(training, "train", bug)
     with pytest.raises(ValueError, match="some other mistake"):
         tune(ID, "ppo", trials=1, out=tmp_path / "t", **TINY)
+
+
+def test_the_best_is_checked_on_the_suite_seeds(tmp_path, capsys):
+    """check_best trains the best and the defaults with seeds 0.. and scores them as the suite does
+    (episodes from seed 0); a second check scores the runs made, without training them again."""
+    from trajopt.cli.rl import check_text
+    from trajopt.rl.tuning import check_best
+    from trajopt.tasks.play import policy_on_task
+    out = tmp_path / "s"
+    s = tune(ID, "ppo", trials=2, out=out, **TINY)
+    s["best"] = s["trials"][1]                       # whichever scored higher: the check is of trial 1
+    (out / "tuning.json").write_text(json.dumps(s))
+    c = check_best(out, seeds=1)
+    assert c["best"]["trial"] == 1 and c["defaults"]["trial"] == 0 and c["seeds"] == [0]
+    run = out / "check" / "best_seed0"
+    cfg = json.loads((run / "rl_config.json").read_text())
+    assert cfg["seed"] == 0 and cfg["hyperparams"] == s["trials"][1]["hyperparams"] and cfg["timesteps_done"] >= 256
+    assert c["best"]["scores"] == [pytest.approx(policy_on_task(run)["score"])]
+    assert c["difference"] == pytest.approx(c["best"]["mean"] - c["defaults"]["mean"])
+    assert json.loads((out / "check.json").read_text()) == json.loads(json.dumps(c))
+    made = (run / "model.zip").stat().st_mtime_ns
+    assert check_best(out, seeds=1)["best"]["scores"] == c["best"]["scores"]
+    assert (run / "model.zip").stat().st_mtime_ns == made
+    assert "best minus the defaults" in check_text(c)
+    # the defaults as the best: nothing to check
+    s["best"] = s["trials"][0]
+    (out / "tuning.json").write_text(json.dumps(s))
+    assert check_best(out, seeds=1)["note"] == "the defaults are the study's best"
+    # no study, or a bad summary: refused, naming the file
+    with pytest.raises(ValueError, match="no study here"):
+        check_best(tmp_path / "none")
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "tuning.json").write_text("{")
+    with pytest.raises(ValueError, match=r"bad/tuning.json: not a study's summary"):
+        check_best(tmp_path / "bad")
+    with pytest.raises(ValueError, match="seeds must be"):
+        check_best(out, seeds=0)

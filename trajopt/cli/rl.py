@@ -114,7 +114,11 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
                    help="evaluation episodes per trial (default the suite's 3)")
     p.add_argument("--seed", type=SEED, default=0, help="seed of the TPE sampler (worker k: SEED + k)")
     p.add_argument("--out", type=output_dir, default=None, help="study folder (default results/tuning/ID_ALGO)")
-    p.add_argument("--json", action="store_true", help="print the study's summary as JSON")
+    p.add_argument("--check", type=positive_int, default=None, metavar="N",
+                   help="then train the best and the defaults with the suite's seeds 0..N-1 and score them as the "
+                        "suite does (out/check/, out/check.json): does the best beat the defaults on seeds it was "
+                        "not chosen on?")
+    p.add_argument("--json", action="store_true", help="print the study's summary (and the check) as JSON")
     p.set_defaults(func=_cmd_tune)
     return rl
 
@@ -251,23 +255,44 @@ def _cmd_tune(args) -> int:
     except ImportError:
         print("trajopt: error: trajopt rl tune needs Optuna: pip install soft-envs[tune]", file=sys.stderr)
         return 2
-    from ..rl.tuning import TuningWorkerError, tune
+    from ..rl.tuning import TUNING_DIR, TuningWorkerError, check_best, tune
+    out = args.out or TUNING_DIR / f"{args.env}_{args.algo}"
     try:
-        summary = tune(args.env, args.algo, trials=args.trials, out=args.out, workers=args.workers,
+        summary = tune(args.env, args.algo, trials=args.trials, out=out, workers=args.workers,
                        timesteps=args.timesteps or SUITE_TIMESTEPS, episodes=args.episodes, seed=args.seed)
+        check = None
+        if args.check and summary["best"] is not None:
+            check = check_best(out, seeds=args.check, workers=args.workers)
     except MissingRLDependencies as exc:
         return _missing(exc)
     except TuningWorkerError as exc:
         print(f"trajopt: error: {exc}; the same command goes on with the study", file=sys.stderr)
         return 1
     if args.json:
-        print(json.dumps(summary, indent=1))
+        print(json.dumps({**summary, "check": check}, indent=1))
     else:
         print(tuning_text(summary))
+        if check is not None:
+            print(check_text(check))
     if summary["best"] is None:
         print("trajopt: error: no trial was scored (each one's error is listed)", file=sys.stderr)
         return 1
     return 0
+
+
+def check_text(check: dict) -> str:
+    """The best and the defaults on the suite's seeds (:func:`trajopt.rl.tuning.check_best`)."""
+    unit = check.get("score_unit") or ""
+    if check["best"] is None:
+        return f"check: {check['note']}: nothing to check"
+    lines = [f"check on the suite's seeds {', '.join(map(str, check['seeds']))} (the suite's evaluation):"]
+    for label in ("best", "defaults"):
+        side = check[label]
+        lines.append(f"  {label:8s} (trial {side['trial']}): {' '.join(f'{v:+.3f}' for v in side['scores'])}  "
+                     f"mean {side['mean']:+.3f} +- {side['std']:.3f} {unit}")
+    lines.append(f"  best minus the defaults: {check['difference']:+.3f} {unit}; higher on {check['wins']} of "
+                 f"{len(check['seeds'])} seeds")
+    return "\n".join(lines)
 
 
 def tuning_text(summary: dict) -> str:

@@ -1,52 +1,5 @@
-"""Tuning the RL baseline's hyper-parameters on a task id: an Optuna study.
-
-    trajopt rl tune SoftTripodWalk-v0 --algo ppo --trials 20 --workers 2
-    # -> results/tuning/SoftTripodWalk-v0_ppo/: study.db, tuning.json, trials/trial_0000 ...
-
-**A trial** trains ``algo`` on the id the way the suite does (examples/suite.toml: :data:`SUITE_TIMESTEPS`
-environment steps, :data:`SUITE_N_ENVS` environments stepped in one process, the registered
-300-step episodes; :func:`trajopt.rl.training.train`) with hyper-parameters drawn by
-:func:`sample_hyperparams`. Its value is the task's own score of the trained policy
-(:func:`trajopt.tasks.play.policy_on_task`, the suite's evaluation: deterministic, 3 episodes).
-Higher is better for every task's score.
-
-**Held out:** the trials train with seed :data:`TUNING_SEED` and are scored on the episodes seeded
-from :data:`EVAL_FIRST_SEED`, not the suite's training seeds 0-2 and evaluation episodes 0-2. The
-best of N trials on one seed is an optimistic figure; the suite's runs made with the tuned
-values are an independent measure of them.
-
-**Search space:** rl_zoo3's (``rl_zoo3.hyperparams_opt``: the same parameters, the discount and the
-learning rate log-uniform as ``1 - gamma`` and ``lr``), with ranges narrowed to budgets of
-10^4-10^5 steps on a CPU: PPO collects at most 2048 transitions per update (rl_zoo3's 4096 per
-environment would leave 3 updates in 30k steps) and takes batches of at least 32 (rl_zoo3's 4
-would cost hours of gradient steps per trial); SAC keeps one gradient step per vector step of
-``train_freq`` and the baseline's 1000 warm-up steps. PPO also draws its initial action noise
-(``log_std_init``): with 30 updates it matters (RL Zoo's tuned MuJoCo files set it). The names
-and ranges are in :data:`SPACES`.
-
-**The first trial is the documented defaults** (:func:`~trajopt.rl.hyperparams.default_hyperparams`,
-enqueued; PPO's ``ent_coef`` 0 is drawn as the range's floor, 1e-8), so the study says what tuning
-gains over them.
-
-**Sampler and stopping:** Optuna's TPE (the defaults and 9 random trials, then TPE), seeded from
-``seed``, the worker's number and the trials already made. No pruning: a trial's score exists
-only once the policy is trained and played (an evaluation during training would cost a tenth of
-the budget each time). The study stops when ``trials`` trials have finished, scored or failed
-(:class:`TrainingDiverged`: a choice whose training diverges to NaN); several ``workers``
-(processes) share the study, so the last ones may finish ``workers - 1`` more. Any other error
-stops the study (the trial stays failed and does not count).
-
-**Resuming:** the study lives in ``out/study.db`` (SQLite; one study per folder: another id or
-algorithm there is refused, and so are other settings). The same command with the same ``out``
-goes on where it stopped: the finished trials are kept; a trial stopped by Ctrl-C or SIGTERM is
-marked failed and its parameters are queued again; one whose process was killed outright (SIGKILL,
-a power cut) is found by Optuna's heartbeat when the study goes on, three minutes after its last
-beat, and queued again the same way. Worker processes take the next trial under a file lock
-(``out/study.lock``): SQLite cannot lock a row, and two could take the same trial.
-``out/tuning.json`` is written (atomically) after every trial: each trial's parameters and score,
-the defaults', the best, and the ``--hp`` overrides that train with the best (``trajopt rl train
-ID --hp ...``).
-"""
+"""The tuning study itself (:mod:`trajopt.rl.tuning`): trials, the SQLite storage shared by the
+worker processes, going on after a stop, and the summary (``tuning.json``)."""
 from __future__ import annotations
 
 import json
@@ -57,10 +10,11 @@ from typing import Any
 
 import numpy as np
 
-from .hyperparams import ALGOS, SUITE_N_ENVS, SUITE_TIMESTEPS, default_hyperparams
+from ..hyperparams import SUITE_N_ENVS, SUITE_TIMESTEPS
+from .space import DEFAULT_PARAMS, SPACES, check_algo, hp_overrides, hyperparams_of, sample_hyperparams
 
-__all__ = ["TuningWorkerError", "TrainingDiverged", "SPACES", "DEFAULT_PARAMS", "TUNING_SEED", "EVAL_FIRST_SEED", "TUNING_DIR", "sample_hyperparams",
-           "hyperparams_of", "tune", "tuning_summary", "hp_overrides"]
+__all__ = ["TuningWorkerError", "TrainingDiverged", "TUNING_SEED", "EVAL_FIRST_SEED", "TUNING_DIR", "STUDY_DB",
+           "SUMMARY", "tune", "tuning_summary"]
 
 #: training seed of every trial (the suite's runs use 0, 1, 2)
 TUNING_SEED = 100
@@ -72,117 +26,6 @@ TUNING_DIR = Path("results/tuning")
 STUDY_DB, SUMMARY, LOCK = "study.db", "tuning.json", "study.lock"
 #: seconds between a running trial's heartbeats; one silent for ``_GRACE_S`` was cut short
 _HEARTBEAT_S, _GRACE_S = 60, 180
-
-#: the search space per algorithm: name -> ("log", low, high) | ("float", low, high) | ("choice", options)
-SPACES: dict[str, dict[str, tuple]] = {
-    "ppo": {
-        "n_steps_total": ("choice", (256, 512, 1024, 2048)),      # transitions per update, all environments
-        "batch_size": ("choice", (32, 64, 128, 256)),
-        "n_epochs": ("choice", (5, 10, 20)),
-        "learning_rate": ("log", 1e-4, 3e-3),
-        "one_minus_gamma": ("log", 1e-3, 5e-2),
-        "one_minus_gae_lambda": ("log", 1e-2, 2e-1),
-        "clip_range": ("choice", (0.1, 0.2, 0.3)),
-        "ent_coef": ("log", 1e-8, 1e-2),
-        "max_grad_norm": ("float", 0.3, 2.0),
-        "log_std_init": ("float", -2.0, 0.5),
-        "net_arch": ("choice", ("small", "medium")),
-        "activation_fn": ("choice", ("tanh", "relu")),
-    },
-    "sac": {
-        "learning_rate": ("log", 1e-4, 3e-3),
-        "batch_size": ("choice", (64, 128, 256, 512)),
-        "one_minus_gamma": ("log", 1e-3, 5e-2),
-        "tau": ("log", 1e-3, 5e-2),
-        "train_freq": ("choice", (1, 2, 4, 8)),                 # gradient_steps the same: one per vector step
-        "net_arch": ("choice", ("small", "medium", "big")),
-    },
-}
-#: network widths of the ``net_arch`` choices (two hidden layers)
-_WIDTHS = {"ppo": {"small": 64, "medium": 256}, "sac": {"small": 64, "medium": 128, "big": 256}}
-
-#: the documented defaults (:mod:`trajopt.rl.hyperparams`) as a point of :data:`SPACES`: the first trial
-DEFAULT_PARAMS: dict[str, dict[str, Any]] = {
-    "ppo": {"n_steps_total": 1024, "batch_size": 64, "n_epochs": 10, "learning_rate": 3e-4, "one_minus_gamma": 0.01,
-            "one_minus_gae_lambda": 0.05, "clip_range": 0.2, "ent_coef": 1e-8, "max_grad_norm": 0.5,
-            "log_std_init": 0.0, "net_arch": "small", "activation_fn": "tanh"},
-    "sac": {"learning_rate": 3e-4, "batch_size": 256, "one_minus_gamma": 0.01, "tau": 0.005, "train_freq": 1,
-            "net_arch": "medium"},
-}
-
-
-def _check_algo(algo: str) -> str:
-    if not isinstance(algo, str) or algo.lower() not in ALGOS:
-        raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
-    return algo.lower()
-
-
-def sample_hyperparams(trial, algo: str) -> dict[str, Any]:
-    """The parameters of :data:`SPACES` ``[algo]`` drawn by an Optuna ``trial`` (a dict of their values)."""
-    params: dict[str, Any] = {}
-    for name, (how, *range_) in SPACES[_check_algo(algo)].items():
-        if how == "choice":
-            params[name] = trial.suggest_categorical(name, list(range_[0]))
-        else:
-            params[name] = trial.suggest_float(name, range_[0], range_[1], log=how == "log")
-    return params
-
-
-def hyperparams_of(params: dict[str, Any], algo: str, *, n_envs: int = SUITE_N_ENVS,
-                   timesteps: int = SUITE_TIMESTEPS) -> dict[str, Any]:
-    """The Stable-Baselines3 keywords of a point of :data:`SPACES` (``params``): the documented
-    defaults with the drawn values in their place. ``activation_fn`` stays a name ("tanh", "relu"),
-    which :func:`trajopt.rl.training.train` turns into the PyTorch module (and ``--hp`` can
-    say). ValueError naming a parameter that is missing, unknown or outside its range."""
-    algo = _check_algo(algo)
-    space = SPACES[algo]
-    if set(params) != set(space):
-        raise ValueError(f"{algo} parameters must be exactly {sorted(space)}; missing "
-                         f"{sorted(set(space) - set(params))}, unknown {sorted(set(params) - set(space))}")
-    for name, (how, *range_) in space.items():
-        v = params[name]
-        inside = (v in range_[0]) if how == "choice" else (
-            isinstance(v, (int, float, np.number)) and not isinstance(v, bool) and range_[0] <= v <= range_[1])
-        if not inside:
-            where = f"one of {list(range_[0])}" if how == "choice" else f"in [{range_[0]:g}, {range_[1]:g}]"
-            raise ValueError(f"{algo} parameter {name} must be {where}, got {v!r}")
-    hp = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
-    width = _WIDTHS[algo][params["net_arch"]]
-    p = dict(params)
-    hp["gamma"] = 1.0 - float(p.pop("one_minus_gamma"))
-    hp["learning_rate"] = float(p.pop("learning_rate"))
-    hp["batch_size"] = int(p.pop("batch_size"))
-    if algo == "ppo":
-        total = int(p.pop("n_steps_total"))
-        hp["n_steps"] = max(total // max(int(n_envs), 1), 16)
-        hp["batch_size"] = min(hp["batch_size"], hp["n_steps"] * max(int(n_envs), 1))
-        hp["gae_lambda"] = 1.0 - float(p.pop("one_minus_gae_lambda"))
-        hp["n_epochs"] = int(p.pop("n_epochs"))
-        hp["clip_range"] = float(p.pop("clip_range"))
-        hp["ent_coef"] = float(p.pop("ent_coef"))
-        hp["max_grad_norm"] = float(p.pop("max_grad_norm"))
-        hp["policy_kwargs"] = dict(net_arch=dict(pi=[width, width], vf=[width, width]),
-                                   log_std_init=float(p.pop("log_std_init")), activation_fn=p.pop("activation_fn"))
-    else:
-        hp["tau"] = float(p.pop("tau"))
-        hp["train_freq"] = hp["gradient_steps"] = int(p.pop("train_freq"))
-        hp["policy_kwargs"] = dict(net_arch=[width, width])
-    p.pop("net_arch")
-    assert not p, p                                  # every parameter of the space is used
-    return hp
-
-
-def hp_overrides(hp: dict[str, Any], algo: str, *, n_envs: int = SUITE_N_ENVS,
-                 timesteps: int = SUITE_TIMESTEPS) -> list[str]:
-    """The ``KEY=VALUE`` overrides (``trajopt rl train --hp``) of ``hp`` that differ from the defaults."""
-    base = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
-    out = []
-    for key, value in hp.items():
-        if base.get(key) != value:
-            text = ("dict(" + ", ".join(f"{k}={v!r}" for k, v in value.items()) + ")") if isinstance(value, dict) \
-                else repr(value)
-            out.append(f"{key}={text}")
-    return out
 
 
 def _counted(study) -> int:
@@ -222,8 +65,8 @@ class TuningWorkerError(RuntimeError):
 
 def _objective(trial, env: str, algo: str, out: Path, timesteps: int, n_envs: int, episodes: int) -> float:
     """Train with the trial's hyper-parameters and score the policy (the module docstring)."""
-    from ..tasks.play import policy_on_task
-    from .training import train
+    from ...tasks.play import policy_on_task
+    from ..training import train
     params = sample_hyperparams(trial, algo)
     hp = hyperparams_of(params, algo, n_envs=n_envs, timesteps=timesteps)
     t0 = time.perf_counter()
@@ -238,7 +81,7 @@ def _objective(trial, env: str, algo: str, out: Path, timesteps: int, n_envs: in
         raise TrainingDiverged(str(exc)) from exc
     if run.status != "done":                        # stopped (Ctrl-C, SIGTERM): so is the study
         import signal
-        from ..hardware.signals import Terminated
+        from ...hardware.signals import Terminated
         raise KeyboardInterrupt if run.signal in (None, signal.SIGINT) else Terminated(run.signal)
     ev = policy_on_task(run.run_dir, episodes=episodes, first_seed=EVAL_FIRST_SEED)
     if not np.isfinite(ev["score"]):
@@ -303,7 +146,7 @@ def _worker(env: str, algo: str, out: str, trials: int, timesteps: int, n_envs: 
     sampler is seeded from ``seed``, the worker's number ``k`` and the trials already in the study
     (a study that goes on does not draw its first trials again)."""
     import optuna
-    from ..hardware.signals import Terminated
+    from ...hardware.signals import Terminated
     out = Path(out)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     lock = _StudyLock(out)
@@ -371,8 +214,8 @@ def tune(env: str, algo: str = "ppo", *, trials: int = 20, out: str | os.PathLik
     anything is written."""
     import optuna
     from soft_envs import TASK_ENV_IDS
-    from ..tasks.scores import default_episodes
-    algo = _check_algo(algo)
+    from ...tasks.scores import default_episodes
+    algo = check_algo(algo)
     if env not in TASK_ENV_IDS:
         raise ValueError(f"env must be a task id ({sorted(TASK_ENV_IDS)[0]}, ...; docs/tasks.md), got {env!r}")
     episodes = default_episodes() if episodes is None else episodes
@@ -417,8 +260,8 @@ def _worker_main(parent: int, args: tuple) -> None:
     progress is queued again) and leaves the computing threads at one."""
     import sys
     from soft_envs.envs.threads import limit_threads
-    from ..hardware.signals import COMMAND_SIGNALS, StopSignals, Terminated
-    from ..workers import start_worker
+    from ...hardware.signals import COMMAND_SIGNALS, StopSignals, Terminated
+    from ...workers import start_worker
     start_worker(parent)
     limit_threads()
     try:
@@ -455,7 +298,7 @@ def tuning_summary(study, env: str, algo: str, timesteps: int, n_envs: int) -> d
     """What a study found: each trial (number, state, parameters, Stable-Baselines3 keywords,
     score, wall time, error), the defaults' trial, the best one and its ``--hp`` overrides."""
     from optuna.trial import TrialState
-    from .hyperparams import jsonable
+    from ..hyperparams import jsonable
     rows = []
     for t in study.get_trials(deepcopy=False):
         if t.state == TrialState.WAITING:
@@ -478,7 +321,7 @@ def tuning_summary(study, env: str, algo: str, timesteps: int, n_envs: int) -> d
 
 
 def _write_summary(study, env: str, algo: str, out: Path, timesteps: int, n_envs: int) -> dict[str, Any]:
-    from ..results.files import atomic_write_bytes
+    from ...results.files import atomic_write_bytes
     summary = tuning_summary(study, env, algo, timesteps, n_envs)
     atomic_write_bytes(out / SUMMARY, json.dumps(summary, indent=1).encode())
     return summary
