@@ -164,6 +164,8 @@ def test_the_command(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["n_finished"] == 1
     assert main(["rl", "tune", "SoftTripod-v2", "--out", str(tmp_path / "t")]) == 2
     assert "must be a task id" in capsys.readouterr().err
+    assert main(["rl", "tune", ID, "--out", str(out), "--adopt"]) == 2
+    assert "--adopt needs --check N" in capsys.readouterr().err
 
 
 def test_a_study_of_two_workers(tmp_path):
@@ -249,3 +251,85 @@ def test_the_best_is_checked_on_the_suite_seeds(tmp_path, capsys):
         check_best(tmp_path / "bad")
     with pytest.raises(ValueError, match="seeds must be"):
         check_best(out, seeds=0)
+
+
+def _table(**changes):
+    table = {"study": ID, "trials": 20, "trial": 7, "study_score": 19.0, "defaults_score": 18.0, "check_seeds": [0, 1, 2],
+             "check_best_mean": 19.5, "check_defaults_mean": 18.1, "score_unit": "BL/min",
+             "params": {**DEFAULT_PARAMS["ppo"], "learning_rate": 1e-3, "activation_fn": "relu"}}
+    table.update(changes)
+    return table
+
+
+def test_tuned_values_are_used_on_the_robot_s_task_ids_only(tmp_path, monkeypatch):
+    from trajopt.rl.tuning import tuned
+    path = tmp_path / "tuned.toml"
+    assert tuned.read_tuned(path) == {}                          # no file: the defaults everywhere
+    path.write_text(tuned.tuned_text({("ppo", "tripod"): _table()}))
+    assert tuned.read_tuned(path)[("ppo", "tripod")] == _table()
+    hp, source = tuned.task_hyperparams("ppo", "SoftTripodClimbStep-v0", n_envs=2, timesteps=30_000, path=path)
+    assert hp["learning_rate"] == 1e-3 and hp["policy_kwargs"]["activation_fn"] == "relu"
+    assert source == f"tuned: tuned.toml [ppo.tripod] (study {ID}, trial 7)"
+    for algo, target in (("ppo", "SoftTripod-v2"), ("ppo", "SoftPuppyWalk-v0"), ("sac", "SoftTripodWalk-v0")):
+        hp, source = tuned.task_hyperparams(algo, target, n_envs=2, timesteps=30_000, path=path)
+        assert source == "defaults" and hp == default_hyperparams(algo, n_envs=2, timesteps=30_000)
+    # a run records where its values came from; the rl_zoo3 entry has them, the activation as rl_zoo3 writes it
+    monkeypatch.setattr(tuned, "TUNED_FILE", path)
+    run = train(ID, "ppo", timesteps=64, out=tmp_path / "runs", name="r", n_envs=1, vec_env="dummy",
+                progress_bar=False, hyperparams={"n_steps": 32, "batch_size": 32, "n_epochs": 1})
+    assert run.config["hyperparams"]["learning_rate"] == 1e-3
+    assert run.config["hyperparams_source"] == (f"tuned: tuned.toml [ppo.tripod] (study {ID}, trial 7), with "
+                                                "batch_size, n_epochs, n_steps given")
+    from trajopt.rl.zoo import zoo_entry
+    entry = zoo_entry("ppo", "SoftTripodCarry-v0")
+    assert entry["learning_rate"] == 1e-3 and "activation_fn=nn.ReLU" in entry["policy_kwargs"]
+    assert zoo_entry("ppo", "SoftPuppyCarry-v0")["learning_rate"] == 3e-4
+
+
+@pytest.mark.parametrize("text, match", [
+    ("[td3.tripod]\n", r"\[td3\] must be one of"),
+    ("[ppo.snake]\n", r"\[ppo.snake\]: the robot must be one of"),
+    ("[ppo.tripod]\nstudy = 3\n", r"\[ppo.tripod\]: study must be a str, got 3"),
+    ("[ppo.tripod\n", r"tuned.toml: "),
+])
+def test_a_bad_tuned_file_is_refused_naming_the_table(tmp_path, text, match):
+    from trajopt.rl.tuning import tuned
+    path = tmp_path / "tuned.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        tuned.read_tuned(path)
+    path.write_text(tuned.tuned_text({("ppo", "tripod"): _table(params={**DEFAULT_PARAMS["ppo"], "n_epochs": 7})}))
+    with pytest.raises(ValueError, match=r"\[ppo.tripod\]: params: ppo parameter n_epochs must be one of"):
+        tuned.read_tuned(path)
+
+
+def test_the_best_is_adopted_only_when_it_beat_the_defaults_on_the_suite_seeds(tmp_path):
+    from trajopt.rl.tuning import tuned
+    from trajopt.rl.tuning.adopt import adopt
+    out, path = tmp_path / "study", tmp_path / "tuned.toml"
+    out.mkdir()
+    defaults = {"number": 0, "score": 18.0, "params": DEFAULT_PARAMS["ppo"], "defaults": True}
+    best = {"number": 5, "score": 19.0, "params": _table()["params"], "defaults": False}
+    (out / "tuning.json").write_text(json.dumps({"env_id": ID, "algo": "ppo", "timesteps": 30000, "n_envs": 2,
+                                                 "trials": [defaults, best], "n_finished": 20, "best": best,
+                                                 "defaults": defaults, "score_unit": "BL/min"}))
+    with pytest.raises(ValueError, match="not checked yet"):
+        adopt(out, path)
+
+    def check(trial, difference):
+        (out / "check.json").write_text(json.dumps({"seeds": [0, 1, 2], "difference": difference,
+                                                    "best": {"trial": trial, "mean": 18.0 + difference},
+                                                    "defaults": {"trial": 0, "mean": 18.0}}))
+    check(4, 1.0)
+    with pytest.raises(ValueError, match=r"checks trial 4, not the study's best \(trial 5\)"):
+        adopt(out, path)
+    check(5, -0.2)
+    with pytest.raises(ValueError, match="the defaults stay"):
+        adopt(out, path)
+    assert not path.exists()
+    path.write_text(tuned.tuned_text({("sac", "puppy"): _table(study="SoftPuppyWalk-v0",
+                                                                params=DEFAULT_PARAMS["sac"])}))
+    check(5, 0.7)
+    table = adopt(out, path)
+    assert table["trial"] == 5 and table["check_best_mean"] == 18.7 and table["params"] == best["params"]
+    assert set(tuned.read_tuned(path)) == {("ppo", "tripod"), ("sac", "puppy")}      # the other table kept

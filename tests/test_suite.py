@@ -17,7 +17,7 @@ import pytest
 import soft_envs
 from soft_envs import TASK_ENV_IDS, TASK_IDS_BY_TASK
 from soft_envs import TASKS as ALL_TASKS
-from trajopt.rl.hyperparams import ALGOS, SUITE_N_ENVS, SUITE_TIMESTEPS, default_hyperparams, vecnormalize_kwargs
+from trajopt.rl.hyperparams import ALGOS, SUITE_N_ENVS, SUITE_TIMESTEPS, vecnormalize_kwargs
 from trajopt.tasks import ENV_TASKS, get_task
 from trajopt.tasks.scores import SCORES, _episode_score
 
@@ -306,8 +306,11 @@ def test_rl_zoo3_loads_every_id_with_its_own_loader(algo, tmp_path):
     from rl_zoo3.exp_manager import ExperimentManager
     from trajopt.rl.envs import DropHorizontalPosition
     from trajopt.rl.zoo import ZOO_DIR, zoo_ids
-    want = default_hyperparams(algo, n_envs=SUITE_N_ENVS, timesteps=SUITE_TIMESTEPS)
+    from trajopt.rl.training import sb3_keywords
+    from trajopt.rl.tuning.tuned import task_hyperparams
     for env_id in zoo_ids():
+        # what trajopt rl train uses on the id: the robot's tuned values on a task id, where adopted
+        want = sb3_keywords(task_hyperparams(algo, env_id, n_envs=SUITE_N_ENVS, timesteps=SUITE_TIMESTEPS)[0])
         em = ExperimentManager(argparse.Namespace(), algo, env_id, str(tmp_path), config=str(ZOO_DIR / f"{algo}.yml"),
                                verbose=0)
         hp, _ = em.read_hyperparameters()

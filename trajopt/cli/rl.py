@@ -118,6 +118,10 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
                    help="then train the best and the defaults with the suite's seeds 0..N-1 and score them as the "
                         "suite does (out/check/, out/check.json): does the best beat the defaults on seeds it was "
                         "not chosen on?")
+    p.add_argument("--adopt", action="store_true",
+                   help="with --check: if the best beat the defaults on the suite's seeds, make it the robot's tuned "
+                        "values for the algorithm (trajopt/rl/zoo/tuned.toml, used on every task id of the robot) and "
+                        "write the rl_zoo3 files again")
     p.add_argument("--json", action="store_true", help="print the study's summary (and the check) as JSON")
     p.set_defaults(func=_cmd_tune)
     return rl
@@ -256,6 +260,10 @@ def _cmd_tune(args) -> int:
         print("trajopt: error: trajopt rl tune needs Optuna: pip install soft-envs[tune]", file=sys.stderr)
         return 2
     from ..rl.tuning import TUNING_DIR, TuningWorkerError, check_best, tune
+    if args.adopt and not args.check:
+        print("trajopt: error: --adopt needs --check N (the best is adopted only if it beats the defaults on the "
+              "suite's seeds)", file=sys.stderr)
+        return 2
     out = args.out or TUNING_DIR / f"{args.env}_{args.algo}"
     try:
         summary = tune(args.env, args.algo, trials=args.trials, out=out, workers=args.workers,
@@ -277,6 +285,14 @@ def _cmd_tune(args) -> int:
     if summary["best"] is None:
         print("trajopt: error: no trial was scored (each one's error is listed)", file=sys.stderr)
         return 1
+    if args.adopt:
+        from ..rl.tuning.adopt import adopt
+        from ..rl.tuning.tuned import TUNED_FILE
+        from ..rl.zoo import write_zoo_files
+        table = adopt(out)                  # ValueError (exit 2) when the best did not beat the defaults
+        written = write_zoo_files()
+        print(f"adopted trial {table['trial']} for {args.algo.upper()} on every task id of its robot: {TUNED_FILE}; "
+              f"wrote {', '.join(str(w) for w in written)}", file=sys.stderr if args.json else sys.stdout)
     return 0
 
 

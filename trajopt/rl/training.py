@@ -29,7 +29,8 @@ from typing import Any
 from ..hardware.signals import Terminated, signal_label, signal_of
 from . import require_sb3
 from .envs import TRAIN_HORIZON, env_id, make_env, robot_name, task_of
-from .hyperparams import ALGOS, default_hyperparams, jsonable, vecnormalize_kwargs
+from .hyperparams import ALGOS, jsonable, vecnormalize_kwargs
+from .tuning.tuned import task_hyperparams
 
 __all__ = ["train", "TrainRun", "CONFIG_NAME", "MODEL_NAME", "VECNORM_NAME", "write_config",
            "checkpoint_steps", "sb3_keywords", "ACTIVATIONS"]
@@ -94,7 +95,9 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     ``n_envs``: parallel environments (default ``os.cpu_count()``); ``vec_env``: "subproc",
     "dummy" or "auto" (subprocesses when ``n_envs > 1``). ``env_kwargs`` go to ``gym.make``
     (e.g. ``incline_deg``, ``target_heading_deg``). ``hyperparams`` override
-    :func:`~trajopt.rl.hyperparams.default_hyperparams`. ``checkpoint_every``: environment steps
+    :func:`~trajopt.rl.tuning.tuned.task_hyperparams` (on a task id its robot's tuned values where
+    a study found better ones, else :func:`~trajopt.rl.hyperparams.default_hyperparams`; the run's
+    rl_config.json says which, ``hyperparams_source``). ``checkpoint_every``: environment steps
     between checkpoints (default: a tenth of the budget). ``torch_threads``: PyTorch CPU
     threads of the learner (1: the networks are tiny and the environment workers need the
     cores; ``None`` leaves PyTorch's default). Ctrl-C stops training and saves the model with
@@ -133,8 +136,11 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     env_kwargs.setdefault("contact", ENV_KWARGS[env_id(robot)]["contact"])
     if env_kwargs.get("substeps") is None:          # and its physics steps (the law's default)
         env_kwargs["substeps"] = int(CONTACT_LAWS[env_kwargs["contact"]].default_substeps)
-    hp = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
+    # a task id: its robot's tuned values where a study found better ones (trajopt/rl/zoo/tuned.toml)
+    hp, hp_source = task_hyperparams(algo, target, n_envs=n_envs, timesteps=timesteps)
     hp.update(hyperparams or {})
+    if hyperparams:
+        hp_source += f", with {', '.join(sorted(hyperparams))} given"
     sb3_keywords(hp)                                # an unknown activation name: refused before the run folder exists
     checkpoint_every = int(checkpoint_every or max(timesteps // 10, 1))
 
@@ -156,7 +162,7 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
         venv = VecNormalize(venv, **vn_kwargs)
         try:
             return _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_subproc, env_cfg,
-                          hp, vn_kwargs, checkpoint_every, frame_skip, progress_bar, verbose, log_stdout, callback)
+                          hp, hp_source, vn_kwargs, checkpoint_every, frame_skip, progress_bar, verbose, log_stdout, callback)
         finally:
             try:
                 venv.close()
@@ -189,7 +195,7 @@ def _save_atomically(model, venv, model_path: Path, vecnorm_path: Path) -> None:
         venv.save(str(tmp))
 
 
-def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_subproc, env_cfg, hp,
+def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_subproc, env_cfg, hp, hp_source,
            vn_kwargs, checkpoint_every, frame_skip, progress_bar, verbose, log_stdout, callback) -> TrainRun:
     import torch
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
@@ -199,7 +205,8 @@ def _train(venv, robot, algo, timesteps, seed, run_dir, ckpt_dir, n_envs, use_su
         "robot": robot, "env_id": env_id(env_cfg["robot"]), "task": task_of(env_cfg["robot"]),
         "algo": algo, "timesteps": timesteps,
         "seed": int(seed), "n_envs": n_envs, "vec_env": "subproc" if use_subproc else "dummy",
-        "env": env_cfg, "hyperparams": hp, "vecnormalize": vn_kwargs,
+        "env": env_cfg, "hyperparams": hp, "hyperparams_source": hp_source,
+        "vecnormalize": vn_kwargs,
         "checkpoint_every": checkpoint_every, "status": "running",
         "sb3_version": require_sb3().__version__, "torch_version": torch.__version__,
     }

@@ -2,8 +2,10 @@
 
 rl_zoo3 reads ``hyperparams/<algo>.yml`` from its own package unless given ``--conf-file``; these
 files (``trajopt/rl/zoo/ppo.yml``, ``sac.yml``) hold, for every task id (``SoftTripodWalk-v0`` ...)
-and every robot id (``SoftTripod-v2`` ...), the values of :mod:`trajopt.rl.hyperparams` (the one
-source: :func:`zoo_entry`, and a test that the shipped files are what it writes), in rl_zoo3's
+and every robot id (``SoftTripod-v2`` ...), the values ``trajopt rl train`` uses: on a task id its
+robot's tuned values where a study found better ones (``trajopt/rl/zoo/tuned.toml``,
+:mod:`trajopt.rl.tuning.tuned`), else those of :mod:`trajopt.rl.hyperparams` (the one source:
+:func:`zoo_entry`, and a test that the shipped files are what it writes), in rl_zoo3's
 format: ``n_envs``, ``n_timesteps``, ``policy``, ``normalize`` (the ``VecNormalize`` keywords as a
 Python string), ``policy_kwargs`` as a string, ``env_wrapper`` (the baseline's
 :class:`~trajopt.rl.envs.DropHorizontalPosition`) and, for the robot ids, the baseline's episode
@@ -13,14 +15,16 @@ length (``env_kwargs``)::
     python -m rl_zoo3.train --algo ppo --env SoftTripodClimbStep-v0 --gym-packages soft_envs \\
         --conf-file trajopt/rl/zoo/ppo.yml
 
-``python -m trajopt.rl.zoo`` writes the files again (after a change of the hyper-parameters).
+``python -m trajopt.rl.zoo`` writes the files again (after a change of the hyper-parameters;
+``trajopt rl tune --adopt`` does it itself).
 """
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
-from .hyperparams import ALGOS, SUITE_N_ENVS, SUITE_TIMESTEPS, default_hyperparams, vecnormalize_kwargs
+from .hyperparams import ALGOS, SUITE_N_ENVS, SUITE_TIMESTEPS, vecnormalize_kwargs
+from .tuning.tuned import task_hyperparams
 
 __all__ = ["ZOO_DIR", "zoo_ids", "zoo_entry", "zoo_text", "write_zoo_files"]
 
@@ -44,27 +48,44 @@ def _python(value: Any) -> str:
 
 
 def zoo_entry(algo: str, env_id: str) -> dict[str, Any]:
-    """rl_zoo3's hyper-parameters of ``env_id`` for ``algo``: :func:`default_hyperparams` with the
+    """rl_zoo3's hyper-parameters of ``env_id`` for ``algo``: :func:`~trajopt.rl.tuning.tuned.task_hyperparams`
+    (on a task id, its robot's tuned values where a study found better ones) with the
     suite's ``n_envs`` and budget, the normalisation of :func:`vecnormalize_kwargs`, the baseline's
     observation wrapper and, on a robot id, its episode length (task ids keep their own)."""
     from soft_envs import TASK_ENV_IDS
     from .envs import TRAIN_HORIZON
-    hp = default_hyperparams(algo, n_envs=SUITE_N_ENVS, timesteps=SUITE_TIMESTEPS)
+    hp, _ = task_hyperparams(algo, env_id, n_envs=SUITE_N_ENVS, timesteps=SUITE_TIMESTEPS)
     vn = vecnormalize_kwargs(algo, hp.get("gamma", 0.99))
     entry: dict[str, Any] = {"n_envs": SUITE_N_ENVS, "n_timesteps": float(SUITE_TIMESTEPS), "policy": "MlpPolicy",
                              "normalize": _python(vn), "env_wrapper": "trajopt.rl.envs.DropHorizontalPosition"}
     if env_id not in TASK_ENV_IDS:
         entry["env_kwargs"] = {"max_episode_steps": TRAIN_HORIZON}
     for key, value in hp.items():
-        entry[key] = _python(value) if key == "policy_kwargs" else value
+        entry[key] = _python(_zoo_activation(value)) if key == "policy_kwargs" else value
     return entry
+
+
+class _Code(str):
+    """Python source rl_zoo3 evaluates as it is (``nn.ReLU``: its hyper-parameter files' way)."""
+
+    def __repr__(self) -> str:
+        return str(self)
+
+
+def _zoo_activation(policy_kwargs: dict[str, Any]) -> dict[str, Any]:
+    """``activation_fn`` named (``"relu"``) as rl_zoo3 writes it (``nn.ReLU``, evaluated with torch.nn as nn)."""
+    from .training import ACTIVATIONS
+    act = policy_kwargs.get("activation_fn")
+    if isinstance(act, str):
+        return {**policy_kwargs, "activation_fn": _Code(f"nn.{ACTIVATIONS[act]}")}
+    return policy_kwargs
 
 
 def _yaml(value: Any) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float):
-        return f"!!float {value:g}"
+        return f"!!float {value!r}"                 # every digit: the values trajopt rl train uses
     if isinstance(value, int):
         return str(value)
     if isinstance(value, dict):

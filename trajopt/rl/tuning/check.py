@@ -74,9 +74,10 @@ def check_best(out: str | os.PathLike, *, seeds: int = 3, workers: int = 1) -> d
     """Train the study's best and the defaults in ``out`` with training seeds ``0 .. seeds-1`` and
     score them as the suite does (the module docstring), ``workers`` runs at a time. Returns (and
     writes to ``out/check.json``): per side (``best``, ``defaults``) the trial's number, each
-    seed's score, their mean and standard deviation; ``difference`` (best's mean minus the
-    defaults'), ``wins`` (seeds where the best scored higher) and ``score_unit``. When the defaults
-    are the best trial there is nothing to check: ``difference`` 0 and no runs."""
+    seed's score, their mean and standard deviation (the sample's, as the suite's ±);
+    ``difference`` (best's mean minus the defaults'), ``wins`` (seeds where the best scored
+    higher) and ``score_unit``. When the defaults are the best trial there is nothing to check:
+    ``difference`` 0 and no runs."""
     from ...results.files import atomic_write_bytes
     out = Path(out)
     for name, value in (("seeds", seeds), ("workers", workers)):
@@ -97,7 +98,8 @@ def check_best(out: str | os.PathLike, *, seeds: int = 3, workers: int = 1) -> d
         for label, trial in sides.items():
             scores = [r["score"] for lab, r in rows if lab == label]
             result[label] = {"trial": trial["number"], "runs": [r for lab, r in rows if lab == label],
-                             "scores": scores, "mean": float(np.mean(scores)), "std": float(np.std(scores))}
+                             "scores": scores, "mean": float(np.mean(scores)),
+                             "std": float(np.std(scores, ddof=1)) if len(scores) > 1 else 0.0}
         result["difference"] = result["best"]["mean"] - result["defaults"]["mean"]
         result["wins"] = int(sum(b > d for b, d in zip(result["best"]["scores"], result["defaults"]["scores"])))
     atomic_write_bytes(out / CHECK, json.dumps(result, indent=1).encode())

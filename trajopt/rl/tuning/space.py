@@ -67,7 +67,7 @@ def sample_hyperparams(trial, algo: str) -> dict[str, Any]:
 
 
 def hyperparams_of(params: dict[str, Any], algo: str, *, n_envs: int = SUITE_N_ENVS,
-                   timesteps: int = SUITE_TIMESTEPS) -> dict[str, Any]:
+                   timesteps: int | None = SUITE_TIMESTEPS) -> dict[str, Any]:
     """The Stable-Baselines3 keywords of a point of :data:`SPACES` (``params``): the documented
     defaults with the drawn values in their place. ``activation_fn`` stays a name ("tanh", "relu"),
     which :func:`trajopt.rl.training.train` turns into the PyTorch module (and ``--hp`` can
