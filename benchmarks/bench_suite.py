@@ -113,10 +113,10 @@ def other_hyperparams(run, folder: Path) -> str | None:
     from trajopt.rl.tuning.tuned import task_hyperparams
     try:
         cfg = json.loads((folder / "rl_config.json").read_text())
-        now, _ = task_hyperparams(cfg["algo"], cfg["env"]["robot"], n_envs=int(cfg["n_envs"]),
-                                  timesteps=int(cfg["timesteps"]))
-    except (OSError, ValueError, KeyError, TypeError):
+        algo, target, n_envs, timesteps = cfg["algo"], cfg["env"]["robot"], int(cfg["n_envs"]), int(cfg["timesteps"])
+    except (OSError, ValueError, KeyError, TypeError):          # unreadable: as a run not made
         return None
+    now, _ = task_hyperparams(algo, target, n_envs=n_envs, timesteps=timesteps)   # a bad tuned.toml: its error
     given = parse_hp(run.params.get("hp"))
     now.update(given)
     return None if jsonable(now) == jsonable(cfg.get("hyperparams")) else cfg.get("hyperparams_source", "defaults")
@@ -381,15 +381,14 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
                        (f"{c['success']:.0%}" if TASK_DOCS[task].success else "–") if c else "", f"{c['n']}/{c['planned']}" if c else f"0/{len(g['planned'])}",
                        f"{c['sim_steps']:,.0f}" if c else "", f"{c['wall']:.0f} s" if c else ""]
                 lines.append("| " + " | ".join(row) + " |")
-    stale = sorted({(robot, method) for (task, robot, method), g in groups.items()
-                    if (c := cell(g)) is not None and c["other_hp"]})
+    stale = [st for g in groups.values() for st in g["done"] if st.get("other_hp")]
     if stale:
-        which = ", ".join(f"{METHODS[m]} on the {r.capitalize()}" for r, m in stale)
-        lines += ["", f"† Made with the documented defaults: tuned values were adopted since for {which} "
-                  "(`trajopt/rl/zoo/tuned.toml`, docs/tasks.md \"Tuning the baselines\"), with which "
-                  "`trajopt rl train` and the suite now train on those ids. These rows are the defaults' until the "
-                  "runs are made again: move them aside (the sweep skips runs that are done) and run "
-                  "`python benchmarks/bench_suite.py`."]
+        sources = sorted({st["other_hp"] for st in stale})
+        lines += ["", f"† {len(stale)} runs were made with other hyper-parameters than `trajopt rl train` and the "
+                  f"suite use on their ids now ({'; '.join(sources)}: the robot's tuned values, "
+                  "`trajopt/rl/zoo/tuned.toml`, were adopted since, or the defaults changed; docs/tasks.md "
+                  "\"Tuning the baselines\"). A row marked † holds at least one of them. They are made again "
+                  "when moved aside (the sweep skips runs that are done) and `python benchmarks/bench_suite.py` runs."]
     lines += holds_summary(groups)
     lines += levels_table(groups)
     lines += ["", "## Open loop or closed loop", "",

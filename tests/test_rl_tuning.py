@@ -74,6 +74,20 @@ def test_points_outside_the_space_are_refused():
         hyperparams_of({**DEFAULT_PARAMS["sac"], "learning_rate": 0.1}, "sac")
 
 
+def test_the_overrides_are_of_what_train_starts_from_on_the_id(tmp_path, monkeypatch):
+    """With tuned values adopted for the robot, the ``--hp`` line of the defaults' point lists what
+    differs from the tuned values, and trains with the defaults."""
+    from trajopt.rl.tuning import tuned
+    path = tmp_path / "tuned.toml"
+    path.write_text(tuned.tuned_text({("ppo", "tripod"): _table()}))
+    monkeypatch.setattr(tuned, "TUNED_FILE", path)
+    base, _ = tuned.task_hyperparams("ppo", ID, n_envs=2, timesteps=30_000)
+    want = hyperparams_of(DEFAULT_PARAMS["ppo"], "ppo")
+    lines = hp_overrides(want, "ppo", base=base)
+    assert "learning_rate=0.0003" in lines and not any(x.startswith("n_steps=") for x in lines)
+    assert {**base, **parse_overrides(lines)} == want
+
+
 def test_the_overrides_train_with_the_point():
     """``--hp`` of :func:`hp_overrides`, parsed as ``trajopt rl train`` does, gives the point back."""
     for algo in ("ppo", "sac"):
@@ -288,6 +302,8 @@ def test_tuned_values_are_used_on_the_robot_s_task_ids_only(tmp_path, monkeypatc
 
 @pytest.mark.parametrize("text, match", [
     ("[td3.tripod]\n", r"\[td3\] must be one of"),
+    ("STUDY_PUPPY", r"\[ppo.tripod\]: study must be a task id of the tripod, got 'SoftPuppyWalk-v0'"),
+    ("SCORE_NAN", r"\[ppo.tripod\]: study_score must be finite, got nan"),
     ("[ppo.snake]\n", r"\[ppo.snake\]: the robot must be one of"),
     ("[ppo.tripod]\nstudy = 3\n", r"\[ppo.tripod\]: study must be a str, got 3"),
     ("[ppo.tripod\n", r"tuned.toml: "),
@@ -295,7 +311,8 @@ def test_tuned_values_are_used_on_the_robot_s_task_ids_only(tmp_path, monkeypatc
 def test_a_bad_tuned_file_is_refused_naming_the_table(tmp_path, text, match):
     from trajopt.rl.tuning import tuned
     path = tmp_path / "tuned.toml"
-    path.write_text(text)
+    bad = {"STUDY_PUPPY": _table(study="SoftPuppyWalk-v0"), "SCORE_NAN": _table(study_score=float("nan"))}.get(text)
+    path.write_text(tuned.tuned_text({("ppo", "tripod"): bad}) if bad else text)
     with pytest.raises(ValueError, match=match):
         tuned.read_tuned(path)
     path.write_text(tuned.tuned_text({("ppo", "tripod"): _table(params={**DEFAULT_PARAMS["ppo"], "n_epochs": 7})}))
@@ -315,6 +332,9 @@ def test_the_best_is_adopted_only_when_it_beat_the_defaults_on_the_suite_seeds(t
                                                  "defaults": defaults, "score_unit": "BL/min"}))
     with pytest.raises(ValueError, match="not checked yet"):
         adopt(out, path)
+    (out / "check.json").write_text("{}")
+    with pytest.raises(ValueError, match=r"check.json: not a check \(KeyError"):
+        adopt(out, path)
 
     def check(trial, difference):
         (out / "check.json").write_text(json.dumps({"seeds": [0, 1, 2], "difference": difference,
@@ -326,10 +346,89 @@ def test_the_best_is_adopted_only_when_it_beat_the_defaults_on_the_suite_seeds(t
     check(5, -0.2)
     with pytest.raises(ValueError, match="the defaults stay"):
         adopt(out, path)
+    check(5, 0.7)
+    c = json.loads((out / "check.json").read_text())
+    (out / "check.json").write_text(json.dumps({**c, "seeds": [0]}))
+    with pytest.raises(ValueError, match=r"checked on 1 seed\(s\); adopting needs 3"):
+        adopt(out, path)
+    summary = json.loads((out / "tuning.json").read_text())
+    (out / "tuning.json").write_text(json.dumps({**summary, "timesteps": 256}))
+    with pytest.raises(ValueError, match="its trials had 256 steps and 2 environments, not the suite's 30000"):
+        adopt(out, path)
+    (out / "tuning.json").write_text(json.dumps({**summary, "best": defaults}))
+    with pytest.raises(ValueError, match="the defaults are the study's best: nothing to adopt"):
+        adopt(out, path)
+    (out / "tuning.json").write_text(json.dumps(summary))
+    (out / "check.json").write_text(json.dumps(c))
     assert not path.exists()
+    # a table adopted already with a better check stays
+    path.write_text(tuned.tuned_text({("ppo", "tripod"): _table(check_best_mean=19.0)}))
+    with pytest.raises(ValueError, match=r"\[ppo.tripod\] \(study SoftTripodWalk-v0, trial 7\) scored 19.000 on its "
+                                         r"check, this best 18.700: it stays"):
+        adopt(out, path)
+    path.unlink()
     path.write_text(tuned.tuned_text({("sac", "puppy"): _table(study="SoftPuppyWalk-v0",
                                                                 params=DEFAULT_PARAMS["sac"])}))
     check(5, 0.7)
     table = adopt(out, path)
     assert table["trial"] == 5 and table["check_best_mean"] == 18.7 and table["params"] == best["params"]
     assert set(tuned.read_tuned(path)) == {("ppo", "tripod"), ("sac", "puppy")}      # the other table kept
+
+
+def test_the_suite_report_marks_runs_made_with_other_values(tmp_path, monkeypatch):
+    """bench_suite's other_hyperparams: a Tripod PPO run made with the defaults is marked once the
+    Tripod's PPO values are adopted (with where its values came from), not before; its quick
+    runs' own --hp are part of what it asked for."""
+    import importlib.util
+    from types import SimpleNamespace
+    from trajopt.rl.tuning import tuned
+    from trajopt.sweep import load_spec  # noqa: F401  (the bench script imports the sweep)
+    spec = importlib.util.spec_from_file_location("bench_suite", tuning_study.__file__.rsplit("/trajopt/", 1)[0]
+                                                  + "/benchmarks/bench_suite.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    run_dir = tmp_path / "run"
+    hp = {"n_steps": 32, "batch_size": 32, "n_epochs": 1}
+    monkeypatch.setattr(tuned, "TUNED_FILE", tmp_path / "none.toml")        # made with the defaults
+    train(ID, "ppo", timesteps=64, out=tmp_path, name="run", n_envs=2, vec_env="dummy", progress_bar=False,
+          hyperparams=hp)
+    run = SimpleNamespace(kind="rl-train", params={"hp": [f"{k}={v}" for k, v in hp.items()]})
+    assert bench.other_hyperparams(run, run_dir) is None
+    monkeypatch.setattr(tuned, "TUNED_FILE", tmp_path / "tuned.toml")
+    (tmp_path / "tuned.toml").write_text(tuned.tuned_text({("ppo", "tripod"): _table()}))
+    assert bench.other_hyperparams(run, run_dir) == "defaults, with batch_size, n_epochs, n_steps given"
+    assert bench.other_hyperparams(SimpleNamespace(kind="optimize", params={}), run_dir) is None
+    (tmp_path / "tuned.toml").write_text("[ppo.snake]\n")          # a bad file is an error, not "no mark"
+    with pytest.raises(ValueError, match="the robot must be one of"):
+        bench.other_hyperparams(run, run_dir)
+
+
+def test_the_command_adopts_and_writes_the_rl_zoo3_files_beside(tmp_path, monkeypatch, capsys):
+    """``trajopt rl tune ... --check 3 --adopt``: the table written and the rl_zoo3 files beside it
+    written again with its values (here in a temporary folder standing for trajopt/rl/zoo)."""
+    import trajopt.rl.tuning as tuning_pkg
+    from trajopt.rl.tuning import tuned
+    out, zoo = tmp_path / "study", tmp_path / "zoo"
+    out.mkdir(), zoo.mkdir()
+    defaults = {"number": 0, "score": 18.0, "params": DEFAULT_PARAMS["ppo"], "defaults": True}
+    best = {"number": 5, "score": 19.0, "params": _table()["params"], "defaults": False}
+    summary = {"env_id": ID, "algo": "ppo", "timesteps": 30000, "n_envs": 2, "seed": 100, "eval_first_seed": 100,
+               "trials": [defaults, best], "n_finished": 20, "best": best, "defaults": defaults,
+               "score_unit": "BL/min", "hp_overrides": []}
+    check = {"seeds": [0, 1, 2], "difference": 1.5, "wins": 3, "score_unit": "BL/min",
+             "best": {"trial": 5, "scores": [19.4, 19.5, 19.6], "mean": 19.5, "std": 0.1},
+             "defaults": {"trial": 0, "scores": [18.0, 18.0, 18.0], "mean": 18.0, "std": 0.0}}
+    (out / "tuning.json").write_text(json.dumps(summary))
+    (out / "check.json").write_text(json.dumps(check))
+    monkeypatch.setattr(tuning_pkg, "tune", lambda *a, **k: summary)
+    monkeypatch.setattr(tuning_pkg, "check_best", lambda *a, **k: check)
+    monkeypatch.setattr(tuned, "TUNED_FILE", zoo / "tuned.toml")
+    assert main(["rl", "tune", ID, "--out", str(out), "--check", "3", "--adopt"]) == 0
+    text = capsys.readouterr().out
+    assert "best minus the defaults: +1.500 BL/min; higher on 3 of 3 seeds" in text and "adopted trial 5" in text
+    assert tuned.read_tuned(zoo / "tuned.toml")[("ppo", "tripod")]["check_best_mean"] == 19.5
+    ppo = (zoo / "ppo.yml").read_text()
+    tripod = ppo.split("SoftTripodTurn-v0:")[1].split("\n\n")[0]
+    assert "learning_rate: !!float 0.001" in tripod and "activation_fn=nn.ReLU" in tripod
+    puppy = ppo.split("SoftPuppyTurn-v0:")[1].split("\n\n")[0]
+    assert "learning_rate: !!float 0.0003" in puppy

@@ -286,12 +286,12 @@ def _cmd_tune(args) -> int:
         print("trajopt: error: no trial was scored (each one's error is listed)", file=sys.stderr)
         return 1
     if args.adopt:
+        from ..rl.tuning import tuned
         from ..rl.tuning.adopt import adopt
-        from ..rl.tuning.tuned import TUNED_FILE
         from ..rl.zoo import write_zoo_files
         table = adopt(out)                  # ValueError (exit 2) when the best did not beat the defaults
-        written = write_zoo_files()
-        print(f"adopted trial {table['trial']} for {args.algo.upper()} on every task id of its robot: {TUNED_FILE}; "
+        written = write_zoo_files(tuned.TUNED_FILE.parent)      # the rl_zoo3 files beside it, with its values
+        print(f"adopted trial {table['trial']} for {args.algo.upper()} on every task id of its robot: {tuned.TUNED_FILE}; "
               f"wrote {', '.join(str(w) for w in written)}", file=sys.stderr if args.json else sys.stdout)
     return 0
 

@@ -97,7 +97,8 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
     (e.g. ``incline_deg``, ``target_heading_deg``). ``hyperparams`` override
     :func:`~trajopt.rl.tuning.tuned.task_hyperparams` (on a task id its robot's tuned values where
     a study found better ones, else :func:`~trajopt.rl.hyperparams.default_hyperparams`; the run's
-    rl_config.json says which, ``hyperparams_source``). ``checkpoint_every``: environment steps
+    rl_config.json says which, ``hyperparams_source``), key by key: a ``policy_kwargs`` given
+    replaces the whole of it. ``checkpoint_every``: environment steps
     between checkpoints (default: a tenth of the budget). ``torch_threads``: PyTorch CPU
     threads of the learner (1: the networks are tiny and the environment workers need the
     cores; ``None`` leaves PyTorch's default). Ctrl-C stops training and saves the model with
@@ -138,9 +139,11 @@ def train(robot: str, algo: str = "ppo", timesteps: int = 30_000, seed: int = 0,
         env_kwargs["substeps"] = int(CONTACT_LAWS[env_kwargs["contact"]].default_substeps)
     # a task id: its robot's tuned values where a study found better ones (trajopt/rl/zoo/tuned.toml)
     hp, hp_source = task_hyperparams(algo, target, n_envs=n_envs, timesteps=timesteps)
-    hp.update(hyperparams or {})
-    if hyperparams:
+    if hyperparams and set(hyperparams) >= set(hp):
+        hp_source = "given"                         # every key (the tuning study's trials)
+    elif hyperparams:
         hp_source += f", with {', '.join(sorted(hyperparams))} given"
+    hp.update(hyperparams or {})
     sb3_keywords(hp)                                # an unknown activation name: refused before the run folder exists
     checkpoint_every = int(checkpoint_every or max(timesteps // 10, 1))
 

@@ -97,7 +97,8 @@ def zoo_text(algo: str) -> str:
     """The YAML file of ``algo`` (every id of :func:`zoo_ids`)."""
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
-    lines = [f"# {algo.upper()} on the soft-envs ids: trajopt/rl/hyperparams.py's values (written by "
+    lines = [f"# {algo.upper()} on the soft-envs ids: what trajopt rl train uses (trajopt/rl/hyperparams.py's values, "
+             "a robot's tuned ones on its task ids where trajopt/rl/zoo/tuned.toml has them; written by "
              "`python -m trajopt.rl.zoo`; do not edit).",
              f"# python -m rl_zoo3.train --algo {algo} --env SoftTripodWalk-v0 --gym-packages soft_envs "
              f"--conf-file trajopt/rl/zoo/{algo}.yml", ""]

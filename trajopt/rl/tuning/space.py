@@ -111,9 +111,12 @@ def hyperparams_of(params: dict[str, Any], algo: str, *, n_envs: int = SUITE_N_E
 
 
 def hp_overrides(hp: dict[str, Any], algo: str, *, n_envs: int = SUITE_N_ENVS,
-                 timesteps: int = SUITE_TIMESTEPS) -> list[str]:
-    """The ``KEY=VALUE`` overrides (``trajopt rl train --hp``) of ``hp`` that differ from the defaults."""
-    base = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
+                 timesteps: int = SUITE_TIMESTEPS, base: dict[str, Any] | None = None) -> list[str]:
+    """The ``KEY=VALUE`` overrides (``trajopt rl train --hp``) of ``hp`` that differ from ``base``:
+    what ``trajopt rl train`` starts from on the id (:func:`~.tuned.task_hyperparams`; default the
+    documented defaults)."""
+    if base is None:
+        base = default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps)
     out = []
     for key, value in hp.items():
         if base.get(key) != value:

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..hyperparams import SUITE_N_ENVS, SUITE_TIMESTEPS
 from .space import DEFAULT_PARAMS, SPACES, check_algo, hp_overrides, hyperparams_of, sample_hyperparams
+from .tuned import task_hyperparams
 
 __all__ = ["TuningWorkerError", "TrainingDiverged", "TUNING_SEED", "EVAL_FIRST_SEED", "TUNING_DIR", "STUDY_DB",
            "SUMMARY", "tune", "tuning_summary"]
@@ -296,7 +297,8 @@ def _run_workers(jobs: list[tuple]) -> None:
 
 def tuning_summary(study, env: str, algo: str, timesteps: int, n_envs: int) -> dict[str, Any]:
     """What a study found: each trial (number, state, parameters, Stable-Baselines3 keywords,
-    score, wall time, error), the defaults' trial, the best one and its ``--hp`` overrides."""
+    score, wall time, error), the defaults' trial, the best one and its ``--hp`` overrides (of what
+    ``trajopt rl train`` starts from on the id now: the robot's tuned values where adopted)."""
     from optuna.trial import TrialState
     from ..hyperparams import jsonable
     rows = []
@@ -316,7 +318,8 @@ def tuning_summary(study, env: str, algo: str, timesteps: int, n_envs: int) -> d
     summary = {**study.user_attrs.get("settings", {}), "n_finished": len(done), "trials": rows,
                "defaults": defaults, "best": best, "score_unit": best and best.get("score_unit"),
                "hp_overrides": hp_overrides(hyperparams_of(best["params"], algo, n_envs=n_envs, timesteps=timesteps),
-                                            algo, n_envs=n_envs, timesteps=timesteps) if best else []}
+                                            algo, base=task_hyperparams(algo, env, n_envs=n_envs, timesteps=timesteps)[0])
+               if best else []}
     return summary
 
 

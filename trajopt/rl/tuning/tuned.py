@@ -13,6 +13,7 @@ the check (each side's mean over the suite's seeds).
 """
 from __future__ import annotations
 
+import math
 import os
 import tomllib
 from pathlib import Path
@@ -41,7 +42,7 @@ def read_tuned(path: str | os.PathLike | None = None) -> dict[tuple[str, str], d
         return {}
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ValueError(f"{path}: {exc}") from None
-    from ..envs import ROBOTS
+    from ..envs import ROBOTS, robot_name, task_of
     tables: dict[tuple[str, str], dict[str, Any]] = {}
     for algo, robots in data.items():
         if algo not in ALGOS or not isinstance(robots, dict):
@@ -55,6 +56,14 @@ def read_tuned(path: str | os.PathLike | None = None) -> dict[tuple[str, str], d
                 ok = isinstance(value, kind) or (kind is float and isinstance(value, int))
                 if not ok or isinstance(value, bool):
                     raise ValueError(f"{where}: {field} must be a {kind.__name__}, got {value!r}")
+            if task_of(entry["study"]) is None or robot_name(entry["study"]) != robot:
+                raise ValueError(f"{where}: study must be a task id of the {robot}, got {entry['study']!r}")
+            if entry["trials"] < 1 or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0
+                                              for v in entry["check_seeds"]):
+                raise ValueError(f"{where}: trials must be >= 1 and check_seeds seeds (integers >= 0)")
+            bad = [f for f, kind in _FIELDS.items() if kind is float and not math.isfinite(entry[f])]
+            if bad:
+                raise ValueError(f"{where}: {bad[0]} must be finite, got {entry[bad[0]]!r}")
             try:
                 hyperparams_of(entry["params"], algo)
             except ValueError as exc:
