@@ -348,6 +348,12 @@ def test_the_best_is_adopted_only_when_it_beat_the_defaults_on_the_suite_seeds(t
         adopt(out, path)
     check(5, 0.7)
     c = json.loads((out / "check.json").read_text())
+    c["best"]["std"], c["defaults"]["std"] = 1.2, 0.9             # standard error 1.5 / sqrt(3) = 0.87 > 0.7
+    (out / "check.json").write_text(json.dumps(c))
+    with pytest.raises(ValueError, match=r"a difference of \+0.700, not above its standard error 0.866"):
+        adopt(out, path)
+    check(5, 0.7)
+    c = json.loads((out / "check.json").read_text())
     (out / "check.json").write_text(json.dumps({**c, "seeds": [0]}))
     with pytest.raises(ValueError, match=r"checked on 1 seed\(s\); adopting needs 3"):
         adopt(out, path)

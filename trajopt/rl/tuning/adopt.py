@@ -4,6 +4,7 @@ into ``trajopt/rl/zoo/tuned.toml`` (:mod:`.tuned`) only when its check on the su
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -27,7 +28,9 @@ def adopt(out: str | os.PathLike, path: str | os.PathLike | None = None) -> dict
     * the study's trials had the suite's budget and environments (values found on short trials
       would be used on the suite's 30,000-step runs);
     * its best was checked (``out/check.json``, :func:`~.check.check_best`) on at least
-      :data:`MIN_CHECK_SEEDS` of the suite's seeds and beat the defaults there (its mean higher);
+      :data:`MIN_CHECK_SEEDS` of the suite's seeds and beat the defaults there: its mean higher by
+      more than the standard error of the difference, ``hypot(std_best, std_defaults) / sqrt(n)``
+      (the seeds' spread is large: one lucky seed is not a gain);
     * where the robot already has a table for the algorithm, it beat that table's best on the
       check too (both checks score the suite's seeds the same way): remove the table to replace it
       with a worse one.
@@ -57,9 +60,12 @@ def adopt(out: str | os.PathLike, path: str | os.PathLike | None = None) -> dict
                          f"not the study's best (trial {best['number']}): check it again")
     if len(seeds) < MIN_CHECK_SEEDS:
         raise ValueError(f"{out / CHECK}: checked on {len(seeds)} seed(s); adopting needs {MIN_CHECK_SEEDS} (--check 3)")
-    if not difference > 0:
+    n = len(seeds)
+    margin = math.hypot(float(check["best"].get("std", 0.0)), float(check["defaults"].get("std", 0.0))) / math.sqrt(n)
+    if not difference > margin:
         raise ValueError(f"{out}: the best (trial {best['number']}) scored {check['best']['mean']:.3f} on the suite's "
-                         f"seeds, the defaults {check['defaults']['mean']:.3f}: the defaults stay")
+                         f"seeds, the defaults {check['defaults']['mean']:.3f}: a difference of {difference:+.3f}, not "
+                         f"above its standard error {margin:.3f}: the defaults stay")
     algo, robot = summary["algo"], robot_name(summary["env_id"])
     tables = read_tuned(path)
     old = tables.get((algo, robot))
