@@ -112,7 +112,7 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
                    help="environment steps per trial (default the suite's budget, 30000)")
     p.add_argument("--episodes", type=positive_int, default=None,
                    help="evaluation episodes per trial (default the suite's 3)")
-    p.add_argument("--seed", type=SEED, default=0, help="seed of the TPE sampler (worker k: SEED + k)")
+    p.add_argument("--seed", type=SEED, default=0, help="seeds the TPE samplers (with the worker's number and the trials made)")
     p.add_argument("--out", type=output_dir, default=None, help="study folder (default results/tuning/ID_ALGO)")
     p.add_argument("--check", type=positive_int, default=None, metavar="N",
                    help="then train the best and the defaults with the suite's seeds 0..N-1 and score them as the "
@@ -259,12 +259,12 @@ def _cmd_tune(args) -> int:
     except ImportError:
         print("trajopt: error: trajopt rl tune needs Optuna: pip install soft-envs[tune]", file=sys.stderr)
         return 2
-    from ..rl.tuning import TUNING_DIR, TuningWorkerError, check_best, tune
+    from ..rl.tuning import TuningWorkerError, check_best, default_out, tune
     if args.adopt and not args.check:
         print("trajopt: error: --adopt needs --check N (the best is adopted only if it beats the defaults on the "
               "suite's seeds)", file=sys.stderr)
         return 2
-    out = args.out or TUNING_DIR / f"{args.env}_{args.algo}"
+    out = args.out or default_out(args.env, args.algo)
     try:
         summary = tune(args.env, args.algo, trials=args.trials, out=out, workers=args.workers,
                        timesteps=args.timesteps or SUITE_TIMESTEPS, episodes=args.episodes, seed=args.seed)

@@ -57,9 +57,9 @@ from __future__ import annotations
 
 from .check import CHECK, check_best
 from .space import DEFAULT_PARAMS, SPACES, hp_overrides, hyperparams_of, sample_hyperparams
-from .study import (EVAL_FIRST_SEED, TUNING_DIR, TUNING_SEED, TrainingDiverged, TuningWorkerError, tune,
-                    tuning_summary)
+from .study import (EVAL_FIRST_SEED, TUNING_DIR, TUNING_SEED, TrainingDiverged, TuningWorkerError, default_out,
+                    tune, tuning_summary)
 
 __all__ = ["TuningWorkerError", "TrainingDiverged", "SPACES", "DEFAULT_PARAMS", "TUNING_SEED", "EVAL_FIRST_SEED",
            "TUNING_DIR", "sample_hyperparams", "hyperparams_of", "tune", "tuning_summary", "hp_overrides", "check_best",
-           "CHECK"]
+           "CHECK", "default_out"]

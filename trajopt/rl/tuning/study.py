@@ -10,12 +10,17 @@ from typing import Any
 
 import numpy as np
 
+try:
+    import fcntl                                    # POSIX: the lock of a study shared by processes
+except ImportError:                                 # pragma: no cover - Windows: one worker, no lock needed
+    fcntl = None
+
 from ..hyperparams import SUITE_N_ENVS, SUITE_TIMESTEPS
 from .space import DEFAULT_PARAMS, SPACES, check_algo, hp_overrides, hyperparams_of, sample_hyperparams
 from .tuned import task_hyperparams
 
 __all__ = ["TuningWorkerError", "TrainingDiverged", "TUNING_SEED", "EVAL_FIRST_SEED", "TUNING_DIR", "STUDY_DB",
-           "SUMMARY", "tune", "tuning_summary"]
+           "SUMMARY", "tune", "tuning_summary", "default_out"]
 
 #: training seed of every trial (the suite's runs use 0, 1, 2)
 TUNING_SEED = 100
@@ -53,6 +58,11 @@ def _storage(out: Path):
 
 def _study_name(env: str, algo: str) -> str:
     return f"{env}_{algo}"
+
+
+def default_out(env: str, algo: str) -> Path:
+    """The folder of the study of ``algo`` on ``env`` when none is given: ``results/tuning/ENV_ALGO``."""
+    return TUNING_DIR / _study_name(env, algo)
 
 
 class TrainingDiverged(Exception):
@@ -107,14 +117,14 @@ class _StudyLock:
         self._held = False
 
     def acquire(self) -> None:
-        import fcntl
-        fcntl.flock(self._file, fcntl.LOCK_EX)
+        if fcntl is not None:
+            fcntl.flock(self._file, fcntl.LOCK_EX)
         self._held = True
 
     def release(self) -> None:
         if self._held:
-            import fcntl
-            fcntl.flock(self._file, fcntl.LOCK_UN)
+            if fcntl is not None:
+                fcntl.flock(self._file, fcntl.LOCK_UN)
             self._held = False
 
     def __enter__(self) -> "_StudyLock":
@@ -170,8 +180,7 @@ def _worker(env: str, algo: str, out: str, trials: int, timesteps: int, n_envs: 
                 study.optimize(objective, n_trials=1, catch=(TrainingDiverged,),
                                callbacks=[lambda s, t: _write_summary(s, env, algo, out, timesteps, n_envs)])
             except (KeyboardInterrupt, Terminated):
-                if "trial" in current:
-                    lock.release()
+                if "trial" in current:              # (the objective released the lock)
                     with lock:
                         _queue_again(study, current["trial"])
                 raise
@@ -224,12 +233,9 @@ def tune(env: str, algo: str = "ppo", *, trials: int = 20, out: str | os.PathLik
                              ("n_envs", n_envs, 1), ("episodes", episodes, 1), ("seed", seed, 0)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    if workers > 1:
-        try:
-            import fcntl  # noqa: F401
-        except ImportError:
-            raise ValueError("workers > 1 needs POSIX file locks (fcntl), which this system lacks") from None
-    out = Path(out) if out is not None else TUNING_DIR / _study_name(env, algo)
+    if workers > 1 and fcntl is None:
+        raise ValueError("workers > 1 needs POSIX file locks (fcntl), which this system lacks")
+    out = Path(out) if out is not None else default_out(env, algo)
     settings = {"env_id": env, "algo": algo, "timesteps": int(timesteps), "n_envs": int(n_envs),
                 "seed": TUNING_SEED, "eval_first_seed": EVAL_FIRST_SEED, "episodes": int(episodes)}
     if (out / STUDY_DB).exists():                   # another id or algorithm's study: refused, untouched

@@ -80,11 +80,12 @@ def task_hyperparams(algo: str, target: str, *, n_envs: int = 1, timesteps: int 
     from ..envs import robot_name, task_of
     algo = check_algo(algo)
     if task_of(target) is not None:
-        entry = read_tuned(path).get((algo, robot_name(target)))
+        path = Path(TUNED_FILE if path is None else path)
+        robot = robot_name(target)
+        entry = read_tuned(path).get((algo, robot))
         if entry is not None:
             hp = hyperparams_of(entry["params"], algo, n_envs=n_envs, timesteps=timesteps)
-            return hp, f"tuned: {Path(TUNED_FILE if path is None else path).name} [{algo}.{robot_name(target)}] (study {entry['study']}, " \
-                       f"trial {entry['trial']})"
+            return hp, f"tuned: {path.name} [{algo}.{robot}] (study {entry['study']}, trial {entry['trial']})"
     return default_hyperparams(algo, n_envs=n_envs, timesteps=timesteps), "defaults"
 
 
