@@ -15,6 +15,11 @@ method (mean +- std over the seeds of the task's score, the credible score, the 
 physics steps, and how many runs hold within 5 %, success, simulation steps, wall time), runs not
 made marked "not run" with the command that makes them.
 
+Each run's figures are kept in the repository, in the ledger ``benchmarks/results/suite_runs.json``
+(:mod:`suite_ledger`): the report is made from every run ever made, those in this machine's sweep
+folder replacing their records, so a part of the suite made again on another machine (``--only``)
+updates its rows and keeps the others.
+
 Run:  python benchmarks/bench_suite.py                      (every run; ~10 hours of one core)
       python benchmarks/bench_suite.py --only 'SoftTripod*_ppo_*' --workers 1   (a part)
       python benchmarks/bench_suite.py --holds              (no runs: the replays at other physics steps
@@ -39,6 +44,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(HERE))
 
 from soft_envs import TASK_IDS_BY_TASK  # noqa: E402
 from soft_envs.envs.tasks.docs import TASK_DOCS  # noqa: E402
@@ -49,12 +55,15 @@ from trajopt.sweep import load_spec, read_status, run_sweep  # noqa: E402
 from trajopt.tasks.registry import get_task  # noqa: E402
 from trajopt.tasks.scores import SCORES, default_episodes  # noqa: E402
 
+import suite_ledger  # noqa: E402
+
 #: the suite's tasks: every task with a score (all of them)
 TASKS = tuple(t for t in SCORES)
 
 SPEC = ROOT / "examples" / "suite.toml"
 SWEEP_DIR = ROOT / "results" / "sweeps" / "suite"
 REPORT = HERE / "results" / "suite.md"
+LEDGER = HERE / "results" / "suite_runs.json"    # every run's record (suite_ledger), tracked
 IMAGES = HERE / "results" / "suite"
 DOCS = ROOT / "docs" / "tasks.md"
 TABLE_HEAD = ["| task | robot | method | score | credible (hold) | success | seeds | sim steps | wall time / run |",
@@ -87,39 +96,77 @@ def group_of(run) -> tuple[str, str, str]:
     return task_of(run.params["robot"]), robot_name(run.params["robot"]), run.params["algo"]
 
 
-def collect(spec, sweep_dir: Path) -> dict[tuple[str, str, str], dict]:
-    """Per (task, robot, method): the runs planned, the statuses of those done."""
+def collect(spec, sweep_dir: Path, ledger: dict | None = None) -> tuple[dict[tuple[str, str, str], dict], dict]:
+    """Per (task, robot, method): the runs planned, the records of those done (in ``sweep_dir``, or
+    else in ``ledger``, :mod:`suite_ledger`, when made with the sweep file's arguments now), those
+    failed here, and the ledger's aggregate of the row when none of its runs has a record; and the
+    records of the runs done in ``sweep_dir`` (by name, for the ledger)."""
+    ledger = ledger or suite_ledger.empty()
     groups: dict[tuple[str, str, str], dict] = {}
+    local: dict[str, dict] = {}
     for run in spec.runs:
-        g = groups.setdefault(group_of(run), {"planned": [], "done": [], "failed": []})
+        group = group_of(run)
+        g = groups.setdefault(group, {"planned": [], "runs": [], "done": [], "failed": [], "aggregate": None})
         g["planned"].append(run.name)
+        g["runs"].append(run)
         st = read_status(sweep_dir / run.name) or {}
+        rec = None
         if st.get("status") == "done" and (st.get("metrics") or {}).get("task"):
-            st = {**st, "run_dir": str(sweep_dir / run.name)}
-            g["done"].append({**st, "hold": hold_of(st), "other_hp": other_hyperparams(run, sweep_dir / run.name)})
+            rec = local_record(run, group, sweep_dir / run.name, st)
+            if rec is not None:
+                local[run.name] = rec
         elif st.get("status") in ("failed", "interrupted"):
             g["failed"].append(f"{run.name}: {st.get('status')} ({st.get('reason', '')})")
-    return groups
+        rec = rec or suite_ledger.current(ledger, run)
+        if rec is not None:
+            g["done"].append({**rec, "name": run.name, "local": run.name in local, "other_hp": other_hyperparams(run, rec.get("rl"))})
+    for group, g in groups.items():
+        if not g["done"]:
+            agg = suite_ledger.aggregate(ledger, group, g["runs"])
+            if agg is not None:
+                g["aggregate"] = {**agg, "other_hp": other_hyperparams(g["runs"][0], agg.get("rl"))}
+    return groups, local
 
 
-def other_hyperparams(run, folder: Path) -> str | None:
-    """For an RL run made with other hyper-parameters than the baseline trains with now on its id
-    (the robot's tuned values adopted since, ``trajopt/rl/zoo/tuned.toml``): where its came from
-    (its rl_config.json's ``hyperparams_source``, "defaults" before runs recorded it); else None."""
-    if run.kind != "rl-train":
-        return None
+def local_record(run, group: tuple[str, str, str], folder: Path, status: dict) -> dict | None:
+    """The ledger's record (:func:`suite_ledger.run_record`) of a run done in ``folder``; None
+    when its task score cannot be read (as a run not made)."""
     import json
-    from trajopt.rl.hyperparams import jsonable
-    from trajopt.rl.tuning.tuned import task_hyperparams
+    try:
+        task_score = json.loads((folder / "task_score.json").read_text())
+    except (OSError, ValueError):
+        return None
+    rl = rl_config_of(folder) if run.kind == "rl-train" else None
+    if run.kind == "rl-train" and rl is None:
+        return None
+    return suite_ledger.run_record(group, run, status, task_score, hold_of({**status, "run_dir": str(folder)}), rl)
+
+
+def rl_config_of(folder: Path) -> dict | None:
+    """What an RL run's record keeps of its ``rl_config.json`` (the algorithm, the id, the budget,
+    the hyper-parameters and where they came from), None when it cannot be read."""
+    import json
     try:
         cfg = json.loads((folder / "rl_config.json").read_text())
-        algo, target, n_envs, timesteps = cfg["algo"], cfg["env"]["robot"], int(cfg["n_envs"]), int(cfg["timesteps"])
-    except (OSError, ValueError, KeyError, TypeError):          # unreadable: as a run not made
+        return {"algo": cfg["algo"], "target": cfg["env"]["robot"], "n_envs": int(cfg["n_envs"]),
+                "timesteps": int(cfg["timesteps"]), "hyperparams": suite_ledger.jsonable(cfg.get("hyperparams")),
+                "hyperparams_source": cfg.get("hyperparams_source", "defaults")}
+    except (OSError, ValueError, KeyError, TypeError):
         return None
-    now, _ = task_hyperparams(algo, target, n_envs=n_envs, timesteps=timesteps)   # a bad tuned.toml: its error
-    given = parse_hp(run.params.get("hp"))
-    now.update(given)
-    return None if jsonable(now) == jsonable(cfg.get("hyperparams")) else cfg.get("hyperparams_source", "defaults")
+
+
+def other_hyperparams(run, rl: dict | None) -> str | None:
+    """For an RL run (its record's ``rl``) made with other hyper-parameters than the baseline trains
+    with now on its id (the robot's tuned values adopted since, ``trajopt/rl/zoo/tuned.toml``):
+    where its came from (``hyperparams_source``, "defaults" before runs recorded it); else None."""
+    if run.kind != "rl-train" or not rl:
+        return None
+    from trajopt.rl.hyperparams import jsonable
+    from trajopt.rl.tuning.tuned import task_hyperparams
+    now, _ = task_hyperparams(rl["algo"], rl.get("target") or run.params["robot"], n_envs=int(rl["n_envs"]),
+                              timesteps=int(rl["timesteps"]))      # a bad tuned.toml: its error
+    now.update(parse_hp(run.params.get("hp")))
+    return None if jsonable(now) == jsonable(rl.get("hyperparams")) else rl.get("hyperparams_source", "defaults")
 
 
 def parse_hp(items) -> dict:
@@ -181,9 +228,8 @@ def _make_hold_or_say(kind: str, name: str, folder: Path) -> str:
 def make_holds(jobs: list[tuple[str, str, Path]], workers: int | None) -> None:
     """The replays of ``jobs`` (:func:`make_hold`), ``workers`` processes at a time (default: all
     cores), each printed as it ends; one that fails is printed with why, and the others go on."""
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-    import multiprocessing
-    from trajopt.workers import start_worker
+    from concurrent.futures import as_completed
+    from trajopt.workers import worker_pool
     workers = max(1, min(len(jobs), workers or os.cpu_count() or 1))
     if not jobs:
         return
@@ -192,33 +238,51 @@ def make_holds(jobs: list[tuple[str, str, Path]], workers: int | None) -> None:
         for job in jobs:
             print("  " + _make_hold_or_say(*job), flush=True)
         return
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"), initializer=start_worker,
-                             initargs=(os.getpid(), "soft_envs.envs.threads:limit_threads")) as pool:
+    with worker_pool(workers, "soft_envs.envs.threads:limit_threads") as pool:
         futures = [pool.submit(_make_hold_or_say, *job) for job in jobs]
         for fut in as_completed(futures):
             print("  " + fut.result(), flush=True)
 
 
 def cell(group: dict) -> dict | None:
-    """Mean and spread of a group's scores (RL: over seeds; trajopt, one run: over its episodes)."""
+    """A row's figures: the mean and spread of its scores (RL: over seeds; trajopt, one run: over
+    its episodes), its credible score (the mean over the runs replayed of each one's lowest, NaN
+    when a simulation failed), how many hold; from its runs' records, else its ledger aggregate."""
     done = group["done"]
     if not done:
-        return None
-    tasks = [st["metrics"]["task"] for st in done]
+        agg = group.get("aggregate")
+        if agg is None:
+            return None
+        return {"mean": agg["mean"], "std": agg["std"], "n": agg["n"], "planned": len(group["planned"]),
+                "credible": float("nan") if agg["credible"] is None and agg["replayed"] else agg["credible"],
+                "replayed": agg["replayed"], "hold": agg["hold"], "spreads": [], "no_spread": agg["replayed"],
+                "success": agg["success"], "sim_steps": agg["sim_steps"], "wall": agg["wall"],
+                "unit": agg["score_unit"], "name": agg["score_name"],
+                "other_hp": [agg["other_hp"]] if agg.get("other_hp") else [], "aggregate": agg["from"]}
     if len(done) == 1 and done[0]["kind"] == "optimize":
-        import json
-        episodes = json.loads((Path(done[0]["metrics"]["result"]).parent / "task_score.json").read_text())["episodes"]
-        scores = [e["score"] for e in episodes]
+        mean, std = done[0]["score"], done[0]["episode_std"]
     else:
-        scores = [t["score"] for t in tasks]
-    holds = [st["hold"] for st in done if st["hold"] is not None]
-    return {"mean": float(np.mean(scores)), "std": float(np.std(scores, ddof=1)) if len(scores) > 1 else 0.0,
-            "credible": [h["slowest"] for h in holds], "hold": sum(h["holds"] for h in holds),
-            "n": len(done), "planned": len(group["planned"]), "success": float(np.mean([t["success_rate"] for t in tasks])),
-            "sim_steps": float(np.mean([st["metrics"].get("sim_steps") or 0 for st in done])),
-            "wall": float(np.mean([st.get("wall_time_s", 0.0) for st in done])),
-            "unit": tasks[0]["score_unit"], "name": tasks[0]["score_name"],
-            "other_hp": sorted({st["other_hp"] for st in done if st.get("other_hp")})}
+        scores = [r["score"] for r in done]
+        mean, std = float(np.mean(scores)), float(np.std(scores, ddof=1)) if len(scores) > 1 else 0.0
+    holds = [r["hold"] for r in done if r["hold"] is not None]
+    slowest = [np.nan if h["slowest"] is None else h["slowest"] for h in holds]
+    credible = (slowest[0] if len(slowest) == 1 else float(np.mean(slowest))) if holds else None
+    spreads = [h["spread"] for h in holds if h["slowest"] is not None and h["slowest"] > 0 and h["spread"] is not None]
+    return {"mean": float(mean), "std": float(std), "n": len(done), "planned": len(group["planned"]),
+            "credible": credible, "replayed": len(holds),
+            "hold": sum(h["holds"] for h in holds), "spreads": spreads,
+            "no_spread": sum(h["spread"] is None and h["slowest"] is not None and h["slowest"] > 0 for h in holds),
+            "success": float(np.mean([r["success_rate"] for r in done])),
+            "sim_steps": _mean_known([r["sim_steps"] for r in done]),
+            "wall": _mean_known([r["wall_time_s"] for r in done]),
+            "unit": done[0]["score_unit"], "name": done[0]["score_name"],
+            "other_hp": sorted({r["other_hp"] for r in done if r.get("other_hp")}), "aggregate": None}
+
+
+def _mean_known(values: list) -> float:
+    """The mean of the values known (a record may not keep its simulation steps or wall time), NaN if none."""
+    known = [v for v in values if v is not None]
+    return float(np.mean(known)) if known else float("nan")
 
 
 def levels_table(groups: dict[tuple[str, str, str], dict]) -> list[str]:
@@ -300,52 +364,70 @@ def _fmt(c: dict | None) -> str:
 
 def holds_summary(groups: dict[tuple[str, str, str], dict]) -> list[str]:
     """The report's "Which scores hold": per method, the runs replayed at other physics steps, how
-    many hold, and the median spread (of the runs with a positive score)."""
-    rows = []
+    many hold, and the median spread (of the runs with a positive score whose spread is kept)."""
+    rows, unkept = [], 0
     for method, label in METHODS.items():
-        holds = [st["hold"] for (_, _, m), g in groups.items() if m == method for st in g["done"] if st["hold"]]
-        if not holds:
+        cells = [c for (_, _, m), g in groups.items() if m == method and (c := cell(g)) is not None and c["replayed"]]
+        if not cells:
             continue
-        spreads = [h["spread"] for h in holds if np.isfinite(h["slowest"]) and h["slowest"] > 0]
+        spreads = [s for c in cells for s in c["spreads"]]
+        missing = sum(c["no_spread"] for c in cells)
+        unkept += missing
         median = f"{np.median(spreads):.1%}" if spreads else "–"
-        rows.append(f"| {label} | {len(holds)} | {sum(h['holds'] for h in holds)} | {median} |")
+        if missing:
+            median += f" (of {len(spreads)}; {missing} not kept)"
+        rows.append(f"| {label} | {sum(c['replayed'] for c in cells)} | {sum(c['hold'] for c in cells)} | {median} |")
     if not rows:
         return []
-    return ["", "## Which scores hold", "",
-            "The runs replayed at 16.5, 4.125 and 2.06 ms (the column \"credible (hold)\"), per method: how many "
-            "hold within 5 %, and the median spread of those scoring above 0. A spread says the score depends on "
-            "the physics step: an open-loop gait or a policy exploiting the model, or, for a policy over 300 "
-            "closed-loop steps on terrain drawn per episode, the growth of a small change of its path (chaos, "
-            "which the evaluation's own ± shows too); the lowest score is the one to quote either way.", "",
-            "| method | runs replayed | hold | median spread |", "|---|---|---|---|", *rows]
+    lines = ["", "## Which scores hold", "",
+             "The runs replayed at 16.5, 4.125 and 2.06 ms (the column \"credible (hold)\"), per method: how many "
+             "hold within 5 %, and the median spread of those scoring above 0. A spread says the score depends on "
+             "the physics step: an open-loop gait or a policy exploiting the model, or, for a policy over 300 "
+             "closed-loop steps on terrain drawn per episode, the growth of a small change of its path (chaos, "
+             "which the evaluation's own ± shows too); the lowest score is the one to quote either way.", "",
+             "| method | runs replayed | hold | median spread |", "|---|---|---|---|", *rows]
+    if unkept:
+        lines += ["", f"The spreads of {unkept} runs replayed were not kept (the ledger's older records, "
+                  "`benchmarks/results/suite_runs.json`, keep whether they hold, not by how much): the medians are "
+                  "of the others."]
+    return lines
 
 
 def _fmt_credible(c: dict | None) -> str:
     """The credible score (mean over the runs replayed of each one's lowest over the physics steps)
     and how many of those runs hold, "–" when none was replayed."""
-    if c is None or not c["credible"]:
+    if c is None or not c["replayed"]:
         return "–"
     digits = 1 if c["unit"] == "deg" else 2
-    values = np.asarray(c["credible"])
-    mean = "a simulation failed" if not np.isfinite(values).all() else f"{values.mean():+.{digits}f}"
-    missing = c["n"] - len(values)
-    return f"{mean} ({c['hold']}/{len(values)}{f', {missing} not replayed' if missing else ''})"
+    mean = "a simulation failed" if not np.isfinite(c["credible"]) else f"{c['credible']:+.{digits}f}"
+    missing = c["n"] - c["replayed"]
+    return f"{mean} ({c['hold']}/{c['replayed']}{f', {missing} not replayed' if missing else ''})"
 
 
-def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, Path], path: Path,
-           quick: bool) -> str:
-    """The report's markdown (written to ``path`` atomically)."""
-    groups = collect(spec, sweep_dir)
+def report(spec, sweep_dir: Path, groups: dict[tuple[str, str, str], dict], rates: dict[str, float],
+           pictures: dict[str, Path], path: Path, quick: bool, ledger: Path | None = None) -> str:
+    """The report's markdown of the rows ``groups`` (:func:`collect`; written to ``path`` atomically)."""
     budgets = {}
     for run in spec.runs:
         budgets.setdefault(group_of(run)[2], run.params.get("timesteps", run.params.get("iterations", 10)))
     rel = os.path.relpath(sweep_dir, ROOT) if str(sweep_dir).startswith(str(ROOT)) else str(sweep_dir)
-    made = sum(len(g["done"]) for g in groups.values())
+    cells = [c for g in groups.values() if (c := cell(g)) is not None]
+    made = sum(c["n"] for c in cells)
+    here = sum(1 for g in groups.values() for r in g["done"] if r.get("local"))
+    if ledger is None:
+        where = f"in `{rel}/`"
+    else:
+        kept = sorted({c["aggregate"] for c in cells if c["aggregate"]})
+        where = (f"{here} of them in `{rel}/` on this machine, the others as the ledger "
+                 f"`{os.path.relpath(ledger, ROOT) if str(ledger).startswith(str(ROOT)) else ledger}` keeps them "
+                 "(`benchmarks/suite_ledger.py`: each run's record"
+                 + (f"; the rows marked ‡ as one record of the row's runs, from {'; '.join(kept)}" if kept else "")
+                 + ")")
     n_ep = default_episodes()
     lines = [f"# The task suite{' (quick: tiny budgets, no result)' if quick else ''}", "",
              f"Made by `python benchmarks/bench_suite.py{' --quick' if quick else ''}` on {platform.node()}, "
-             f"{time.strftime('%Y-%m-%d')}; the runs of `examples/suite.toml` in `{rel}/` ({made} of "
-             f"{len(spec.runs)} made). Every run is scored on its task's Gymnasium id (difficulty medium but in the Levels, "
+             f"{time.strftime('%Y-%m-%d')}; the runs of `examples/suite.toml` ({made} of "
+             f"{len(spec.runs)} made; {where}). Every run is scored on its task's Gymnasium id (difficulty medium but in the Levels, "
              f"the registered 300-step episodes, {n_ep} episode{'s' * (n_ep > 1)}, seeds 0-{n_ep - 1}) with the "
              "task's own score (`trajopt.tasks.scores`):", ""]
     for task in TASKS:
@@ -376,19 +458,26 @@ def report(spec, sweep_dir: Path, rates: dict[str, float], pictures: dict[str, P
                     missing.append((task, robot, method, g))
                 unit = SCORES[task].unit
                 stale = bool(c and c["other_hp"])
-                row = [task, robot.capitalize(), label + (" †" if stale else ""),
+                row = [task, robot.capitalize(), label + (" †" if stale else "") + (" ‡" if c and c["aggregate"] else ""),
                        f"{_fmt(c)} {unit}" if c else "not run", _fmt_credible(c),
                        (f"{c['success']:.0%}" if TASK_DOCS[task].success else "–") if c else "", f"{c['n']}/{c['planned']}" if c else f"0/{len(g['planned'])}",
                        f"{c['sim_steps']:,.0f}" if c else "", f"{c['wall']:.0f} s" if c else ""]
                 lines.append("| " + " | ".join(row) + " |")
-    stale = [st for g in groups.values() for st in g["done"] if st.get("other_hp")]
+    stale = [st["other_hp"] for g in groups.values() for st in g["done"] if st.get("other_hp")]
+    stale += [agg["other_hp"] for g in groups.values() if not g["done"] and (agg := g["aggregate"])
+              and agg.get("other_hp") for _ in range(agg["n"])]
     if stale:
-        sources = sorted({st["other_hp"] for st in stale})
+        sources = sorted(set(stale))
         lines += ["", f"† {len(stale)} runs were made with other hyper-parameters than `trajopt rl train` and the "
                   f"suite use on their ids now ({'; '.join(sources)}: the robot's tuned values, "
                   "`trajopt/rl/zoo/tuned.toml`, were adopted since, or the defaults changed; docs/tasks.md "
                   "\"Tuning the baselines\"). A row marked † holds at least one of them. They are made again "
-                  "when moved aside (the sweep skips runs that are done) and `python benchmarks/bench_suite.py` runs."]
+                  "when their folders are moved aside (the sweep skips runs that are done) and `python "
+                  "benchmarks/bench_suite.py` runs; each new run replaces its record in the ledger."]
+    if any(c["aggregate"] for c in cells):
+        lines += ["", "‡ The row's runs are kept as one record of the row (its figures above, not each run's): "
+                  "their folders were lost before the ledger kept each run. A run of the row made again replaces "
+                  "the whole record (the row shows the runs made since)."]
     lines += holds_summary(groups)
     lines += levels_table(groups)
     lines += ["", "## Open loop or closed loop", "",
@@ -476,6 +565,10 @@ def main(argv: list[str] | None = None) -> str:
     ap.add_argument("--holds", action="store_true",
                     help="no runs: the replays at other physics steps of the runs made (those missing), then the report")
     ap.add_argument("--report-only", action="store_true", help="no runs, no replays: the report from those made")
+    ap.add_argument("--ledger", type=Path, default=LEDGER,
+                    help="the runs' records kept in the repository, read and updated with the runs made here "
+                         "(default benchmarks/results/suite_runs.json; not with --quick)")
+    ap.add_argument("--no-ledger", action="store_true", help="the report from the sweep folder's runs alone")
     args = ap.parse_args(argv)
     quick = args.quick or os.environ.get("SOFT_ENVS_QUICK", "") not in ("", "0")
     sweep_dir = args.sweep_dir or (Path(tempfile.mkdtemp(prefix="suite_quick_")) if quick else SWEEP_DIR)
@@ -504,9 +597,16 @@ def _run(args, spec, sweep_dir: Path, report_path: Path, quick: bool) -> str:
     if not args.report_only:
         make_holds(hold_jobs(spec, sweep_dir, args.only or (QUICK_HOLDS if quick else None)),
                    1 if args.serial else args.workers)
+    ledger_path = None if quick or args.no_ledger else args.ledger
+    ledger = suite_ledger.load(ledger_path) if ledger_path else None      # a bad ledger: its error, before the work
+    groups, local = collect(spec, sweep_dir, ledger)
+    if ledger_path:
+        suite_ledger.save(ledger_path, suite_ledger.update(ledger, local))
+        print(f"wrote {len(local)} runs' records into {ledger_path}")
+        groups, _ = collect(spec, sweep_dir, suite_ledger.load(ledger_path))
     rates = measure_rates(10 if quick else 100)
     pictures = render_pictures(sweep_dir / "images" if quick else IMAGES, *((160, 120) if quick else (480, 320)))
-    text = report(spec, sweep_dir, rates, pictures, report_path, quick)
+    text = report(spec, sweep_dir, groups, rates, pictures, report_path, quick, ledger_path)
     print(f"wrote {report_path}")
     if not quick and args.report is None:
         update_docs(text)

@@ -399,14 +399,15 @@ def test_the_suite_report_marks_runs_made_with_other_values(tmp_path, monkeypatc
     train(ID, "ppo", timesteps=64, out=tmp_path, name="run", n_envs=2, vec_env="dummy", progress_bar=False,
           hyperparams=hp)
     run = SimpleNamespace(kind="rl-train", params={"hp": [f"{k}={v}" for k, v in hp.items()]})
-    assert bench.other_hyperparams(run, run_dir) is None
+    rl = bench.rl_config_of(run_dir)                  # what the suite's ledger keeps of the run
+    assert bench.other_hyperparams(run, rl) is None
     monkeypatch.setattr(tuned, "TUNED_FILE", tmp_path / "tuned.toml")
     (tmp_path / "tuned.toml").write_text(tuned.tuned_text({("ppo", "tripod"): _table()}))
-    assert bench.other_hyperparams(run, run_dir) == "defaults, with batch_size, n_epochs, n_steps given"
-    assert bench.other_hyperparams(SimpleNamespace(kind="optimize", params={}), run_dir) is None
+    assert bench.other_hyperparams(run, rl) == "defaults, with batch_size, n_epochs, n_steps given"
+    assert bench.other_hyperparams(SimpleNamespace(kind="optimize", params={}), None) is None
     (tmp_path / "tuned.toml").write_text("[ppo.snake]\n")          # a bad file is an error, not "no mark"
     with pytest.raises(ValueError, match="the robot must be one of"):
-        bench.other_hyperparams(run, run_dir)
+        bench.other_hyperparams(run, rl)
 
 
 def test_the_command_adopts_and_writes_the_rl_zoo3_files_beside(tmp_path, monkeypatch, capsys):

@@ -343,3 +343,120 @@ def test_docs_show_each_task_s_picture_and_its_rows_of_the_report():
         assert rows and rows == main, task
         assert f"](../benchmarks/results/suite/{task}.png)" in docs
         assert (ROOT / "benchmarks" / "results" / "suite" / f"{task}.png").is_file()
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location("bench_suite", ROOT / "benchmarks" / "bench_suite.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return bench
+
+
+def _fake_run(folder, score, *, episodes=(1.0, 2.0, 3.0), hold=None):
+    """A run's folder as the sweep leaves it (status.json, task_score.json, task_hold.json)."""
+    import json
+    folder.mkdir(parents=True)
+    task = {"task": "walk", "score": score, "score_unit": "BL/min", "score_name": "speed", "success_rate": 0.0}
+    (folder / "status.json").write_text(json.dumps({"status": "done", "metrics": {"task": task, "sim_steps": 6000},
+                                                    "wall_time_s": 40.0, "finished": 0.0}))
+    (folder / "task_score.json").write_text(json.dumps({**task, "episodes": [{"score": e} for e in episodes]}))
+    if hold is not None:
+        (folder / "task_hold.json").write_text(json.dumps({**hold, "own_score": score}))
+
+
+def test_the_suite_ledger_keeps_each_run_and_a_run_made_here_replaces_its_record(tmp_path):
+    """benchmarks/suite_ledger.py: the report is made from the ledger's records where the sweep
+    folder has no run (a new machine), a run in the folder replaces its record (and the aggregate
+    of its row), a record of other arguments is not used, and the ledger written reads back."""
+    bench = _bench()
+    ledger_mod = bench.suite_ledger
+    from trajopt.sweep import load_spec
+    spec = load_spec(bench.SPEC, tmp_path)
+    name = "tripod_walk_trajopt"
+    run = next(r for r in spec.runs if r.name == name)
+    group = bench.group_of(run)
+    assert group == ("walk", "tripod", "trajopt")
+    hold = {"slowest": 7.4, "spread": 0.02, "holds": True, "scores": [7.4, 7.5, 7.5, 7.5], "substeps": [2, 4, 8, 16],
+            "own_substeps": 4}
+    _fake_run(tmp_path / "made_elsewhere" / name, 7.5, hold=hold)
+    groups, local = bench.collect(spec, tmp_path / "made_elsewhere")
+    rec = local[name]
+    assert rec["score"] == 7.5 and rec["episode_std"] == 1.0 and rec["hold"] == {"slowest": 7.4, "spread": 0.02,
+                                                                                  "holds": True}
+    ledger = ledger_mod.update(ledger_mod.empty(), local)
+    path = tmp_path / "suite_runs.json"
+    ledger_mod.save(path, ledger)
+    ledger = ledger_mod.load(path)
+    # a new machine: no run in its folder, the row from the ledger
+    groups, local = bench.collect(spec, tmp_path / "empty", ledger)
+    c = bench.cell(groups[group])
+    assert not local and c["mean"] == 7.5 and c["std"] == 1.0 and c["credible"] == 7.4 and c["hold"] == 1
+    assert c["n"] == 1 and c["spreads"] == [0.02] and c["aggregate"] is None
+    # the run made again here replaces the record
+    _fake_run(tmp_path / "here" / name, 8.0, episodes=(8.0, 8.0, 8.0))
+    groups, local = bench.collect(spec, tmp_path / "here", ledger)
+    c = bench.cell(groups[group])
+    assert c["mean"] == 8.0 and c["std"] == 0.0 and c["replayed"] == 0 and set(local) == {name}
+    # a record made with other arguments than the sweep file's is not the run's
+    ledger["runs"][name]["params"] = {**ledger["runs"][name]["params"], "iterations": 99}
+    groups, _ = bench.collect(spec, tmp_path / "empty", ledger)
+    assert bench.cell(groups[group]) is None
+    # an aggregate stands for its row until a run of the row has a record
+    ppo = [r for r in spec.runs if bench.group_of(r) == ("walk", "puppy", "ppo")]
+    agg = {"task": "walk", "robot": "puppy", "method": "ppo", "n": 3, "mean": 18.0, "std": 4.0, "credible": 17.0,
+           "replayed": 3, "hold": 1, "success": 0.0, "sim_steps": 30720.0, "wall": 245.0, "score_unit": "BL/min",
+           "score_name": "speed", "rl": None, "runs": {r.name: ledger_mod.jsonable(r.params) for r in ppo},
+           "from": "an older report"}
+    ledger["aggregates"]["walk/puppy/ppo"] = agg
+    groups, _ = bench.collect(spec, tmp_path / "empty", ledger)
+    c = bench.cell(groups[("walk", "puppy", "ppo")])
+    assert (c["mean"], c["n"], c["credible"], c["hold"], c["aggregate"]) == (18.0, 3, 17.0, 1, "an older report")
+    record = {**ledger["runs"][name], "robot": "puppy", "method": "ppo", "kind": ppo[0].kind,
+              "params": ledger_mod.jsonable(ppo[0].params)}
+    after = ledger_mod.update(ledger, {ppo[0].name: record})
+    assert "walk/puppy/ppo" not in after["aggregates"] and "walk/puppy/ppo" in ledger["aggregates"]  # a new ledger
+    groups, _ = bench.collect(spec, tmp_path / "empty", after)
+    assert bench.cell(groups[("walk", "puppy", "ppo")])["n"] == 1
+
+
+@pytest.mark.parametrize("text, match", [
+    ("{", "not a readable JSON file"),
+    ('{"version": 0, "runs": {}, "aggregates": {}}', "not a suite ledger of version 1"),
+    ('{"version": 1, "runs": [], "aggregates": {}}', "'runs' must be a table of records"),
+    ('{"version": 1, "runs": {"r": {"task": "walk"}}, "aggregates": {}}', r"runs\['r'\] lacks the field\(s\) robot"),
+])
+def test_a_bad_suite_ledger_is_an_error_naming_the_file_and_the_record(tmp_path, text, match):
+    bench = _bench()
+    path = tmp_path / "suite_runs.json"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=f"{re.escape(str(path))}: .*{match}"):
+        bench.suite_ledger.load(path)
+
+
+def test_a_ledger_record_s_numbers_are_checked(tmp_path):
+    import json
+    bench = _bench()
+    path = tmp_path / "suite_runs.json"
+    rec = {f: None for f in bench.suite_ledger.RUN_FIELDS} | {"score": "fast"}
+    path.write_text(json.dumps({"version": 1, "runs": {"r": rec}, "aggregates": {}}))
+    with pytest.raises(ValueError, match=r"runs\['r'\].score must be a number, got 'fast'"):
+        bench.suite_ledger.load(path)
+
+
+def test_the_shipped_ledger_makes_the_shipped_report_s_rows():
+    """benchmarks/results/suite_runs.json (the ledger) and benchmarks/results/suite.md were written
+    together: the report's main rows are the ledger's, made again without any run folder."""
+    bench = _bench()
+    from trajopt.sweep import load_spec
+    spec = load_spec(bench.SPEC, ROOT / "no such folder")
+    groups, _ = bench.collect(spec, ROOT / "no such folder", bench.suite_ledger.load(bench.LEDGER))
+    report = (ROOT / "benchmarks" / "results" / "suite.md").read_text()
+    for (task, robot, method), g in groups.items():
+        if method not in bench.METHODS:
+            continue
+        c = bench.cell(g)
+        row = next(line for line in report.splitlines()
+                   if line.startswith(f"| {task} | {robot.capitalize()} | {bench.METHODS[method]}"))
+        cells = row.split(" | ")
+        assert cells[3] == (f"{bench._fmt(c)} {SCORES[task].unit}" if c else "not run"), row
+        assert cells[4] == bench._fmt_credible(c), row

@@ -20,7 +20,7 @@ import sys
 import threading
 import time
 
-__all__ = ["die_with_parent", "start_worker", "PARENT_POLL_S"]
+__all__ = ["die_with_parent", "start_worker", "worker_pool", "PARENT_POLL_S"]
 
 #: how often [s] a worker looks whether its parent still lives
 PARENT_POLL_S = 0.25
@@ -54,3 +54,14 @@ def start_worker(parent: int, setup: str | None = None) -> None:
     if setup:
         module, _, name = setup.partition(":")
         getattr(importlib.import_module(module), name)()
+
+
+def worker_pool(workers: int, setup: str | None = None):
+    """A :class:`concurrent.futures.ProcessPoolExecutor` of ``workers`` processes started by
+    ``spawn`` (a fork would copy numba's and the BLAS's threads), each ending with this process and
+    running ``setup`` first (:func:`start_worker`; e.g. ``"soft_envs.envs.threads:limit_threads"``,
+    one compute thread per worker)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+    return ProcessPoolExecutor(int(workers), mp_context=multiprocessing.get_context("spawn"), initializer=start_worker,
+                               initargs=(os.getpid(), setup))

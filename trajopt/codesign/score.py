@@ -12,8 +12,6 @@ terminates its workers however the screening ends, and a worker that dies ends i
 """
 from __future__ import annotations
 
-import multiprocessing
-import os
 import signal
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -29,7 +27,7 @@ from ..fastest import SearchSettings, fastest_gait
 from ..optim.gauss_newton import GaussNewtonOptions
 from ..optim.optimize import optimize_gait
 from ..search.hold import hold_check
-from ..workers import start_worker
+from ..workers import worker_pool
 from .problem import design_env
 
 __all__ = ["Score", "ScoreJob", "Scorer", "WorkerDied", "score_gait", "score_job"]
@@ -162,9 +160,7 @@ class Scorer:
         if self.workers == 1 or len(jobs) <= 1:
             return map(score_job, jobs)
         if self.pool is None:
-            self.pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                            initializer=start_worker,
-                                            initargs=(os.getpid(), f"{__name__}:_one_thread"))
+            self.pool = worker_pool(self.workers, f"{__name__}:_one_thread")
         try:        # a worker killed while the jobs are submitted breaks the pool inside map()
             return self.pool.map(score_job, jobs)
         finally:

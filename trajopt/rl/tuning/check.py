@@ -110,11 +110,7 @@ def _run(jobs: list[tuple[str, tuple]], workers: int) -> list[tuple[str, dict[st
     """:func:`_check_run` of each job, ``workers`` processes at a time (in order of the jobs)."""
     if workers == 1 or len(jobs) == 1:
         return [(label, _check_run(*args)) for label, args in jobs]
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-    from ...workers import start_worker
-    with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=multiprocessing.get_context("spawn"),
-                             initializer=start_worker,
-                             initargs=(os.getpid(), "soft_envs.envs.threads:limit_threads")) as pool:
+    from ...workers import worker_pool
+    with worker_pool(min(workers, len(jobs)), "soft_envs.envs.threads:limit_threads") as pool:
         futures = [(label, pool.submit(_check_run, *args)) for label, args in jobs]
         return [(label, fut.result()) for label, fut in futures]
