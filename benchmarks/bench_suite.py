@@ -37,6 +37,7 @@ import platform
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -111,15 +112,19 @@ def collect(spec, sweep_dir: Path, ledger: dict | None = None) -> tuple[dict[tup
         g["runs"].append(run)
         st = read_status(sweep_dir / run.name) or {}
         rec = None
-        if st.get("status") == "done" and (st.get("metrics") or {}).get("task"):
+        if st and (st.get("kind") != run.kind or st.get("params") != suite_ledger.jsonable(run.params)):
+            g["failed"].append(f"{run.name}: its folder in {sweep_dir} holds a run made with other arguments "
+                               f"({st.get('kind')}, {st.get('params')}): not used")
+        elif st.get("status") == "done" and (st.get("metrics") or {}).get("task"):
             rec = local_record(run, group, sweep_dir / run.name, st)
             if rec is not None:
                 local[run.name] = rec
         elif st.get("status") in ("failed", "interrupted"):
             g["failed"].append(f"{run.name}: {st.get('status')} ({st.get('reason', '')})")
-        rec = rec or suite_ledger.current(ledger, run)
+        rec = suite_ledger.newer(rec, suite_ledger.current(ledger, run))
         if rec is not None:
-            g["done"].append({**rec, "name": run.name, "local": run.name in local, "other_hp": other_hyperparams(run, rec.get("rl"))})
+            g["done"].append({**rec, "name": run.name, "local": rec is local.get(run.name),
+                              "other_hp": other_hyperparams(run, rec.get("rl"))})
     for group, g in groups.items():
         if not g["done"]:
             agg = suite_ledger.aggregate(ledger, group, g["runs"])
@@ -255,7 +260,8 @@ def cell(group: dict) -> dict | None:
             return None
         return {"mean": agg["mean"], "std": agg["std"], "n": agg["n"], "planned": len(group["planned"]),
                 "credible": float("nan") if agg["credible"] is None and agg["replayed"] else agg["credible"],
-                "replayed": agg["replayed"], "hold": agg["hold"], "spreads": [], "no_spread": agg["replayed"],
+                "replayed": agg["replayed"], "hold": agg["hold"], "spreads": [],
+                "no_spread": agg["replayed"] if (agg["credible"] or 0) > 0 else 0,     # as a median would count
                 "success": agg["success"], "sim_steps": agg["sim_steps"], "wall": agg["wall"],
                 "unit": agg["score_unit"], "name": agg["score_name"],
                 "other_hp": [agg["other_hp"]] if agg.get("other_hp") else [], "aggregate": agg["from"]}
@@ -471,9 +477,9 @@ def report(spec, sweep_dir: Path, groups: dict[tuple[str, str, str], dict], rate
         lines += ["", f"† {len(stale)} runs were made with other hyper-parameters than `trajopt rl train` and the "
                   f"suite use on their ids now ({'; '.join(sources)}: the robot's tuned values, "
                   "`trajopt/rl/zoo/tuned.toml`, were adopted since, or the defaults changed; docs/tasks.md "
-                  "\"Tuning the baselines\"). A row marked † holds at least one of them. They are made again "
-                  "when their folders are moved aside (the sweep skips runs that are done) and `python "
-                  "benchmarks/bench_suite.py` runs; each new run replaces its record in the ledger."]
+                  "\"Tuning the baselines\"). A row marked † holds at least one of them. `python benchmarks/bench_suite.py "
+                  "--only PATTERN` makes them again (their folders, where this machine has them, moved aside "
+                  "first: the sweep skips runs that are done), and each new run replaces its record in the ledger."]
     if any(c["aggregate"] for c in cells):
         lines += ["", "‡ The row's runs are kept as one record of the row (its figures above, not each run's): "
                   "their folders were lost before the ledger kept each run. A run of the row made again replaces "
@@ -496,10 +502,12 @@ def report(spec, sweep_dir: Path, groups: dict[tuple[str, str, str], dict], rate
     turns = [cell(groups[("turn", "tripod", m)]) for m in METHODS if ("turn", "tripod", m) in groups]
     turns = [c for c in turns if c is not None]
     if turns and max(abs(c["mean"]) for c in turns) < 1.0:
+        most = max(abs(c["mean"]) for c in turns)
+        most = f"{most:.2f} degrees" if most >= 0.05 or not any(c["aggregate"] for c in turns) else \
+            "less than 0.05 degrees"                # a row kept as its report's figure: to 0.1 degrees
         lines += ["", "The Tripod's two motors bend its middle leg forward and backward in its plane of symmetry "
                   "(assets/tripod/robot.toml): no control yaws it, and every method made on it turns it by "
-                  f"{max(abs(c['mean']) for c in turns):.2f} degrees at most over an episode. The turn is the "
-                  "Puppy's task."]
+                  f"{most} at most over an episode. The turn is the Puppy's task."]
     lines += ["", "## Cost", "", "Simulation steps per second of each id (random actions, one process; measured "
               "by this script on this machine, shared with other jobs):", "",
               "| id | steps/s | RL runs' cost at the budget (6 runs) |", "|---|---|---|"]
@@ -512,7 +520,8 @@ def report(spec, sweep_dir: Path, groups: dict[tuple[str, str, str], dict], rate
               "times above).", ""]
     if missing:
         lines += ["## Not run", "", "Runs of `examples/suite.toml` not made (or not finished) in this report; "
-                  "`python benchmarks/bench_suite.py` makes every one (it skips those done), a part: "
+                  "`python benchmarks/bench_suite.py` makes every one (it skips those done here or kept in the "
+                  "ledger), a part: "
                   "`trajopt sweep examples/suite.toml --out results/sweeps/suite --only PATTERN` then "
                   "`python benchmarks/bench_suite.py --report-only`:", ""]
         for task, robot, method, g in missing:
@@ -588,22 +597,34 @@ def main(argv: list[str] | None = None) -> str:
 
 def _run(args, spec, sweep_dir: Path, report_path: Path, quick: bool) -> str:
     """The sweep (unless ``--report-only``), the rates, the pictures, the report (and the docs)."""
+    ledger_path = None if quick or args.no_ledger else args.ledger
+    if ledger_path:
+        suite_ledger.load(ledger_path)               # a bad ledger: its error now, not after hours of runs
     if not (args.report_only or args.holds):
         sweep_dir.mkdir(parents=True, exist_ok=True)
         only = args.only or (QUICK_ONLY if quick else None)
-        outcome = run_sweep(spec.only(only), sweep_dir, workers=args.workers, serial=args.serial)
+        todo = spec.only(only)
+        if ledger_path and not args.only:            # made elsewhere and kept: not made again unless asked
+            kept = kept_runs(todo, sweep_dir, suite_ledger.load(ledger_path))
+            if kept:
+                print(f"{len(kept)} runs are kept in {ledger_path} and not made again (--only NAME makes one again)")
+                todo = replace(todo, runs=[r for r in todo.runs if r.name not in kept])
+        outcome = run_sweep(todo, sweep_dir, workers=args.workers, serial=args.serial)
         if outcome.interrupted:
             raise SystemExit(130)
     if not args.report_only:
         make_holds(hold_jobs(spec, sweep_dir, args.only or (QUICK_HOLDS if quick else None)),
                    1 if args.serial else args.workers)
-    ledger_path = None if quick or args.no_ledger else args.ledger
-    ledger = suite_ledger.load(ledger_path) if ledger_path else None      # a bad ledger: its error, before the work
-    groups, local = collect(spec, sweep_dir, ledger)
     if ledger_path:
-        suite_ledger.save(ledger_path, suite_ledger.update(ledger, local))
-        print(f"wrote {len(local)} runs' records into {ledger_path}")
-        groups, _ = collect(spec, sweep_dir, suite_ledger.load(ledger_path))
+        with suite_ledger.locked(ledger_path):
+            ledger = suite_ledger.load(ledger_path)
+            _, local = collect(spec, sweep_dir, ledger)
+            ledger, said = suite_ledger.update(ledger, local)
+            suite_ledger.save(ledger_path, ledger)
+        for line in said:
+            print("  " + line)
+        print(f"{len(local)} runs of {sweep_dir} in {ledger_path}")
+    groups, _ = collect(spec, sweep_dir, ledger if ledger_path else None)
     rates = measure_rates(10 if quick else 100)
     pictures = render_pictures(sweep_dir / "images" if quick else IMAGES, *((160, 120) if quick else (480, 320)))
     text = report(spec, sweep_dir, groups, rates, pictures, report_path, quick, ledger_path)
@@ -612,6 +633,22 @@ def _run(args, spec, sweep_dir: Path, report_path: Path, quick: bool) -> str:
         update_docs(text)
         print(f"wrote each task's rows into {DOCS}")
     return text
+
+
+def kept_runs(spec, sweep_dir: Path, ledger: dict) -> set[str]:
+    """The runs of ``spec`` not in ``sweep_dir`` that ``ledger`` keeps as made with the sweep file's
+    arguments now (a record, or its row's aggregate)."""
+    groups: dict[tuple[str, str, str], list] = {}
+    for run in spec.runs:
+        groups.setdefault(group_of(run), []).append(run)
+    kept = set()
+    for group, runs in groups.items():
+        agg = suite_ledger.aggregate(ledger, group, runs)
+        for run in runs:
+            if read_status(sweep_dir / run.name) is None and (
+                    suite_ledger.current(ledger, run) is not None or (agg is not None and run.name in agg["runs"])):
+                kept.add(run.name)
+    return kept
 
 
 if __name__ == "__main__":

@@ -153,3 +153,19 @@ def test_kill_9_at_random_points_of_saves_never_breaks_the_unit(tmp_path):
     res.save(path)                                                                  # the next save cleans up
     assert leftovers(tmp_path) == []
     print(f"kills left {temporaries} temporaries and {mismatches} .json files behind their .npz")
+
+
+def test_a_file_lock_excludes_another_process_until_released(tmp_path):
+    """trajopt.results.files.FileLock (a tuning study's and the suite ledger's): while one process
+    holds it, another cannot take it; released, it can."""
+    from trajopt.results.files import HAVE_FILE_LOCKS, FileLock
+    if not HAVE_FILE_LOCKS:
+        pytest.skip("no POSIX file locks here")
+    path = tmp_path / "x.lock"
+    probe = ("import fcntl, sys\nf = open(sys.argv[1], 'a+')\n"
+             "try:\n    fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)\nexcept BlockingIOError:\n    sys.exit(3)\n")
+    lock = FileLock(path)
+    with lock:
+        assert subprocess.run([sys.executable, "-c", probe, str(path)]).returncode == 3
+    assert subprocess.run([sys.executable, "-c", probe, str(path)]).returncode == 0
+    lock.close()

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.util
 import re
+import time
 import tomllib
 from pathlib import Path
 from types import SimpleNamespace
@@ -352,13 +353,14 @@ def _bench():
     return bench
 
 
-def _fake_run(folder, score, *, episodes=(1.0, 2.0, 3.0), hold=None):
+def _fake_run(folder, run, score, *, episodes=(1.0, 2.0, 3.0), hold=None, finished=1.0e9, params=None):
     """A run's folder as the sweep leaves it (status.json, task_score.json, task_hold.json)."""
     import json
     folder.mkdir(parents=True)
     task = {"task": "walk", "score": score, "score_unit": "BL/min", "score_name": "speed", "success_rate": 0.0}
-    (folder / "status.json").write_text(json.dumps({"status": "done", "metrics": {"task": task, "sim_steps": 6000},
-                                                    "wall_time_s": 40.0, "finished": 0.0}))
+    (folder / "status.json").write_text(json.dumps({
+        "status": "done", "kind": run.kind, "params": run.params if params is None else params,
+        "metrics": {"task": task, "sim_steps": 6000}, "wall_time_s": 40.0, "finished": finished}))
     (folder / "task_score.json").write_text(json.dumps({**task, "episodes": [{"score": e} for e in episodes]}))
     if hold is not None:
         (folder / "task_hold.json").write_text(json.dumps({**hold, "own_score": score}))
@@ -367,7 +369,8 @@ def _fake_run(folder, score, *, episodes=(1.0, 2.0, 3.0), hold=None):
 def test_the_suite_ledger_keeps_each_run_and_a_run_made_here_replaces_its_record(tmp_path):
     """benchmarks/suite_ledger.py: the report is made from the ledger's records where the sweep
     folder has no run (a new machine), a run in the folder replaces its record (and the aggregate
-    of its row), a record of other arguments is not used, and the ledger written reads back."""
+    of its row) unless the record is of a run finished later, a record or a folder of other
+    arguments is not used, and the ledger written reads back."""
     bench = _bench()
     ledger_mod = bench.suite_ledger
     from trajopt.sweep import load_spec
@@ -378,29 +381,48 @@ def test_the_suite_ledger_keeps_each_run_and_a_run_made_here_replaces_its_record
     assert group == ("walk", "tripod", "trajopt")
     hold = {"slowest": 7.4, "spread": 0.02, "holds": True, "scores": [7.4, 7.5, 7.5, 7.5], "substeps": [2, 4, 8, 16],
             "own_substeps": 4}
-    _fake_run(tmp_path / "made_elsewhere" / name, 7.5, hold=hold)
+    _fake_run(tmp_path / "made_elsewhere" / name, run, 7.5, hold=hold)
     groups, local = bench.collect(spec, tmp_path / "made_elsewhere")
     rec = local[name]
     assert rec["score"] == 7.5 and rec["episode_std"] == 1.0 and rec["hold"] == {"slowest": 7.4, "spread": 0.02,
                                                                                   "holds": True}
-    ledger = ledger_mod.update(ledger_mod.empty(), local)
+    assert rec["finished"] == 1.0e9 and rec["made"] == time.strftime("%Y-%m-%d", time.localtime(1.0e9))
+    ledger, said = ledger_mod.update(ledger_mod.empty(), local)
+    assert said == []
     path = tmp_path / "suite_runs.json"
-    ledger_mod.save(path, ledger)
+    with ledger_mod.locked(path):
+        ledger_mod.save(path, ledger)
     ledger = ledger_mod.load(path)
-    # a new machine: no run in its folder, the row from the ledger
+    # a new machine: no run in its folder, the row from the ledger; the sweep would not make it again
     groups, local = bench.collect(spec, tmp_path / "empty", ledger)
     c = bench.cell(groups[group])
     assert not local and c["mean"] == 7.5 and c["std"] == 1.0 and c["credible"] == 7.4 and c["hold"] == 1
     assert c["n"] == 1 and c["spreads"] == [0.02] and c["aggregate"] is None
+    assert bench.kept_runs(spec, tmp_path / "empty", ledger) == {name}
     # the run made again here replaces the record
-    _fake_run(tmp_path / "here" / name, 8.0, episodes=(8.0, 8.0, 8.0))
+    _fake_run(tmp_path / "here" / name, run, 8.0, episodes=(8.0, 8.0, 8.0), finished=2.0e9)
     groups, local = bench.collect(spec, tmp_path / "here", ledger)
     c = bench.cell(groups[group])
     assert c["mean"] == 8.0 and c["std"] == 0.0 and c["replayed"] == 0 and set(local) == {name}
+    assert bench.kept_runs(spec, tmp_path / "here", ledger) == set()         # the folder's run is the sweep's
+    newer, said = ledger_mod.update(ledger, local)
+    assert newer["runs"][name]["score"] == 8.0 and said == [f"{name}: its record replaced by the run in the sweep "
+                                                            "folder (+7.5 -> +8 BL/min)"]
+    # ... but an older run in a folder does not replace a record made again elsewhere since
+    _fake_run(tmp_path / "old" / name, run, 6.0, finished=1.0)
+    groups, local = bench.collect(spec, tmp_path / "old", ledger)
+    assert bench.cell(groups[group])["mean"] == 7.5
+    kept, said = ledger_mod.update(ledger, local)
+    assert kept["runs"][name]["score"] == 7.5 and "is newer than the run in the sweep folder" in said[0]
+    # a folder made with other arguments is not the run's
+    _fake_run(tmp_path / "other" / name, run, 1.0, params={**run.params, "iterations": 1})
+    groups, local = bench.collect(spec, tmp_path / "other", ledger)
+    assert not local and bench.cell(groups[group])["mean"] == 7.5 and "made with other arguments" in \
+        groups[group]["failed"][0]
     # a record made with other arguments than the sweep file's is not the run's
     ledger["runs"][name]["params"] = {**ledger["runs"][name]["params"], "iterations": 99}
     groups, _ = bench.collect(spec, tmp_path / "empty", ledger)
-    assert bench.cell(groups[group]) is None
+    assert bench.cell(groups[group]) is None and bench.kept_runs(spec, tmp_path / "empty", ledger) == set()
     # an aggregate stands for its row until a run of the row has a record
     ppo = [r for r in spec.runs if bench.group_of(r) == ("walk", "puppy", "ppo")]
     agg = {"task": "walk", "robot": "puppy", "method": "ppo", "n": 3, "mean": 18.0, "std": 4.0, "credible": 17.0,
@@ -411,9 +433,10 @@ def test_the_suite_ledger_keeps_each_run_and_a_run_made_here_replaces_its_record
     groups, _ = bench.collect(spec, tmp_path / "empty", ledger)
     c = bench.cell(groups[("walk", "puppy", "ppo")])
     assert (c["mean"], c["n"], c["credible"], c["hold"], c["aggregate"]) == (18.0, 3, 17.0, 1, "an older report")
+    assert c["no_spread"] == 3 and {r.name for r in ppo} <= bench.kept_runs(spec, tmp_path / "empty", ledger)
     record = {**ledger["runs"][name], "robot": "puppy", "method": "ppo", "kind": ppo[0].kind,
               "params": ledger_mod.jsonable(ppo[0].params)}
-    after = ledger_mod.update(ledger, {ppo[0].name: record})
+    after, _ = ledger_mod.update(ledger, {ppo[0].name: record})
     assert "walk/puppy/ppo" not in after["aggregates"] and "walk/puppy/ppo" in ledger["aggregates"]  # a new ledger
     groups, _ = bench.collect(spec, tmp_path / "empty", after)
     assert bench.cell(groups[("walk", "puppy", "ppo")])["n"] == 1
@@ -433,14 +456,43 @@ def test_a_bad_suite_ledger_is_an_error_naming_the_file_and_the_record(tmp_path,
         bench.suite_ledger.load(path)
 
 
-def test_a_ledger_record_s_numbers_are_checked(tmp_path):
+@pytest.mark.parametrize("section, field, value, match", [
+    ("runs", "score", "fast", r"runs\['r'\].score must be a number, got 'fast'"),
+    ("runs", "score", None, r"runs\['r'\].score must be a number, got None"),
+    ("runs", "sim_steps", "many", r"runs\['r'\].sim_steps must be a number or null, got 'many'"),
+    ("runs", "hold", {"slowest": "x", "spread": None, "holds": True}, r"runs\['r'\].hold must be null or a table"),
+    ("runs", "rl", {"algo": "ppo", "n_envs": None}, r"runs\['r'\].rl.n_envs must be a int, got None"),
+    ("runs", "params", [], r"runs\['r'\]: kind must be a text and params a table"),
+    ("aggregates", "n", "3", r"aggregates\['r'\].n must be a whole number >= 0, got '3'"),
+    ("aggregates", "replayed", 4, r"aggregates\['r'\]: hold <= replayed <= n"),
+    ("aggregates", "runs", ["a"], r"aggregates\['r'\].runs must be a table of run names to their params"),
+])
+def test_a_ledger_record_s_fields_are_checked(tmp_path, section, field, value, match):
+    """A ledger's record whose field is of the wrong kind is refused on load (naming the file, the
+    record and the field) and is never written."""
     import json
     bench = _bench()
+    lm = bench.suite_ledger
+    good = {"runs": {"task": "walk", "robot": "tripod", "method": "ppo", "kind": "rl-train", "params": {},
+                     "score": 1.0, "episode_std": 0.0, "success_rate": 0.0, "score_unit": "BL/min",
+                     "score_name": "speed", "sim_steps": None, "wall_time_s": None, "hold": None, "rl": None,
+                     "finished": None, "made": None, "machine": "m"},
+            "aggregates": {"task": "walk", "robot": "tripod", "method": "ppo", "n": 3, "mean": 1.0, "std": 0.0,
+                           "credible": None, "replayed": 0, "hold": 0, "success": 0.0, "sim_steps": None,
+                           "wall": None, "score_unit": "BL/min", "score_name": "speed", "rl": None, "runs": {},
+                           "from": "x"}}
+    ledger = lm.empty()
+    ledger[section]["r"] = good[section]
     path = tmp_path / "suite_runs.json"
-    rec = {f: None for f in bench.suite_ledger.RUN_FIELDS} | {"score": "fast"}
-    path.write_text(json.dumps({"version": 1, "runs": {"r": rec}, "aggregates": {}}))
-    with pytest.raises(ValueError, match=r"runs\['r'\].score must be a number, got 'fast'"):
-        bench.suite_ledger.load(path)
+    lm.save(path, ledger)
+    assert lm.load(path) == ledger                                           # the good record reads back
+    ledger[section]["r"] = {**good[section], field: value}
+    path.write_text(json.dumps(ledger))
+    with pytest.raises(ValueError, match=f"{re.escape(str(path))}: {match}"):
+        lm.load(path)
+    with pytest.raises(ValueError, match=match):
+        lm.save(tmp_path / "other.json", ledger)
+    assert not (tmp_path / "other.json").exists()
 
 
 def test_the_shipped_ledger_makes_the_shipped_report_s_rows():

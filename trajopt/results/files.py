@@ -23,8 +23,16 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
+try:
+    import fcntl                                    # POSIX: locks shared by processes (FileLock)
+except ImportError:                                 # pragma: no cover - Windows
+    fcntl = None
+
+#: whether :class:`FileLock` excludes other processes here (POSIX ``flock``)
+HAVE_FILE_LOCKS = fcntl is not None
+
 __all__ = ["RESULTS_DIR", "atomic_output", "atomic_write_bytes", "clean_stale_temporaries", "temporary_name",
-           "check_output_dir", "refuse_existing", "LEGACY_STALE_SECONDS"]
+           "check_output_dir", "refuse_existing", "FileLock", "HAVE_FILE_LOCKS", "LEGACY_STALE_SECONDS"]
 
 #: Where the ``trajopt`` commands write by default: results (.npz/.json), GIFs, ``plots/``,
 #: ``paraview/``, ``runs/`` (RL), relative to the working directory.
@@ -194,3 +202,36 @@ def decode_utf8(data: bytes, src: str | os.PathLike, *, hint: str = "save it as 
         at = bom + exc.start
         line = data.count(b"\n", 0, at) + 1
         raise ValueError(f"{src}: not UTF-8 text: byte {data[at]:#04x} at offset {at} (line {line}); {hint}") from None
+
+
+class FileLock:
+    """An exclusive lock on the file ``path`` (made if missing) shared by processes, held from
+    :meth:`acquire` (or ``with``) to :meth:`release`: POSIX ``flock``, which the system releases
+    when the process ends however it ends. Where there is none (:data:`HAVE_FILE_LOCKS` false) it
+    excludes nothing, and a caller with several processes must refuse to start."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self._file = open(path, "a+")           # noqa: SIM115 - held for the lock's life
+        self._held = False
+
+    def acquire(self) -> None:
+        if fcntl is not None:
+            fcntl.flock(self._file, fcntl.LOCK_EX)
+        self._held = True
+
+    def release(self) -> None:
+        if self._held:
+            if fcntl is not None:
+                fcntl.flock(self._file, fcntl.LOCK_UN)
+            self._held = False
+
+    def close(self) -> None:
+        self.release()
+        self._file.close()
+
+    def __enter__(self) -> "FileLock":
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()

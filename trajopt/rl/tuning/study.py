@@ -10,11 +10,7 @@ from typing import Any
 
 import numpy as np
 
-try:
-    import fcntl                                    # POSIX: the lock of a study shared by processes
-except ImportError:                                 # pragma: no cover - Windows: one worker, no lock needed
-    fcntl = None
-
+from ...results.files import HAVE_FILE_LOCKS, FileLock
 from ..hyperparams import SUITE_N_ENVS, SUITE_TIMESTEPS
 from .space import DEFAULT_PARAMS, SPACES, check_algo, hp_overrides, hyperparams_of, sample_hyperparams
 from .tuned import task_hyperparams
@@ -106,33 +102,11 @@ def _objective(trial, env: str, algo: str, out: Path, timesteps: int, n_envs: in
     return float(ev["score"])
 
 
-class _StudyLock:
-    """A lock on ``out/study.lock`` shared by a study's processes: SQLite ignores ``SELECT ... FOR
-    UPDATE``, so two processes taking the next queued trial, or failing a stale one, at the same
-    moment could take the same; under this lock only one does at a time. (POSIX ``flock``; where
-    there is none, a study has one worker.)"""
-
-    def __init__(self, out: Path) -> None:
-        self._file = open(out / LOCK, "a+")         # noqa: SIM115 - held for the process's study
-        self._held = False
-
-    def acquire(self) -> None:
-        if fcntl is not None:
-            fcntl.flock(self._file, fcntl.LOCK_EX)
-        self._held = True
-
-    def release(self) -> None:
-        if self._held:
-            if fcntl is not None:
-                fcntl.flock(self._file, fcntl.LOCK_UN)
-            self._held = False
-
-    def __enter__(self) -> "_StudyLock":
-        self.acquire()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.release()
+def _study_lock(out: Path) -> FileLock:
+    """The lock on ``out/study.lock`` shared by a study's processes: SQLite ignores ``SELECT ...
+    FOR UPDATE``, so two processes taking the next queued trial, or failing a stale one, at the same
+    moment could take the same; under this lock only one does at a time."""
+    return FileLock(out / LOCK)
 
     def close(self) -> None:
         self.release()
@@ -160,7 +134,7 @@ def _worker(env: str, algo: str, out: str, trials: int, timesteps: int, n_envs: 
     from ...hardware.signals import Terminated
     out = Path(out)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    lock = _StudyLock(out)
+    lock = _study_lock(out)
     try:
         with lock:
             study = optuna.load_study(study_name=_study_name(env, algo), storage=_storage(out))
@@ -233,7 +207,7 @@ def tune(env: str, algo: str = "ppo", *, trials: int = 20, out: str | os.PathLik
                              ("n_envs", n_envs, 1), ("episodes", episodes, 1), ("seed", seed, 0)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    if workers > 1 and fcntl is None:
+    if workers > 1 and not HAVE_FILE_LOCKS:
         raise ValueError("workers > 1 needs POSIX file locks (fcntl), which this system lacks")
     out = Path(out) if out is not None else default_out(env, algo)
     settings = {"env_id": env, "algo": algo, "timesteps": int(timesteps), "n_envs": int(n_envs),
@@ -245,7 +219,7 @@ def tune(env: str, algo: str = "ppo", *, trials: int = 20, out: str | os.PathLik
                              "choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    lock = _StudyLock(out)
+    lock = _study_lock(out)
     try:
         with lock:
             study = optuna.create_study(study_name=_study_name(env, algo), storage=_storage(out),
