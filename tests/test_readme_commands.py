@@ -59,6 +59,9 @@ QUICK_ARGS = {
     ("trajopt", "sweep"): ["--quick"],
     ("trajopt", "robustness"): ["--samples", "2", "--cycles", "1"],
     ("trajopt", "mesh"): ["--edge-length", "0.035"],
+    # SOFT_ENVS_QUICK=1 makes it the quick co-design; its gait is not searched again from scratch
+    # (a quick --speed max search, which the README's optimize commands above run)
+    ("trajopt", "codesign"): ["--no-reoptimise"],
 }
 #: commands the default run leaves to ``-m slow`` even with quick settings (Ray's start, PyTorch's
 #: import and training, a calibration that must converge: 20-40 s each on two quiet cores, minutes

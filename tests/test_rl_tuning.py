@@ -39,6 +39,19 @@ def test_the_defaults_point_is_the_documented_defaults():
         assert hp == base, algo
 
 
+def test_a_ppo_rollout_never_exceeds_a_smaller_budget():
+    """PPO's rollout (n_steps x n_envs transitions) is the budget's when the budget is smaller,
+    so that Stable-Baselines3, which collects whole rollouts, keeps it; larger budgets unchanged."""
+    for n_envs, timesteps, n_steps in ((2, 30_000, 512), (2, None, 512), (3, 30_000, 341), (1, 1024, 1024),
+                                       (2, 256, 128), (3, 256, 86), (1, 100, 100), (4, 40, 16)):
+        hp = default_hyperparams("ppo", n_envs=n_envs, timesteps=timesteps)
+        assert hp["n_steps"] == n_steps and hp["batch_size"] == min(64, n_steps * n_envs), (n_envs, timesteps)
+    point = {**DEFAULT_PARAMS["ppo"], "n_steps_total": 2048, "batch_size": 256}
+    assert hyperparams_of(point, "ppo", n_envs=2, timesteps=30_000)["n_steps"] == 1024
+    hp = hyperparams_of(point, "ppo", n_envs=2, timesteps=200)
+    assert (hp["n_steps"], hp["batch_size"]) == (100, 200)
+
+
 def test_every_point_of_the_space_makes_a_model():
     """Random points of each space (and its corners) are accepted by Stable-Baselines3 (on a
     small stand-in environment: the keywords are what is checked)."""
@@ -116,7 +129,7 @@ def test_a_study_scores_the_defaults_first_and_goes_on(tmp_path):
     assert json.loads((out / "tuning.json").read_text()) == json.loads(json.dumps(s))
     # each trial is a run of the RL baseline, trained with the trial's keywords and the tuning seed
     cfg = json.loads((out / "trials" / "trial_0001" / "rl_config.json").read_text())
-    assert cfg["seed"] == TUNING_SEED and cfg["timesteps_done"] >= 256
+    assert cfg["seed"] == TUNING_SEED and cfg["timesteps_done"] == 256        # one rollout of the budget
     assert cfg["hyperparams"] == s["trials"][1]["hyperparams"]
     # its score is the task's on the held-out episodes
     from trajopt.tasks.play import policy_on_task
@@ -230,12 +243,13 @@ def test_a_diverging_trial_counts_and_other_errors_stop_the_study(tmp_path, monk
         tune(ID, "ppo", trials=1, out=tmp_path / "t", **TINY)
 
 
-def test_the_best_is_checked_on_the_suite_seeds(tmp_path, capsys):
+def test_the_best_is_checked_on_the_suite_seeds(tmp_path, capsys, monkeypatch):
     """check_best trains the best and the defaults with seeds 0.. and scores them as the suite does
     (episodes from seed 0); a second check scores the runs made, without training them again."""
     from trajopt.cli.rl import check_text
     from trajopt.rl.tuning import check_best
     from trajopt.tasks.play import policy_on_task
+    monkeypatch.setenv("SOFT_ENVS_QUICK", "1")       # one episode per score (the suite's three: the same code)
     out = tmp_path / "s"
     s = tune(ID, "ppo", trials=2, out=out, **TINY)
     s["best"] = s["trials"][1]                       # whichever scored higher: the check is of trial 1
@@ -244,7 +258,7 @@ def test_the_best_is_checked_on_the_suite_seeds(tmp_path, capsys):
     assert c["best"]["trial"] == 1 and c["defaults"]["trial"] == 0 and c["seeds"] == [0]
     run = out / "check" / "best_seed0"
     cfg = json.loads((run / "rl_config.json").read_text())
-    assert cfg["seed"] == 0 and cfg["hyperparams"] == s["trials"][1]["hyperparams"] and cfg["timesteps_done"] >= 256
+    assert cfg["seed"] == 0 and cfg["hyperparams"] == s["trials"][1]["hyperparams"] and cfg["timesteps_done"] == 256
     assert c["best"]["scores"] == [pytest.approx(policy_on_task(run)["score"])]
     assert c["difference"] == pytest.approx(c["best"]["mean"] - c["defaults"]["mean"])
     assert json.loads((out / "check.json").read_text()) == json.loads(json.dumps(c))

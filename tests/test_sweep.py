@@ -10,6 +10,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -287,35 +288,42 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
-@pytest.fixture
-def local_ray(tmp_path, monkeypatch):
-    """The address of a local Ray cluster with 2 CPUs, run by ``ray start --head --block`` in a
-    process group of its own: never in the test process. A Ray driver takes over its process
-    (ray.init sets a SIGTERM handler that raises SystemExit, and the driver exits when it loses
-    its raylet): in a pytest-xdist worker that crashed the worker and hung the whole test run.
-    So the sweeps of these tests run as ``trajopt sweep --address`` subprocesses."""
+@dataclass(frozen=True)
+class LocalRay:
+    """A local Ray cluster: its ``address`` and the ``env`` its clients need (its token)."""
+
+    address: str
+    env: dict
+
+
+@pytest.fixture(scope="module")
+def local_ray(tmp_path_factory):
+    """A local Ray cluster with 2 CPUs for this file's sweeps (started once: its start and stop
+    take 5-10 s), run by ``ray start --head --block`` in a process group of its own: never in the
+    test process. A Ray driver takes over its process (ray.init sets a SIGTERM handler that raises
+    SystemExit, and the driver exits when it loses its raylet): in a pytest-xdist worker that
+    crashed the worker and hung the whole test run. So the sweeps of these tests run as
+    ``trajopt sweep --address`` subprocesses, with the cluster's token in their environment."""
     pytest.importorskip("ray")
     ray_bin = Path(sys.executable).with_name("ray")
     if not ray_bin.is_file():
         pytest.skip("the ray command is not installed beside this Python")
     port = _free_port()
+    # the cluster's token (Ray's token authentication), given to the sweeps' subprocesses
+    auth = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(16)}
     # Ray starts its workers at nice 15: on a machine kept busy by other processes at normal
     # priority they would get ~1 % of a core and these tests would wait on the scheduler, not on
     # the sweep. Workers at the test's own priority make the waits independent of the load.
-    # the cluster's token (Ray's token authentication), which the sweeps' subprocesses inherit
-    monkeypatch.setenv("RAY_AUTH_MODE", "token")
-    monkeypatch.setenv("RAY_AUTH_TOKEN", secrets.token_hex(16))
-    env = dict(os.environ, RAY_worker_niceness="0", RAY_USAGE_STATS_ENABLED="0")
-    log = tmp_path / "ray_head.log"
+    env = dict(os.environ, **auth, RAY_worker_niceness="0", RAY_USAGE_STATS_ENABLED="0")
+    log = tmp_path_factory.mktemp("ray_head") / "ray_head.log"
     with open(log, "w") as fh:
         head = subprocess.Popen([str(ray_bin), "start", "--head", "--block", f"--port={port}", "--num-cpus=2",
                                  "--include-dashboard=false", "--disable-usage-stats",
                                  f"--temp-dir={tempfile.mkdtemp(prefix='ray', dir='/tmp')}"],
                                 env=env, stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
     try:
-        address = f"127.0.0.1:{port}"
         _wait_for(lambda: "Ray runtime started" in log.read_text(), 120, "the Ray head", head, log)
-        yield address
+        yield LocalRay(f"127.0.0.1:{port}", auth)
     finally:
         for sig, wait in ((signal.SIGTERM, 5), (signal.SIGKILL, 10)):
             try:
@@ -333,11 +341,11 @@ def local_ray(tmp_path, monkeypatch):
             pass
 
 
-def sweep_cli(spec_path: Path, out: Path, address: str, *extra: str) -> subprocess.CompletedProcess:
-    """``trajopt sweep SPEC --out OUT --address ADDRESS`` in a subprocess (its output returned)."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+def sweep_cli(spec_path: Path, out: Path, ray: LocalRay, *extra: str) -> subprocess.CompletedProcess:
+    """``trajopt sweep SPEC --out OUT --address ADDRESS`` on ``ray`` in a subprocess (its output returned)."""
+    env = dict(os.environ, **ray.env, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
     return subprocess.run([sys.executable, "-m", "trajopt.cli", "sweep", str(spec_path), "--out", str(out),
-                           "--address", address, *extra], cwd=ROOT, env=env, capture_output=True, text=True,
+                           "--address", ray.address, *extra], cwd=ROOT, env=env, capture_output=True, text=True,
                           timeout=load_scaled(900))
 
 
@@ -433,8 +441,8 @@ def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path
             + tiny_block("long{speed:g}", "speed = [5.0, 6.0]", robot="puppy").replace(TINY, long_args))
     out = tmp_path / "out"
     spec_path = write(tmp_path, text)
-    address = local_ray
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    address = local_ray.address
+    env = dict(os.environ, **local_ray.env, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
     log = tmp_path / "sweep.log"                     # a file, not a pipe: readable while it runs
     with open(log, "w") as log_fh:
         proc = subprocess.Popen([sys.executable, "-m", "trajopt.cli", "sweep", str(spec_path), "--out", str(out),

@@ -9,7 +9,8 @@ choices follow the Stable-Baselines3 / RL Zoo defaults for continuous control, s
 PPO
   * ``n_steps`` = 1024 transitions per update in total (``1024 // n_envs`` per environment):
     about six 168-step episodes, i.e. about 14 gait cycles, per policy update; 30 - 50
-    updates in a 30k - 50k budget.
+    updates in a 30k - 50k budget. A smaller budget is one rollout of its size
+    (:func:`ppo_rollout`: SB3 collects whole rollouts and would overshoot it).
   * ``batch_size`` 64, ``n_epochs`` 10, ``learning_rate`` 3e-4, ``clip_range`` 0.2,
     ``gae_lambda`` 0.95, ``max_grad_norm`` 0.5: the SB3 defaults (MuJoCo-tested).
   * ``gamma`` 0.99: an effective horizon of ~100 steps (3.3 s), longer than one 72-step
@@ -47,7 +48,7 @@ import ast
 import copy
 from typing import Any
 
-__all__ = ["ALGOS", "default_hyperparams", "vecnormalize_kwargs", "parse_overrides", "jsonable", "SUITE_TIMESTEPS",
+__all__ = ["ALGOS", "default_hyperparams", "ppo_rollout", "vecnormalize_kwargs", "parse_overrides", "jsonable", "SUITE_TIMESTEPS",
            "SUITE_N_ENVS"]
 
 ALGOS = ("ppo", "sac")
@@ -91,8 +92,8 @@ def default_hyperparams(algo: str, *, n_envs: int = 1, timesteps: int | None = N
     algo = algo.lower()
     if algo == "ppo":
         hp = copy.deepcopy(_PPO)
-        hp["n_steps"] = max(hp["n_steps"] // max(int(n_envs), 1), 16)
-        hp["batch_size"] = min(hp["batch_size"], hp["n_steps"] * max(int(n_envs), 1))
+        hp["n_steps"], hp["batch_size"] = ppo_rollout(hp["n_steps"], hp["batch_size"], n_envs=n_envs,
+                                                      timesteps=timesteps)
         return hp
     if algo == "sac":
         hp = copy.deepcopy(_SAC)
@@ -102,6 +103,19 @@ def default_hyperparams(algo: str, *, n_envs: int = 1, timesteps: int | None = N
             hp["learning_starts"] = int(min(hp["learning_starts"], max(int(timesteps) // 5, 1)))
         return hp
     raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
+
+
+def ppo_rollout(n_steps_total: int, batch_size: int, *, n_envs: int = 1,
+                timesteps: int | None = None) -> tuple[int, int]:
+    """PPO's ``(n_steps, batch_size)``: ``n_steps_total`` transitions per update shared by the
+    ``n_envs`` environments (at least 16 each), at most ``timesteps`` when the budget is smaller
+    than one rollout (Stable-Baselines3 collects whole rollouts: a budget of 256 steps would
+    otherwise take 1024), and minibatches no larger than a rollout."""
+    n_envs = max(int(n_envs), 1)
+    n_steps = max(int(n_steps_total) // n_envs, 16)
+    if timesteps is not None and n_steps * n_envs > int(timesteps):
+        n_steps = max(-(-int(timesteps) // n_envs), 16)          # the fewest that cover the budget
+    return n_steps, min(int(batch_size), n_steps * n_envs)
 
 
 def vecnormalize_kwargs(algo: str, gamma: float) -> dict[str, Any]:

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..hyperparams import ALGOS, SUITE_N_ENVS, SUITE_TIMESTEPS, default_hyperparams
+from ..hyperparams import ALGOS, SUITE_N_ENVS, SUITE_TIMESTEPS, default_hyperparams, ppo_rollout
 
 __all__ = ["SPACES", "DEFAULT_PARAMS", "sample_hyperparams", "hyperparams_of", "hp_overrides", "check_algo"]
 
@@ -91,9 +91,8 @@ def hyperparams_of(params: dict[str, Any], algo: str, *, n_envs: int = SUITE_N_E
     hp["learning_rate"] = float(p.pop("learning_rate"))
     hp["batch_size"] = int(p.pop("batch_size"))
     if algo == "ppo":
-        total = int(p.pop("n_steps_total"))
-        hp["n_steps"] = max(total // max(int(n_envs), 1), 16)
-        hp["batch_size"] = min(hp["batch_size"], hp["n_steps"] * max(int(n_envs), 1))
+        hp["n_steps"], hp["batch_size"] = ppo_rollout(p.pop("n_steps_total"), hp["batch_size"], n_envs=n_envs,
+                                                      timesteps=timesteps)
         hp["gae_lambda"] = 1.0 - float(p.pop("one_minus_gae_lambda"))
         hp["n_epochs"] = int(p.pop("n_epochs"))
         hp["clip_range"] = float(p.pop("clip_range"))
