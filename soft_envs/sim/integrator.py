@@ -29,6 +29,10 @@ Newton's method with
     strings steps together (a rollout, an environment step with frame skip), says which
     factorisation of the solver it may reuse; a step given no cache starts afresh, so its
     result depends on its inputs only.
+A step that fails for too many iterations or a failed line search is solved once more, afresh,
+with a line search that may lengthen a step which still descends steeply
+(``NewtonOptions.rescue_doublings``: where Phi curves downwards the modified Hessian's steps
+creep); a step that converges the first time is as before, bit for bit.
 Failure (no descent, too many iterations, non-finite values) raises :class:`SimulationError`.
 """
 from __future__ import annotations
@@ -141,10 +145,28 @@ class NewtonSolver:
         (``x_{k-3}``, optional) only improves the initial guess. ``history`` is the energy
         terms' lagged state (:meth:`EnergySystem.initial_history`; default: at rest at
         ``x_prev``)."""
-        opt = self.options
         cache = FactorCache() if cache is None else cache
         ctx = _Inputs(2.0 * x_prev - x_prev2, x_prev, u, self.system.resolve_history(history, x_prev))
-        it = self._start(ctx, x_prev2, x_prev3, x_prev if x_fixed is None else x_fixed, k)
+        fixed_src = x_prev if x_fixed is None else x_fixed
+        try:
+            return self._solve(ctx, x_prev2, x_prev3, fixed_src, k, need_exact, cache, rescue=False)
+        except SimulationError as err:
+            if not self.options.rescue_doublings or not err.rescuable:
+                raise
+            first = err
+        cache.drop()                      # the rescue starts afresh (module docstring)
+        try:
+            return self._solve(ctx, x_prev2, x_prev3, fixed_src, k, need_exact, cache, rescue=True)
+        except SimulationError as err:
+            raise SimulationError(f"{first.reason}; solved again with longer line searches: {err.reason}",
+                                  first.step) from err
+
+    def _solve(self, ctx: "_Inputs", x_prev2, x_prev3, fixed_src, k, need_exact: bool, cache: FactorCache,
+               rescue: bool) -> tuple[np.ndarray, StepInfo]:
+        """:meth:`step`'s Newton iteration; ``rescue``: the exact line search with
+        ``rescue_doublings`` (whatever the contact law's search)."""
+        opt = self.options
+        it = self._start(ctx, x_prev2, x_prev3, fixed_src, k)
         while it.iterations < opt.max_iter:
             it.iterations += 1
             g, dx, norm, kind = self._direction(it, cache, ctx, k)
@@ -166,7 +188,7 @@ class NewtonSolver:
                     cache.drop()          # a stale factorisation: refresh it here
                     continue
                 raise SimulationError(f"Newton direction is not a descent direction (slope {slope:.3e})", k)
-            found = self._line_search(it, dx, slope, ctx)
+            found = self._line_search(it, dx, slope, ctx, rescue)
             if found is None and not it.fresh:
                 cache.drop()              # a reused factorisation overshoots: refresh, not damp
                 continue
@@ -176,12 +198,12 @@ class NewtonSolver:
                 if norm <= 1e3 * opt.tol and self.phi(xn, ctx.xt, ctx.x_prev, ctx.u, ctx.history) <= it.phi:
                     # round-off stalls the line search this close to the solution
                     return xn, self._info(it, need_exact, need_exact, cache, xn, x_prev2, ctx)
-                raise SimulationError(f"line search failed (|dx| = {norm:.3e} m)", k)
+                raise SimulationError(f"line search failed (|dx| = {norm:.3e} m)", k, rescuable=True)
             it.x, it.phi, it.grad, alpha = found
             it.prev_kind = kind if alpha == 1.0 else None
             it.fresh, it.prev_norm = False, alpha * norm
         raise SimulationError(f"Newton did not converge in {opt.max_iter} iterations "
-                              f"(last |dx| = {norm:.3e} m)", k)
+                              f"(last |dx| = {norm:.3e} m)", k, rescuable=True)
 
     def _move(self, x: np.ndarray, dx: np.ndarray) -> None:
         """``x[free dofs] += dx`` in place."""
@@ -224,10 +246,11 @@ class NewtonSolver:
         kind = ("newton" if cache.exact else None) if it.fresh else "chord"
         return g, dx, norm, kind
 
-    def _line_search(self, it: _Iterate, dx, slope: float, ctx: "_Inputs"):
+    def _line_search(self, it: _Iterate, dx, slope: float, ctx: "_Inputs", rescue: bool = False):
         """From the full step (:mod:`.line_search`): ``(x, Phi, grad, alpha)`` of the accepted
         point, or None. A chord step (reused factorisation) only tries the full step; a Newton
-        step brackets (``"exact"``), falling back to, or else, backtracking."""
+        step brackets (``"exact"``; in a rescue, with ``rescue_doublings``), falling back to,
+        or else, backtracking."""
         opt = self.options
         sys = self.system
         free = sys.free if len(sys.free) < sys.n_dof else slice(None)
@@ -238,9 +261,9 @@ class NewtonSolver:
             phi_n, grad_n, _ = self._phi_grad(xn, ctx)
             return xn, phi_n, grad_n, (float(grad_n[free] @ dx) if np.isfinite(phi_n) else np.inf)
 
-        if it.fresh and self._exact_line_search:
+        if it.fresh and (self._exact_line_search or rescue):
             found = bracketing(evaluate, it.phi, slope, opt.armijo, opt.wolfe, opt.line_search_iter,
-                               opt.max_backtracks)
+                               opt.max_backtracks, opt.rescue_doublings if rescue else 0)
             if found is not None:
                 return found
         return backtracking(evaluate, it.phi, slope, opt.armijo, opt.max_backtracks, full_step_only=not it.fresh)

@@ -39,9 +39,13 @@ def backtracking(evaluate: Evaluate, phi0: float, slope: float, armijo: float, m
 
 
 def bracketing(evaluate: Evaluate, phi0: float, slope: float, armijo: float, wolfe: float,
-               max_iter: int, max_halvings: int):
+               max_iter: int, max_halvings: int, max_doublings: int = 0):
     """None when no point with Phi finite (within ``max_halvings`` halvings) or no point that
-    satisfies Armijo was found (the caller then backtracks)."""
+    satisfies Armijo was found (the caller then backtracks). ``max_doublings``: while the full
+    step still descends steeply (the directional derivative above ``wolfe`` times its initial
+    value in size, Armijo holding), double it, up to that many times, before bracketing: a
+    step of a modified Hessian where Phi curves downwards (:class:`~.integrator.NewtonSolver`'s
+    rescue) is far too short."""
     best = None
     lo, d_lo = 0.0, slope
     hi = 1.0
@@ -52,6 +56,12 @@ def bracketing(evaluate: Evaluate, phi0: float, slope: float, armijo: float, wol
         hi *= 0.5
     else:
         return None
+    for _ in range(max_doublings):
+        if not (d_hi < 0.0 and abs(d_hi) > -wolfe * slope and phi_hi <= phi0 + armijo * hi * slope):
+            break
+        best = (x_hi, phi_hi, g_hi, hi)      # Phi falls all the way along the step so far
+        lo, d_lo, hi = hi, d_hi, 2.0 * hi
+        x_hi, phi_hi, g_hi, d_hi = evaluate(hi)
     side = 0
     for _ in range(max_iter):
         if phi_hi <= phi0 + armijo * hi * slope and (best is None or phi_hi < best[1]):
