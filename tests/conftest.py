@@ -25,6 +25,19 @@ def pytest_configure(config):
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+#: the longest test files (summed durations, ``pytest --durations=0``: 70-100 s each against a
+#: few seconds for most), run first: pytest-xdist's ``--dist loadfile`` hands out files in
+#: collection order, and one of them begun last would leave the other core idle at the end
+LONGEST_FIRST = ("test_examples.py", "test_suite.py", "test_codesign_command.py", "test_sweep.py",
+                 "test_readme_commands.py", "test_rl_tuning.py", "test_calibrate_checks.py", "test_motor_limit.py")
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """The files of :data:`LONGEST_FIRST` first, in that order; the others as collected."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
 def block_mesh(nx=3, ny=2, nz=1, size=(0.06, 0.02, 0.02)) -> meshio.Mesh:
     xs, ys, zs = (np.linspace(0, s, n + 1) for s, n in zip(size, (nx, ny, nz)))
     p, t = voxel_tet_mesh(xs, ys, zs, np.ones((nx, ny, nz), bool))
