@@ -23,7 +23,7 @@ from trajopt.rl.tuning import (DEFAULT_PARAMS, EVAL_FIRST_SEED, SPACES, TUNING_S
                                hyperparams_of, sample_hyperparams, tune)
 
 ID = "SoftTripodWalk-v0"
-TINY = dict(timesteps=256, episodes=1)           # a trial of a few seconds: two PPO updates, one episode
+TINY = dict(timesteps=256, episodes=1)           # a trial of a few seconds: one PPO update of 256 steps, one episode
 
 
 def test_the_defaults_point_is_the_documented_defaults():

@@ -59,7 +59,8 @@ def bracketing(evaluate: Evaluate, phi0: float, slope: float, armijo: float, wol
     for _ in range(max_doublings):
         if not (d_hi < 0.0 and abs(d_hi) > -wolfe * slope and phi_hi <= phi0 + armijo * hi * slope):
             break
-        best = (x_hi, phi_hi, g_hi, hi)      # Phi falls all the way along the step so far
+        if best is None or phi_hi < best[1]:
+            best = (x_hi, phi_hi, g_hi, hi)  # the lowest Armijo point so far
         lo, d_lo, hi = hi, d_hi, 2.0 * hi
         x_hi, phi_hi, g_hi, d_hi = evaluate(hi)
     side = 0
