@@ -341,9 +341,15 @@ def local_ray(tmp_path_factory):
             pass
 
 
+def sweep_env(ray: LocalRay) -> dict:
+    """The environment of a ``trajopt sweep`` subprocess on ``ray``: this checkout first on the
+    import path, the cluster's token."""
+    return dict(os.environ, **ray.env, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+
+
 def sweep_cli(spec_path: Path, out: Path, ray: LocalRay, *extra: str) -> subprocess.CompletedProcess:
     """``trajopt sweep SPEC --out OUT --address ADDRESS`` on ``ray`` in a subprocess (its output returned)."""
-    env = dict(os.environ, **ray.env, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    env = sweep_env(ray)
     return subprocess.run([sys.executable, "-m", "trajopt.cli", "sweep", str(spec_path), "--out", str(out),
                            "--address", ray.address, *extra], cwd=ROOT, env=env, capture_output=True, text=True,
                           timeout=load_scaled(900))
@@ -441,8 +447,7 @@ def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path
             + tiny_block("long{speed:g}", "speed = [5.0, 6.0]", robot="puppy").replace(TINY, long_args))
     out = tmp_path / "out"
     spec_path = write(tmp_path, text)
-    address = local_ray.address
-    env = dict(os.environ, **local_ray.env, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    address, env = local_ray.address, sweep_env(local_ray)
     log = tmp_path / "sweep.log"                     # a file, not a pipe: readable while it runs
     with open(log, "w") as log_fh:
         proc = subprocess.Popen([sys.executable, "-m", "trajopt.cli", "sweep", str(spec_path), "--out", str(out),

@@ -149,32 +149,29 @@ class NewtonSolver:
         cache = FactorCache() if cache is None else cache
         ctx = _Inputs(2.0 * x_prev - x_prev2, x_prev, u, self.system.resolve_history(history, x_prev))
         fixed_src = x_prev if x_fixed is None else x_fixed
-        spent: list[_Iterate] = []
+        first = self._start(ctx, x_prev2, x_prev3, fixed_src, k)
         try:
-            return self._solve(ctx, x_prev2, x_prev3, fixed_src, k, need_exact, cache, False, spent)
+            return self._solve(first, ctx, x_prev2, k, need_exact, cache, rescue=False)
         except SimulationError as err:
             if not self.options.rescue_doublings or not err.rescuable:
                 raise
-            first = err
+            failure = err
         cache.drop()                      # the rescue starts afresh (module docstring)
         try:
-            x, info = self._solve(ctx, x_prev2, x_prev3, fixed_src, k, need_exact, cache, True, spent)
+            x, info = self._solve(self._start(ctx, x_prev2, x_prev3, fixed_src, k), ctx, x_prev2, k, need_exact,
+                                  cache, rescue=True)
         except SimulationError as err:
-            raise SimulationError(f"{first.reason}; solved again with longer line searches: {err.reason}",
-                                  first.step) from err
-        failed = spent[0]                 # the work of the first solve counts too
-        return x, dataclasses.replace(info, iterations=info.iterations + failed.iterations,
-                                      factorizations=info.factorizations + failed.factorizations,
-                                      fallbacks=info.fallbacks + failed.fallbacks)
+            raise SimulationError(f"{failure.reason}; solved again with longer line searches: {err.reason}",
+                                  failure.step) from err
+        return x, dataclasses.replace(info, iterations=info.iterations + first.iterations,   # both solves' work
+                                      factorizations=info.factorizations + first.factorizations,
+                                      fallbacks=info.fallbacks + first.fallbacks)
 
-    def _solve(self, ctx: "_Inputs", x_prev2, x_prev3, fixed_src, k, need_exact: bool, cache: FactorCache,
-               rescue: bool, spent: list) -> tuple[np.ndarray, StepInfo]:
-        """:meth:`step`'s Newton iteration; ``rescue``: the exact line search with
-        ``rescue_doublings`` (whatever the contact law's search). Its iterate is appended to
-        ``spent`` (its counts of iterations and factorisations, read when it raised)."""
+    def _solve(self, it: _Iterate, ctx: "_Inputs", x_prev2, k, need_exact: bool, cache: FactorCache,
+               rescue: bool) -> tuple[np.ndarray, StepInfo]:
+        """:meth:`step`'s Newton iteration from ``it`` (counting its work there); ``rescue``: the
+        exact line search with ``rescue_doublings`` (whatever the contact law's search)."""
         opt = self.options
-        it = self._start(ctx, x_prev2, x_prev3, fixed_src, k)
-        spent.append(it)
         while it.iterations < opt.max_iter:
             it.iterations += 1
             g, dx, norm, kind = self._direction(it, cache, ctx, k)

@@ -48,8 +48,8 @@ import ast
 import copy
 from typing import Any
 
-__all__ = ["ALGOS", "default_hyperparams", "ppo_rollout", "vecnormalize_kwargs", "parse_overrides", "jsonable", "SUITE_TIMESTEPS",
-           "SUITE_N_ENVS"]
+__all__ = ["ALGOS", "default_hyperparams", "ppo_rollout", "vecnormalize_kwargs", "parse_overrides", "jsonable",
+           "SUITE_TIMESTEPS", "SUITE_N_ENVS"]
 
 ALGOS = ("ppo", "sac")
 #: the task suite's budget per RL run (environment steps; examples/suite.toml, the rl_zoo3 files'
