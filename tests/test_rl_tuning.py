@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.rl
+pytestmark = [pytest.mark.rl, pytest.mark.filterwarnings(r"ignore:timesteps \d+ is below ppo's largest rollout")]
 pytest.importorskip("stable_baselines3")
 optuna = pytest.importorskip("optuna")
 
@@ -120,7 +121,8 @@ def test_an_unknown_activation_is_refused_before_the_run_exists(tmp_path):
 
 def test_a_study_scores_the_defaults_first_and_goes_on(tmp_path):
     out = tmp_path / "study"
-    s = tune(ID, "ppo", trials=2, out=out, **TINY)
+    with pytest.warns(UserWarning, match="timesteps 256 is below ppo's largest rollout .2048 transitions"):
+        s = tune(ID, "ppo", trials=2, out=out, **TINY)        # (the tests' budget: n_steps_total draws in vain)
     assert s["n_finished"] == 2 and [t["number"] for t in s["trials"]] == [0, 1]
     assert s["defaults"]["number"] == 0 and s["defaults"]["params"] == DEFAULT_PARAMS["ppo"]
     assert s["trials"][1]["params"] != DEFAULT_PARAMS["ppo"]
@@ -130,7 +132,7 @@ def test_a_study_scores_the_defaults_first_and_goes_on(tmp_path):
     # each trial is a run of the RL baseline, trained with the trial's keywords and the tuning seed
     cfg = json.loads((out / "trials" / "trial_0001" / "rl_config.json").read_text())
     assert cfg["seed"] == TUNING_SEED and cfg["timesteps_done"] == 256        # one rollout of the budget
-    assert cfg["hyperparams"] == s["trials"][1]["hyperparams"]
+    assert cfg["hyperparams"] == s["trials"][1]["hyperparams"] and "hyperparams_now" not in s["trials"][1]
     # its score is the task's on the held-out episodes
     from trajopt.tasks.play import policy_on_task
     ev = policy_on_task(out / "trials" / "trial_0001", episodes=1, first_seed=EVAL_FIRST_SEED)
@@ -148,6 +150,25 @@ def test_a_study_scores_the_defaults_first_and_goes_on(tmp_path):
     with pytest.raises(ValueError, match="a study made with"):
         tune(ID, "ppo", trials=4, out=out, timesteps=512, episodes=1)
     assert (out / "tuning.json").read_bytes() == before
+
+
+def test_a_trial_reports_the_keywords_it_trained_with(tmp_path, monkeypatch):
+    """A trial records the keywords it trained with: if its parameters give others later (the code
+    changed since, as PPO's rollout did for budgets below one), the summary still reports those it
+    trained with, and the new ones apart (``hyperparams_now``)."""
+    out = tmp_path / "study"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        s = tune(ID, "sac", trials=1, out=out, **TINY)
+    assert not [w for w in caught if "largest rollout" in str(w.message)]     # SAC has no rollout to warn of
+    trained = json.loads((out / "trials" / "trial_0000" / "rl_config.json").read_text())["hyperparams"]
+    assert s["trials"][0]["hyperparams"] == trained and "hyperparams_now" not in s["trials"][0]
+    real = tuning_study.hyperparams_of
+    monkeypatch.setattr(tuning_study, "hyperparams_of", lambda *a, **k: {**real(*a, **k), "learning_rate": 1e-3})
+    study = optuna.load_study(study_name=f"{ID}_sac", storage=tuning_study._storage(out))
+    row = tuning_study.tuning_summary(study, ID, "sac", 256, 2)["trials"][0]
+    assert row["hyperparams"] == trained and trained["learning_rate"] == 3e-4
+    assert row["hyperparams_now"] == {**trained, "learning_rate": 1e-3}
 
 
 @pytest.mark.filterwarnings("ignore:Heartbeat of storage is supposed to be used with Study.optimize")

@@ -73,6 +73,7 @@ class TuningWorkerError(RuntimeError):
 def _objective(trial, env: str, algo: str, out: Path, timesteps: int, n_envs: int, episodes: int) -> float:
     """Train with the trial's hyper-parameters and score the policy (the module docstring)."""
     from ...tasks.play import policy_on_task
+    from ..hyperparams import jsonable
     from ..training import train
     params = sample_hyperparams(trial, algo)
     hp = hyperparams_of(params, algo, n_envs=n_envs, timesteps=timesteps)
@@ -94,6 +95,7 @@ def _objective(trial, env: str, algo: str, out: Path, timesteps: int, n_envs: in
     if not np.isfinite(ev["score"]):
         trial.set_user_attr("error", f"score {ev['score']}")
         raise TrainingDiverged(f"score {ev['score']}")
+    trial.set_user_attr("hyperparams", jsonable(hp))      # what it trained with, as this code made them
     trial.set_user_attr("wall_time_s", time.perf_counter() - t0)
     trial.set_user_attr("success_rate", float(ev["success_rate"]))
     trial.set_user_attr("episode_scores", [float(e["score"]) for e in ev["episodes"]])
@@ -227,6 +229,13 @@ def tune(env: str, algo: str = "ppo", *, trials: int = 20, out: str | os.PathLik
             _settings(study, env, algo, out, settings)
     finally:
         lock.close()
+    rollouts = SPACES[algo].get("n_steps_total", ("choice", ()))[1]
+    if any(n > timesteps for n in rollouts):
+        import warnings
+        warnings.warn(f"timesteps {timesteps} is below {algo}'s largest rollout ({max(rollouts)} transitions): "
+                      f"its n_steps_total choices above the budget all train with rollouts of {timesteps} "
+                      "(trajopt.rl.hyperparams.ppo_rollout), so the study draws them without effect",
+                      UserWarning, stacklevel=2)
     args = (env, algo, str(out), int(trials), int(timesteps), int(n_envs), int(episodes), int(seed))
     if workers == 1:
         _worker(*args, 0)
@@ -278,7 +287,10 @@ def _run_workers(jobs: list[tuple]) -> None:
 def tuning_summary(study, env: str, algo: str, timesteps: int, n_envs: int) -> dict[str, Any]:
     """What a study found: each trial (number, state, parameters, Stable-Baselines3 keywords,
     score, wall time, error), the defaults' trial, the best one and its ``--hp`` overrides (of what
-    ``trajopt rl train`` starts from on the id now: the robot's tuned values where adopted)."""
+    ``trajopt rl train`` starts from on the id now: the robot's tuned values where adopted). A
+    trial's keywords are those it trained with (recorded since 2026-12-07; a trial of an older study
+    has those its parameters give now); where its parameters give other keywords now, they are its
+    ``hyperparams_now``, which the check and ``--hp`` use."""
     from optuna.trial import TrialState
     from ..hyperparams import jsonable
     rows = []
@@ -290,7 +302,11 @@ def tuning_summary(study, env: str, algo: str, timesteps: int, n_envs: int) -> d
                "defaults": bool(t.user_attrs.get("defaults")), **{k: v for k, v in t.user_attrs.items()
                                                                    if k != "defaults"}}
         if set(t.params) == set(SPACES[algo]):
-            row["hyperparams"] = jsonable(hyperparams_of(t.params, algo, n_envs=n_envs, timesteps=timesteps))
+            now = jsonable(hyperparams_of(t.params, algo, n_envs=n_envs, timesteps=timesteps))
+            if "hyperparams" not in row:            # a trial of a study made before they were recorded
+                row["hyperparams"] = now
+            elif row["hyperparams"] != now:         # trained with other keywords than its parameters give now
+                row["hyperparams_now"] = now
         rows.append(row)
     done = [r for r in rows if r["score"] is not None]
     best = max(done, key=lambda r: r["score"], default=None)
