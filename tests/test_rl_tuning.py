@@ -152,10 +152,14 @@ def test_a_study_scores_the_defaults_first_and_goes_on(tmp_path):
     assert (out / "tuning.json").read_bytes() == before
 
 
-def test_a_trial_reports_the_keywords_it_trained_with(tmp_path, monkeypatch):
-    """A trial records the keywords it trained with: if its parameters give others later (the code
-    changed since, as PPO's rollout did for budgets below one), the summary still reports those it
-    trained with, and the new ones apart (``hyperparams_now``)."""
+@pytest.mark.filterwarnings("ignore:Heartbeat of storage is supposed to be used with Study.optimize")
+def test_a_trial_cut_short_is_tried_again_with_its_parameters(tmp_path, monkeypatch):
+    """A trial whose process died (its heartbeat stopped) is marked failed when the study goes on,
+    and a copy of it, with the same parameters, is run and scored. (First: a trial reports the
+    keywords it trained with, and apart those its parameters give under later code, as PPO's
+    rollout changed for budgets below one.)"""
+    monkeypatch.setattr(tuning_study, "_HEARTBEAT_S", 1)
+    monkeypatch.setattr(tuning_study, "_GRACE_S", 1)
     out = tmp_path / "study"
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -163,23 +167,14 @@ def test_a_trial_reports_the_keywords_it_trained_with(tmp_path, monkeypatch):
     assert not [w for w in caught if "largest rollout" in str(w.message)]     # SAC has no rollout to warn of
     trained = json.loads((out / "trials" / "trial_0000" / "rl_config.json").read_text())["hyperparams"]
     assert s["trials"][0]["hyperparams"] == trained and "hyperparams_now" not in s["trials"][0]
-    real = tuning_study.hyperparams_of
-    monkeypatch.setattr(tuning_study, "hyperparams_of", lambda *a, **k: {**real(*a, **k), "learning_rate": 1e-3})
     study = optuna.load_study(study_name=f"{ID}_sac", storage=tuning_study._storage(out))
-    row = tuning_study.tuning_summary(study, ID, "sac", 256, 2)["trials"][0]
+    real = tuning_study.hyperparams_of
+    with monkeypatch.context() as m:
+        m.setattr(tuning_study, "hyperparams_of", lambda *a, **k: {**real(*a, **k), "learning_rate": 1e-3})
+        row = tuning_study.tuning_summary(study, ID, "sac", 256, 2)["trials"][0]
     assert row["hyperparams"] == trained and trained["learning_rate"] == 3e-4
     assert row["hyperparams_now"] == {**trained, "learning_rate": 1e-3}
 
-
-@pytest.mark.filterwarnings("ignore:Heartbeat of storage is supposed to be used with Study.optimize")
-def test_a_trial_cut_short_is_tried_again_with_its_parameters(tmp_path, monkeypatch):
-    """A trial whose process died (its heartbeat stopped) is marked failed when the study goes on,
-    and a copy of it, with the same parameters, is run and scored."""
-    monkeypatch.setattr(tuning_study, "_HEARTBEAT_S", 1)
-    monkeypatch.setattr(tuning_study, "_GRACE_S", 1)
-    out = tmp_path / "study"
-    tune(ID, "sac", trials=1, out=out, **TINY)
-    study = optuna.load_study(study_name=f"{ID}_sac", storage=tuning_study._storage(out))
     dead = study.ask()                                # a trial that starts, beats once and dies
     params = sample_hyperparams(dead, "sac")
     study._storage.record_heartbeat(dead._trial_id)
