@@ -269,3 +269,35 @@ def test_the_environments_and_trajopt_read_the_one_time_step():
     env.reset(seed=0)
     info = env.step(np.zeros(env.robot.n_motors, np.float32))[4]
     assert info["time"] == 3 * env.simulator.dt
+
+
+@pytest.mark.parametrize("model", ["coulomb", "paper"])
+def test_the_terms_are_handed_read_only_positions(model):
+    """The system hands every term its positions read-only, the Newton iterates as the states'
+    (``soft_envs.sim.terms.readonly``): numba compiles a kernel once per argument type, and a
+    writeable array is another type, so a kernel met by both would be compiled twice."""
+    robot = load_robot("tripod")
+    robot = dataclasses.replace(robot, contact=dataclasses.replace(robot.contact, model=model))
+    sim = Simulator(robot)
+    seen = []
+    names = ("energy", "assemble", "assemble_projected", "add_control_jacobian", "add_prev_product",
+             "add_prev_product_T", "add_history_product", "add_history_product_T", "next_history",
+             "history_tangent", "history_tangent_T", "initial_history")
+    for term in sim.system.terms:
+        for name in names:
+            method = getattr(term, name, None)
+            if method is None:
+                continue
+
+            def spy(*args, _method=method, _where=f"{term.name}.{name}", **kwargs):
+                seen.append((_where, [a.flags.writeable for a in args[:2] if isinstance(a, np.ndarray)]))
+                return _method(*args, **kwargs)
+            setattr(term, name, spy)
+    u = np.tile(robot.u_rest, (3, 1)) + 1e-3
+    traj = sim.rollout(u, dudz=np.full((3, robot.n_motors, 1), 1e-3))
+    sim.rollout_gradient(u, np.ones_like(traj.x), dudz=np.full((3, robot.n_motors, 1), 1e-3), traj=traj)
+    where = {w for w, _ in seen}
+    assert {"elastic.assemble", "cables.assemble", "contact.assemble", "contact.add_prev_product",
+            "contact.add_prev_product_T", "elastic.add_control_jacobian"} <= where, where
+    writeable = sorted({w for w, flags in seen if any(flags)})
+    assert not writeable, f"handed writeable positions: {writeable}"

@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from .contact.penalty import Q, d2Q, dQ, one_sided_quadratic
-from .terms import EnergyTerm
+from .terms import EnergyTerm, readonly
 
 __all__ = ["one_sided_quadratic", "Q", "dQ", "d2Q", "cable_lengths", "cable_length_gradients",
            "cable_energy", "cable_assemble", "LENGTH_CONTROL", "TENSION_CONTROL",
@@ -247,11 +247,11 @@ class Cables(EnergyTerm):
 
     # ------------------------------------------------------------------ geometry
     def lengths(self, x: np.ndarray) -> np.ndarray:
-        return cable_lengths(x, self.pt_nodes, self.pt_w, self.ptr)
+        return cable_lengths(readonly(x), self.pt_nodes, self.pt_w, self.ptr)
 
     def length_gradients(self, x: np.ndarray) -> np.ndarray:
         """Dense (T, 3n) dL/dx."""
-        return cable_length_gradients(x, self.pt_nodes, self.pt_w, self.ptr, self.n_dof)
+        return cable_length_gradients(readonly(x), self.pt_nodes, self.pt_w, self.ptr, self.n_dof)
 
     # ------------------------------------------------------------------ energy term
     def hessian_blocks(self) -> list[np.ndarray]:

@@ -20,9 +20,10 @@ from .contact.box_contact import BoxContact
 from .elastic import Elastic
 from .gravity import Gravity
 from .parameters import MASS_PARAMETERS, check_parameters, node_mass_jacobian
-from .terms import EnergyTerm
+from .terms import EnergyTerm, readonly
 
 __all__ = ["EnergySystem", "Pattern", "build_pattern"]
+
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,10 +132,12 @@ class EnergySystem:
     def initial_history(self, x0: np.ndarray) -> tuple:
         """The terms' histories (a tuple aligned with :attr:`terms`, None for the terms without
         one) of a body at rest at ``x0``."""
+        x0 = readonly(x0)
         return tuple(term.initial_history(x0) for term in self.terms)
 
     def next_history(self, x: np.ndarray, x_prev: np.ndarray, history: tuple) -> tuple:
         """The histories after the step from ``x_prev`` to ``x``."""
+        x, x_prev = readonly(x), readonly(x_prev)
         return tuple(t.next_history(x, x_prev, h) if t.has_history else None
                      for t, h in zip(self.terms, history))
 
@@ -146,6 +149,7 @@ class EnergySystem:
     def energy(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray, history=None) -> float:
         """Potential energy E (no inertia); ``inf`` when an element is inverted. ``history``
         defaults to that of a body at rest at ``x_prev`` (see :meth:`resolve_history`)."""
+        x, x_prev = readonly(x), readonly(x_prev)
         history = self.resolve_history(history, x_prev)
         total = 0.0
         for term, h in zip(self.terms, history):
@@ -161,6 +165,7 @@ class EnergySystem:
         ``want_hess=False`` hdata is None and only the energy and gradient are computed. With
         ``project`` every term's Hessian is replaced by a positive semi-definite one (the
         elastic term's is projected element by element, :mod:`.psd_projection`)."""
+        x, x_prev = readonly(x), readonly(x_prev)
         history = self.resolve_history(history, x_prev)
         grad = np.zeros(self.n_dof)
         hdata = np.zeros(self.pattern.nnz + 1) if want_hess else self._no_hess
@@ -177,6 +182,7 @@ class EnergySystem:
 
     def control_jacobian(self, x: np.ndarray, x_prev: np.ndarray, u: np.ndarray, history=None) -> np.ndarray:
         """``d(dE/dx)/du`` (3n, n_motors) (paper eq. 9's right-hand side, per step)."""
+        x, x_prev = readonly(x), readonly(x_prev)
         history = self.resolve_history(history, x_prev)
         G = np.zeros((self.n_dof, len(u)))
         for term, h in zip(self.terms, history):
@@ -185,6 +191,7 @@ class EnergySystem:
 
     def prev_product(self, x, x_prev, u, S: np.ndarray, history=None) -> np.ndarray:
         """``d(dE/dx)/dx_prev @ S`` (3n, nz): the lagged terms' part of paper eq. 10's B_k."""
+        x, x_prev = readonly(x), readonly(x_prev)
         history = self.resolve_history(history, x_prev)
         out = np.zeros_like(S)
         for term, h in zip(self.terms, history):
@@ -193,18 +200,21 @@ class EnergySystem:
 
     def prev_product_T(self, x, x_prev, u, lam: np.ndarray, out: np.ndarray, history=None) -> None:
         """``out += (d(dE/dx)/dx_prev)^T @ lam`` (the adjoint of :meth:`prev_product`)."""
+        x, x_prev = readonly(x), readonly(x_prev)
         history = self.resolve_history(history, x_prev)
         for term, h in zip(self.terms, history):
             term.add_prev_product_T(x, x_prev, u, h, lam, out)
 
     def history_product(self, x, x_prev, u, history: tuple, P: tuple, out: np.ndarray) -> None:
         """``out (3n, nz) += sum_t d(dE_t/dx)/dhist_t @ P_t`` (``P`` aligned with the terms)."""
+        x, x_prev = readonly(x), readonly(x_prev)
         for term, h, p in zip(self.terms, history, P):
             if term.has_history:
                 term.add_history_product(x, x_prev, u, h, p, out)
 
     def history_product_T(self, x, x_prev, u, history: tuple, lam: np.ndarray) -> tuple:
         """Per term ``(d(dE_t/dx)/dhist_t)^T @ lam`` (flattened history; None without one)."""
+        x, x_prev = readonly(x), readonly(x_prev)
         out = []
         for term, h in zip(self.terms, history):
             if term.has_history:
@@ -218,6 +228,7 @@ class EnergySystem:
     def history_tangent_T(self, x, x_prev, history: tuple, m: tuple) -> tuple:
         """Transpose of :meth:`history_tangent` for the adjoints ``m`` of the next histories:
         ``(out_x (3n,), per-term out_h)``."""
+        x, x_prev = readonly(x), readonly(x_prev)
         out_x = np.zeros(self.n_dof)
         out_h = []
         for term, h, mt in zip(self.terms, history, m):
@@ -231,6 +242,7 @@ class EnergySystem:
 
     def history_tangent(self, x, x_prev, history: tuple, S: np.ndarray, P: tuple) -> tuple:
         """``d next_history / dz`` per term from ``S = dx/dz`` and ``P = dhistory/dz``."""
+        x, x_prev = readonly(x), readonly(x_prev)
         return tuple(t.history_tangent(x, x_prev, h, S, p) if t.has_history else None
                      for t, h, p in zip(self.terms, history, P))
 
@@ -247,6 +259,7 @@ class EnergySystem:
 
     def parameter_jacobian(self, x, x_prev, u, names, history=None) -> np.ndarray:
         """``d(dE/dx)/dtheta`` (3n, len(names)): every term's part for the parameters it owns."""
+        x, x_prev = readonly(x), readonly(x_prev)
         history = self.resolve_history(history, x_prev)
         out = np.zeros((self.n_dof, len(names)))
         for term, h in zip(self.terms, history):
@@ -264,6 +277,7 @@ class EnergySystem:
 
     def history_parameter_jacobian(self, x, x_prev, history: tuple, names) -> tuple:
         """Per term ``d next_history / dtheta`` at fixed states (None: no dependence)."""
+        x, x_prev = readonly(x), readonly(x_prev)
         return tuple(t.history_parameter_jacobian(x, x_prev, h, names) if t.has_history else None
                      for t, h in zip(self.terms, history))
 

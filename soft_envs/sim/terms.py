@@ -35,7 +35,19 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["EnergyTerm"]
+__all__ = ["EnergyTerm", "readonly"]
+
+
+def readonly(a: np.ndarray) -> np.ndarray:
+    """``a`` as a read-only view (itself when it is read-only already). The system hands the
+    terms their positions this way: the states' arrays are read-only, and numba compiles a
+    kernel again for each new argument type, writeable arrays being another type, so a kernel
+    met by a Newton iterate and by a state's positions would otherwise be compiled twice (the
+    box's sensitivity kernels: about a fifth of the simulator's compile time)."""
+    if a.flags.writeable:
+        a = a.view()
+        a.flags.writeable = False
+    return a
 
 
 class EnergyTerm:

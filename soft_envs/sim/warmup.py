@@ -88,6 +88,7 @@ def compile_kernels(robot, *, dt: float = DEFAULT_DT, gravity=(0.0, -9.81, 0.0),
     sim = Simulator(robot, dt=dt, gravity=gravity, control=control)
     system = sim.system
     x = sim.initial_placement()
+    x.flags.writeable = False             # as the system passes positions to the terms' kernels
     u = np.tile(robot.u_rest, (3, 1)) if control == "length" else np.zeros((3, robot.n_motors))
     system.elastic.assemble_projected(x, x, u[0], None, np.zeros(system.n_dof), np.zeros(system.pattern.nnz + 1))
     if not everything:

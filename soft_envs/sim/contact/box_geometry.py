@@ -287,7 +287,7 @@ def box_assemble(x, nodes, faces, opposite, weight, hist, k, eps, rs, grad, hdat
     for c in range(nodes.shape[0]):
         node = nodes[c]
         p = x[node]
-        best, fb = -np.inf, -1
+        best, fb = -np.inf, np.int64(-1)              # (not the literal -1: one compile of the calls on fb)
         for f in range(6):
             if f != opposite[c]:
                 d = normals[f] @ (p - centres[f])

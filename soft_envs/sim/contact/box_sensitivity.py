@@ -46,7 +46,7 @@ def prev_product(x, x_prev, nodes, faces, hist, k, eps, mu, rs, S, out, transpos
             continue
         node = nodes[c]
         pp = x_prev[node]
-        best, fb = -np.inf, -1
+        best, fb = -np.inf, np.int64(-1)              # (not the literal -1: one compile of pair_dofs)
         for f in range(6):
             d = normals[f] @ (pp - centres[f])
             if d > best:
@@ -126,7 +126,7 @@ def _update_jacobian(x, node, faces, old, new, active, rs):
     if not active:
         f = face_index(new[0])
         if f >= 0:
-            JF, Jz = projection_jacobian(x[faces[f]], new[1], new[2], x[node])
+            JF, Jz = projection_jacobian(x[faces[f]], new[1], new[2], x[node].copy())   # (writeable: one compile)
             My[:, :3], My[:, 3:] = Jz, JF
         return My, Ma, f
     f = face_index(old[0])
