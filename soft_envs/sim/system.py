@@ -25,7 +25,6 @@ from .terms import EnergyTerm, readonly
 __all__ = ["EnergySystem", "Pattern", "build_pattern"]
 
 
-
 @dataclass(frozen=True, eq=False)
 class Pattern:
     """Lower-triangular CSC sparsity pattern over the free dofs."""
