@@ -261,7 +261,8 @@ def test_a_diverging_trial_counts_and_other_errors_stop_the_study(tmp_path, monk
 
 def test_the_best_is_checked_on_the_suite_seeds(tmp_path, capsys, monkeypatch):
     """check_best trains the best and the defaults with seeds 0.. and scores them as the suite does
-    (episodes from seed 0); a second check scores the runs made, without training them again."""
+    (episodes from seed 0), each also replayed at other physics steps (its credible score: the
+    lowest); a second check scores the runs made, without training or replaying them again."""
     from trajopt.cli.rl import check_text
     from trajopt.rl.tuning import check_best
     from trajopt.tasks.play import policy_on_task
@@ -277,11 +278,20 @@ def test_the_best_is_checked_on_the_suite_seeds(tmp_path, capsys, monkeypatch):
     assert cfg["seed"] == 0 and cfg["hyperparams"] == s["trials"][1]["hyperparams"] and cfg["timesteps_done"] == 256
     assert c["best"]["scores"] == [pytest.approx(policy_on_task(run)["score"])]
     assert c["difference"] == pytest.approx(c["best"]["mean"] - c["defaults"]["mean"])
+    hold = json.loads((run / "task_hold.json").read_text())       # the suite's replays, of the check's run
+    assert hold["own_score"] == c["best"]["scores"][0] and hold["own_substeps"] == 4 and hold["substeps"] == [2, 4, 8, 16]
+    r = c["best"]["runs"][0]
+    assert r["hold_scores"] == hold["scores"] and r["credible"] == min(hold["scores"]) == hold["slowest"]
+    assert r["holds"] == hold["holds"] and r["physics_dt_ms"] == pytest.approx([16.5, 8.25, 4.125, 2.0625])
+    assert c["best"]["credible"] == [r["credible"]] and c["best"]["holds"] == int(r["holds"])
+    assert c["credible_difference"] == pytest.approx(c["best"]["credible_mean"] - c["defaults"]["credible_mean"])
     assert json.loads((out / "check.json").read_text()) == json.loads(json.dumps(c))
-    made = (run / "model.zip").stat().st_mtime_ns
+    made = (run / "model.zip").stat().st_mtime_ns, (run / "task_hold.json").stat().st_mtime_ns
     assert check_best(out, seeds=1)["best"]["scores"] == c["best"]["scores"]
-    assert (run / "model.zip").stat().st_mtime_ns == made
-    assert "best minus the defaults" in check_text(c)
+    assert ((run / "model.zip").stat().st_mtime_ns, (run / "task_hold.json").stat().st_mtime_ns) == made
+    text = check_text(c)
+    assert "best minus the defaults" in text and "credibly (the lowest over the replays" in text
+    assert f"{int(r['holds'])} of 1 hold" in text
     # the defaults as the best: nothing to check
     s["best"] = s["trials"][0]
     (out / "tuning.json").write_text(json.dumps(s))
@@ -334,6 +344,8 @@ def test_tuned_values_are_used_on_the_robot_s_task_ids_only(tmp_path, monkeypatc
     ("[td3.tripod]\n", r"\[td3\] must be one of"),
     ("STUDY_PUPPY", r"\[ppo.tripod\]: study must be a task id of the tripod, got 'SoftPuppyWalk-v0'"),
     ("SCORE_NAN", r"\[ppo.tripod\]: study_score must be finite, got nan"),
+    ("CREDIBLE_NAN", r"\[ppo.tripod\]: check_best_credible must be finite, got nan"),
+    ("CREDIBLE_STR", r"\[ppo.tripod\]: check_defaults_credible must be a float, got 'x'"),
     ("[ppo.snake]\n", r"\[ppo.snake\]: the robot must be one of"),
     ("[ppo.tripod]\nstudy = 3\n", r"\[ppo.tripod\]: study must be a str, got 3"),
     ("[ppo.tripod\n", r"tuned.toml: "),
@@ -341,7 +353,9 @@ def test_tuned_values_are_used_on_the_robot_s_task_ids_only(tmp_path, monkeypatc
 def test_a_bad_tuned_file_is_refused_naming_the_table(tmp_path, text, match):
     from trajopt.rl.tuning import tuned
     path = tmp_path / "tuned.toml"
-    bad = {"STUDY_PUPPY": _table(study="SoftPuppyWalk-v0"), "SCORE_NAN": _table(study_score=float("nan"))}.get(text)
+    bad = {"STUDY_PUPPY": _table(study="SoftPuppyWalk-v0"), "SCORE_NAN": _table(study_score=float("nan")),
+           "CREDIBLE_NAN": _table(check_best_credible=float("nan")),
+           "CREDIBLE_STR": _table(check_defaults_credible="x")}.get(text)
     path.write_text(tuned.tuned_text({("ppo", "tripod"): bad}) if bad else text)
     with pytest.raises(ValueError, match=match):
         tuned.read_tuned(path)
@@ -366,10 +380,13 @@ def test_the_best_is_adopted_only_when_it_beat_the_defaults_on_the_suite_seeds(t
     with pytest.raises(ValueError, match=r"check.json: not a check \(KeyError"):
         adopt(out, path)
 
-    def check(trial, difference):
+    def check(trial, difference, credible=None):
+        credible = difference if credible is None else credible
         (out / "check.json").write_text(json.dumps({"seeds": [0, 1, 2], "difference": difference,
-                                                    "best": {"trial": trial, "mean": 18.0 + difference},
-                                                    "defaults": {"trial": 0, "mean": 18.0}}))
+                                                    "credible_difference": credible,
+                                                    "best": {"trial": trial, "mean": 18.0 + difference,
+                                                             "credible_mean": 17.5 + credible},
+                                                    "defaults": {"trial": 0, "mean": 18.0, "credible_mean": 17.5}}))
     check(4, 1.0)
     with pytest.raises(ValueError, match=r"checks trial 4, not the study's best \(trial 5\)"):
         adopt(out, path)
@@ -381,6 +398,22 @@ def test_the_best_is_adopted_only_when_it_beat_the_defaults_on_the_suite_seeds(t
     c["best"]["std"], c["defaults"]["std"] = 1.2, 0.9             # standard error 1.5 / sqrt(3) = 0.87 > 0.7
     (out / "check.json").write_text(json.dumps(c))
     with pytest.raises(ValueError, match=r"a difference of \+0.700, not above its standard error 0.866"):
+        adopt(out, path)
+    check(5, 0.7, credible=-0.1)          # higher at its own physics step, not over the replays
+    with pytest.raises(ValueError, match=r"scored credibly 17.400 \(the lowest over the replays at other physics "
+                                         r"steps\), the defaults 17.500: a difference of -0.100, not above its "
+                                         r"standard error 0.000: the defaults stay"):
+        adopt(out, path)
+    check(5, 0.7, credible=0.3)
+    c = json.loads((out / "check.json").read_text())
+    c["best"]["credible_std"], c["defaults"]["credible_std"] = 0.6, 0.3      # 0.67 / sqrt(3) = 0.39 > 0.3
+    (out / "check.json").write_text(json.dumps(c))
+    with pytest.raises(ValueError, match=r"a difference of \+0.300, not above its standard error 0.387"):
+        adopt(out, path)
+    del c["credible_difference"]                    # a check made before it replayed its runs
+    (out / "check.json").write_text(json.dumps(c))
+    with pytest.raises(ValueError, match=r"check.json: made without the replays at other physics steps .*check it "
+                                         r"again"):
         adopt(out, path)
     check(5, 0.7)
     c = json.loads((out / "check.json").read_text())
@@ -408,6 +441,8 @@ def test_the_best_is_adopted_only_when_it_beat_the_defaults_on_the_suite_seeds(t
     check(5, 0.7)
     table = adopt(out, path)
     assert table["trial"] == 5 and table["check_best_mean"] == 18.7 and table["params"] == best["params"]
+    assert table["check_best_credible"] == 18.2 and table["check_defaults_credible"] == 17.5
+    assert tuned.read_tuned(path)[("ppo", "tripod")] == table                  # written and read back whole
     assert set(tuned.read_tuned(path)) == {("ppo", "tripod"), ("sac", "puppy")}      # the other table kept
 
 
@@ -453,8 +488,11 @@ def test_the_command_adopts_and_writes_the_rl_zoo3_files_beside(tmp_path, monkey
                "trials": [defaults, best], "n_finished": 20, "best": best, "defaults": defaults,
                "score_unit": "BL/min", "hp_overrides": []}
     check = {"seeds": [0, 1, 2], "difference": 1.5, "wins": 3, "score_unit": "BL/min",
-             "best": {"trial": 5, "scores": [19.4, 19.5, 19.6], "mean": 19.5, "std": 0.1},
-             "defaults": {"trial": 0, "scores": [18.0, 18.0, 18.0], "mean": 18.0, "std": 0.0}}
+             "credible_difference": 1.0,
+             "best": {"trial": 5, "scores": [19.4, 19.5, 19.6], "mean": 19.5, "std": 0.1,
+                      "credible": [18.9, 19.0, 19.1], "credible_mean": 19.0, "credible_std": 0.1, "holds": 3},
+             "defaults": {"trial": 0, "scores": [18.0, 18.0, 18.0], "mean": 18.0, "std": 0.0,
+                          "credible": [18.0, 18.0, 18.0], "credible_mean": 18.0, "credible_std": 0.0, "holds": 3}}
     (out / "tuning.json").write_text(json.dumps(summary))
     (out / "check.json").write_text(json.dumps(check))
     monkeypatch.setattr(tuning_pkg, "tune", lambda *a, **k: summary)

@@ -116,10 +116,11 @@ def add_rl_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--out", type=output_dir, default=None, help="study folder (default results/tuning/ID_ALGO)")
     p.add_argument("--check", type=positive_int, default=None, metavar="N",
                    help="then train the best and the defaults with the suite's seeds 0..N-1 and score them as the "
-                        "suite does (out/check/, out/check.json): does the best beat the defaults on seeds it was "
-                        "not chosen on?")
+                        "suite does, each also replayed at other physics steps (out/check/, out/check.json): does "
+                        "the best beat the defaults on seeds it was not chosen on, credibly?")
     p.add_argument("--adopt", action="store_true",
-                   help="with --check: if the best beat the defaults on the suite's seeds, make it the robot's tuned "
+                   help="with --check: if the best beat the defaults on the suite's seeds, at its own physics step "
+                        "and at the lowest over the replays, make it the robot's tuned "
                         "values for the algorithm (trajopt/rl/zoo/tuned.toml, used on every task id of the robot) and "
                         "write the rl_zoo3 files again")
     p.add_argument("--json", action="store_true", help="print the study's summary (and the check) as JSON")
@@ -306,8 +307,15 @@ def check_text(check: dict) -> str:
         side = check[label]
         lines.append(f"  {label:8s} (trial {side['trial']}): {' '.join(f'{v:+.3f}' for v in side['scores'])}  "
                      f"mean {side['mean']:+.3f} +- {side['std']:.3f} {unit}")
+        if "credible" in side:
+            lines.append(f"  {'':8s} credibly: {' '.join(f'{v:+.3f}' for v in side['credible'])}  mean "
+                         f"{side['credible_mean']:+.3f} +- {side['credible_std']:.3f} {unit}; {side['holds']} of "
+                         f"{len(side['credible'])} hold")
     lines.append(f"  best minus the defaults: {check['difference']:+.3f} {unit}; higher on {check['wins']} of "
                  f"{len(check['seeds'])} seeds")
+    if "credible_difference" in check:
+        lines.append(f"  credibly (the lowest over the replays at other physics steps): "
+                     f"{check['credible_difference']:+.3f} {unit}")
     return "\n".join(lines)
 
 

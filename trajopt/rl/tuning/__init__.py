@@ -48,8 +48,10 @@ the defaults', the best, and the ``--hp`` overrides that train with the best (``
 ID --hp ...``).
 
 **Checking the best** (:func:`check_best`, ``trajopt rl tune ID --check 3``): the best and the
-defaults trained with the suite's seeds 0-2 and scored as the suite scores, in ``out/check/``
-and ``out/check.json``.
+defaults trained with the suite's seeds 0-2 and scored as the suite scores, each run also
+replayed at other physics steps (its credible score: the lowest), in ``out/check/`` and
+``out/check.json``; ``--adopt`` (:mod:`.adopt`) takes the best only when it beat the defaults
+both at its own physics step and credibly.
 
 The modules: :mod:`.space` (the search space), :mod:`.study` (the study), :mod:`.check`.
 """

@@ -30,7 +30,9 @@ def adopt(out: str | os.PathLike, path: str | os.PathLike | None = None) -> dict
     * its best was checked (``out/check.json``, :func:`~.check.check_best`) on at least
       :data:`MIN_CHECK_SEEDS` of the suite's seeds and beat the defaults there: its mean higher by
       more than the standard error of the difference, ``hypot(std_best, std_defaults) / sqrt(n)``
-      (the seeds' spread is large: one lucky seed is not a gain);
+      (the seeds' spread is large: one lucky seed is not a gain), and its *credible* mean too (each
+      run's lowest score over its replays at other physics steps): a gain that lives in the
+      physics step's error is not a gain;
     * where the robot already has a table for the algorithm, it beat that table's best on the
       check too (both checks score the suite's seeds the same way): remove the table to replace it
       with a worse one.
@@ -66,6 +68,17 @@ def adopt(out: str | os.PathLike, path: str | os.PathLike | None = None) -> dict
         raise ValueError(f"{out}: the best (trial {best['number']}) scored {check['best']['mean']:.3f} on the suite's "
                          f"seeds, the defaults {check['defaults']['mean']:.3f}: a difference of {difference:+.3f}, not "
                          f"above its standard error {margin:.3f}: the defaults stay")
+    if "credible_difference" not in check:
+        raise ValueError(f"{out / CHECK}: made without the replays at other physics steps (a check made before they "
+                         f"were part of it): check it again (trajopt rl tune ID --out {out} --check 3)")
+    credible = float(check["credible_difference"])
+    c_margin = math.hypot(float(check["best"].get("credible_std", 0.0)),
+                          float(check["defaults"].get("credible_std", 0.0))) / math.sqrt(n)
+    if not credible > c_margin:
+        raise ValueError(f"{out}: the best (trial {best['number']}) scored credibly {check['best']['credible_mean']:.3f} "
+                         f"(the lowest over the replays at other physics steps), the defaults "
+                         f"{check['defaults']['credible_mean']:.3f}: a difference of {credible:+.3f}, not above its "
+                         f"standard error {c_margin:.3f}: the defaults stay")
     algo, robot = summary["algo"], robot_name(summary["env_id"])
     tables = read_tuned(path)
     old = tables.get((algo, robot))
@@ -75,7 +88,10 @@ def adopt(out: str | os.PathLike, path: str | os.PathLike | None = None) -> dict
     table = {"study": summary["env_id"], "trials": int(summary["n_finished"]), "trial": int(best["number"]),
              "study_score": float(best["score"]), "defaults_score": float(summary["defaults"]["score"]),
              "check_seeds": [int(s) for s in seeds], "check_best_mean": float(check["best"]["mean"]),
-             "check_defaults_mean": float(check["defaults"]["mean"]), "score_unit": str(summary.get("score_unit")),
+             "check_defaults_mean": float(check["defaults"]["mean"]),
+             "check_best_credible": float(check["best"]["credible_mean"]),
+             "check_defaults_credible": float(check["defaults"]["credible_mean"]),
+             "score_unit": str(summary.get("score_unit")),
              "params": dict(best["params"])}
     tables[(algo, robot)] = table
     atomic_write_bytes(path, tuned_text(tables).encode())

@@ -9,7 +9,8 @@ walk: that they carry to the robot's other tasks is an assumption docs/tasks.md 
 algorithm and robot without a table, and the robots' own ids (``SoftTripod-v2``: the headline's
 runs), keep the documented defaults (:mod:`trajopt.rl.hyperparams`). The other keys say where the
 values come from: the study's id, trials, the best trial and its score, the defaults' score, and
-the check (each side's mean over the suite's seeds).
+the check (each side's mean over the suite's seeds, and its credible mean: each run's lowest score
+over its replays at other physics steps; tables adopted before the check replayed its runs lack it).
 """
 from __future__ import annotations
 
@@ -29,6 +30,8 @@ TUNED_FILE = Path(__file__).resolve().parents[1] / "zoo" / "tuned.toml"
 #: what a table must hold besides ``params``
 _FIELDS = {"study": str, "trials": int, "trial": int, "study_score": float, "defaults_score": float,
            "check_seeds": list, "check_best_mean": float, "check_defaults_mean": float, "score_unit": str}
+#: what a table may hold: the check's credible means (tables adopted before the check replayed its runs lack them)
+_OPTIONAL = {"check_best_credible": float, "check_defaults_credible": float}
 
 
 def read_tuned(path: str | os.PathLike | None = None) -> dict[tuple[str, str], dict[str, Any]]:
@@ -51,7 +54,8 @@ def read_tuned(path: str | os.PathLike | None = None) -> dict[tuple[str, str], d
             where = f"{path}: [{algo}.{robot}]"
             if robot not in ROBOTS or not isinstance(entry, dict):
                 raise ValueError(f"{where}: the robot must be one of {sorted(ROBOTS)}")
-            for field, kind in {**_FIELDS, "params": dict}.items():
+            for field, kind in {**_FIELDS, "params": dict,
+                                **{f: k for f, k in _OPTIONAL.items() if f in entry}}.items():
                 value = entry.get(field)
                 ok = isinstance(value, kind) or (kind is float and isinstance(value, int))
                 if not ok or isinstance(value, bool):
@@ -61,7 +65,8 @@ def read_tuned(path: str | os.PathLike | None = None) -> dict[tuple[str, str], d
             if entry["trials"] < 1 or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0
                                               for v in entry["check_seeds"]):
                 raise ValueError(f"{where}: trials must be >= 1 and check_seeds seeds (integers >= 0)")
-            bad = [f for f, kind in _FIELDS.items() if kind is float and not math.isfinite(entry[f])]
+            bad = [f for f, kind in {**_FIELDS, **_OPTIONAL}.items() if kind is float and f in entry
+                   and not math.isfinite(entry[f])]
             if bad:
                 raise ValueError(f"{where}: {bad[0]} must be finite, got {entry[bad[0]]!r}")
             try:
