@@ -100,14 +100,17 @@ def group_of(run) -> tuple[str, str, str]:
 def collect(spec, sweep_dir: Path, ledger: dict | None = None) -> tuple[dict[tuple[str, str, str], dict], dict]:
     """Per (task, robot, method): the runs planned, the records of those done (in ``sweep_dir``, or
     else in ``ledger``, :mod:`suite_ledger`, when made with the sweep file's arguments now), those
-    failed here, and the ledger's aggregate of the row when none of its runs has a record; and the
-    records of the runs done in ``sweep_dir`` (by name, for the ledger)."""
+    failed here, and the ledger's aggregate of the row until every run of it has a record again (the
+    row keeps its aggregate's figures while it is made again run by run: those made so far are
+    ``again``, not in ``done``); and the records of the runs done in ``sweep_dir`` (by name, for
+    the ledger)."""
     ledger = ledger or suite_ledger.empty()
     groups: dict[tuple[str, str, str], dict] = {}
     local: dict[str, dict] = {}
     for run in spec.runs:
         group = group_of(run)
-        g = groups.setdefault(group, {"planned": [], "runs": [], "done": [], "failed": [], "aggregate": None})
+        g = groups.setdefault(group, {"planned": [], "runs": [], "done": [], "failed": [], "aggregate": None,
+                                      "again": []})
         g["planned"].append(run.name)
         g["runs"].append(run)
         st = read_status(sweep_dir / run.name) or {}
@@ -126,10 +129,10 @@ def collect(spec, sweep_dir: Path, ledger: dict | None = None) -> tuple[dict[tup
             g["done"].append({**rec, "name": run.name, "local": rec is local.get(run.name),
                               "other_hp": other_hyperparams(run, rec.get("rl"))})
     for group, g in groups.items():
-        if not g["done"]:
-            agg = suite_ledger.aggregate(ledger, group, g["runs"])
-            if agg is not None:
-                g["aggregate"] = {**agg, "other_hp": other_hyperparams(g["runs"][0], agg.get("rl"))}
+        agg = suite_ledger.aggregate(ledger, group, g["runs"])
+        if agg is not None and not set(agg["runs"]) <= {r["name"] for r in g["done"]}:
+            g["again"], g["done"] = sorted(r["name"] for r in g["done"]), []
+            g["aggregate"] = {**agg, "other_hp": other_hyperparams(g["runs"][0], agg.get("rl"))}
     return groups, local
 
 
@@ -481,9 +484,12 @@ def report(spec, sweep_dir: Path, groups: dict[tuple[str, str, str], dict], rate
                   "--only PATTERN` makes them again (their folders, where this machine has them, moved aside "
                   "first: the sweep skips runs that are done), and each new run replaces its record in the ledger."]
     if any(c["aggregate"] for c in cells):
+        again = sorted(n for g in groups.values() for n in g["again"])
         lines += ["", "‡ The row's runs are kept as one record of the row (its figures above, not each run's): "
-                  "their folders were lost before the ledger kept each run. A run of the row made again replaces "
-                  "the whole record (the row shows the runs made since)."]
+                  "their folders were lost before the ledger kept each run. The row keeps that record until all "
+                  "its runs are made again; then their records replace it."
+                  + (f" Made again so far, not yet in their rows: {', '.join(f'`{n}`' for n in again)}." if again
+                     else "")]
     lines += holds_summary(groups)
     lines += levels_table(groups)
     lines += ["", "## Open loop or closed loop", "",

@@ -206,8 +206,10 @@ def newer(local: dict[str, Any] | None, kept: dict[str, Any] | None) -> dict[str
 
 def update(ledger: dict[str, Any], records: dict[str, dict[str, Any]]) -> tuple[dict[str, Any], list[str]]:
     """``ledger`` with ``records`` (by run name) in place of its own, but where its own is of a run
-    finished later (made again elsewhere since), and without the aggregates of the rows given a
-    record: a new ledger (``ledger`` is left as it was) and what was kept or replaced, to say."""
+    finished later (made again elsewhere since), and without the aggregates whose runs all have a
+    record now, made with the aggregate's arguments (a row made again run by run keeps its
+    aggregate until the last): a new ledger (``ledger`` is left as it was) and what was kept or
+    replaced, to say."""
     runs, said = dict(ledger["runs"]), []
     for name, rec in records.items():
         old = runs.get(name)
@@ -219,6 +221,6 @@ def update(ledger: dict[str, Any], records: dict[str, dict[str, Any]]) -> tuple[
             said.append(f"{name}: its record replaced by the run in the sweep folder "
                         f"({old['score']:+.4g} -> {rec['score']:+.4g} {rec['score_unit']})")
         runs[name] = rec
-    rows = {"/".join((runs[n]["task"], runs[n]["robot"], runs[n]["method"])) for n in records}
-    aggregates = {k: v for k, v in ledger["aggregates"].items() if k not in rows}
+    aggregates = {k: v for k, v in ledger["aggregates"].items()
+                  if not all(n in runs and runs[n]["params"] == params for n, params in v["runs"].items())}
     return {"about": ABOUT, "version": VERSION, "runs": runs, "aggregates": aggregates}, said

@@ -368,9 +368,10 @@ def _fake_run(folder, run, score, *, episodes=(1.0, 2.0, 3.0), hold=None, finish
 
 def test_the_suite_ledger_keeps_each_run_and_a_run_made_here_replaces_its_record(tmp_path):
     """benchmarks/suite_ledger.py: the report is made from the ledger's records where the sweep
-    folder has no run (a new machine), a run in the folder replaces its record (and the aggregate
-    of its row) unless the record is of a run finished later, a record or a folder of other
-    arguments is not used, and the ledger written reads back."""
+    folder has no run (a new machine), a run in the folder replaces its record unless the record is
+    of a run finished later (and the aggregate of its row once all the row's runs are made again:
+    until then the row keeps it), a record or a folder of other arguments is not used, and the
+    ledger written reads back."""
     bench = _bench()
     ledger_mod = bench.suite_ledger
     from trajopt.sweep import load_spec
@@ -423,7 +424,7 @@ def test_the_suite_ledger_keeps_each_run_and_a_run_made_here_replaces_its_record
     ledger["runs"][name]["params"] = {**ledger["runs"][name]["params"], "iterations": 99}
     groups, _ = bench.collect(spec, tmp_path / "empty", ledger)
     assert bench.cell(groups[group]) is None and bench.kept_runs(spec, tmp_path / "empty", ledger) == set()
-    # an aggregate stands for its row until a run of the row has a record
+    # an aggregate stands for its row until every run of the row has a record
     ppo = [r for r in spec.runs if bench.group_of(r) == ("walk", "puppy", "ppo")]
     agg = {"task": "walk", "robot": "puppy", "method": "ppo", "n": 3, "mean": 18.0, "std": 4.0, "credible": 17.0,
            "replayed": 3, "hold": 1, "success": 0.0, "sim_steps": 30720.0, "wall": 245.0, "score_unit": "BL/min",
@@ -434,12 +435,22 @@ def test_the_suite_ledger_keeps_each_run_and_a_run_made_here_replaces_its_record
     c = bench.cell(groups[("walk", "puppy", "ppo")])
     assert (c["mean"], c["n"], c["credible"], c["hold"], c["aggregate"]) == (18.0, 3, 17.0, 1, "an older report")
     assert c["no_spread"] == 3 and {r.name for r in ppo} <= bench.kept_runs(spec, tmp_path / "empty", ledger)
-    record = {**ledger["runs"][name], "robot": "puppy", "method": "ppo", "kind": ppo[0].kind,
-              "params": ledger_mod.jsonable(ppo[0].params)}
-    after, _ = ledger_mod.update(ledger, {ppo[0].name: record})
+    records = {r.name: {**ledger["runs"][name], "robot": "puppy", "method": "ppo", "kind": r.kind,
+                        "params": ledger_mod.jsonable(r.params), "score": 20.0 + i} for i, r in enumerate(ppo)}
+    first = {ppo[0].name: records[ppo[0].name]}
+    after, _ = ledger_mod.update(ledger, first)           # one of three made again: the row keeps its aggregate
+    assert after["aggregates"]["walk/puppy/ppo"] == agg and after["runs"][ppo[0].name]["score"] == 20.0
+    groups, _ = bench.collect(spec, tmp_path / "empty", after)
+    g = groups[("walk", "puppy", "ppo")]
+    assert bench.cell(g)["mean"] == 18.0 and bench.cell(g)["aggregate"] and g["again"] == [ppo[0].name]
+    # a record of one of its runs made with other arguments does not count
+    odd = {r.name: {**records[r.name], "params": {**records[r.name]["params"], "seed": 99}} for r in ppo[1:]}
+    assert ledger_mod.update(after, odd)[0]["aggregates"]["walk/puppy/ppo"] == agg
+    after, _ = ledger_mod.update(after, {r.name: records[r.name] for r in ppo[1:]})       # the last ones
     assert "walk/puppy/ppo" not in after["aggregates"] and "walk/puppy/ppo" in ledger["aggregates"]  # a new ledger
     groups, _ = bench.collect(spec, tmp_path / "empty", after)
-    assert bench.cell(groups[("walk", "puppy", "ppo")])["n"] == 1
+    c = bench.cell(groups[("walk", "puppy", "ppo")])
+    assert c["n"] == 3 and c["mean"] == 21.0 and not c["aggregate"] and groups[("walk", "puppy", "ppo")]["again"] == []
 
 
 @pytest.mark.parametrize("text, match", [
