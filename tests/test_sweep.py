@@ -437,10 +437,13 @@ def _wait_for(predicate, timeout: float, what: str, proc: subprocess.Popen | Non
         time.sleep(0.25)
 
 
-def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path):
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path, signum):
     """Two tiny runs finish, then two long ones start: the worker of one is killed (recorded as
-    failed with the reason), then the sweep gets SIGINT: it exits 130, the other long run is
-    interrupted with its checkpoint saved for --resume, and the finished runs are untouched."""
+    failed with the reason), then the sweep gets SIGINT (Ctrl-C) or SIGTERM: it exits 130 or 143,
+    the other long run is interrupted with its checkpoint saved for --resume, and the finished
+    runs are untouched. (ray.init sets a SIGTERM handler of its own, which exits the process: the
+    sweep puts trajopt's back, so SIGTERM ends it as Ctrl-C does.)"""
     # the long runs: Puppy gaits on the paper's 72-step cycle, far from converged when stopped
     long_args = "iterations = 100\nseeds = 1\ncycles = 1\n"
     text = (tiny_block("quick{speed:g}", "speed = [3.0, 4.0]")
@@ -462,14 +465,16 @@ def test_killed_worker_and_sigint_leave_finished_runs_intact(local_ray, tmp_path
         os.kill(read_status(out / "long5")["pid"], signal.SIGKILL)
         _wait_for(lambda: (read_status(out / "long5") or {}).get("status") == "failed", 120,
                   "the killed run's status", proc, log)
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(signum)
         # the sweep gives its runs in flight CANCEL_GRACE_S to save, then writes the summary and stops Ray
         proc.wait(timeout=load_scaled(300))
         output = log.read_text()
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == 130, output
+    assert proc.returncode == 128 + signum, output
+    label = "Ctrl-C" if signum == signal.SIGINT else "SIGTERM"
+    assert f"interrupted ({label}): stopping 1 runs in flight" in output, output
     assert {n: digest(out / n) for n in before} == before
     killed = read_status(out / "long5")
     assert killed["status"] == "failed" and "worker died" in killed["reason"]

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 from pathlib import Path
 
 from ..argtypes import output_dir
@@ -55,7 +56,7 @@ def run_sweep_command(args) -> int:
             print(f"  failed: {name}: {st.get('reason')}")
     if outcome.interrupted:
         print("interrupted: run the same command again to continue")
-        return 130
+        return 128 + int(outcome.signal or signal.SIGINT)       # 130 Ctrl-C, 143 SIGTERM, as the other commands
     return 1 if outcome.count("failed") else 0
 
 

@@ -5,18 +5,22 @@ second sweep into the same folder is refused at once. Runs whose ``status.json``
 (with the same kind and parameters, and their result files present) are skipped;
 the others (never started, failed, interrupted, killed) are started, optimisations from their
 last checkpoint. A run that fails (exception, simulation error, killed worker) is recorded
-with its reason and the others go on. Ctrl-C cancels the runs in flight (an optimisation
-saves its last iterate for ``--resume``), leaves every finished run as it was, writes the
-summary and returns with ``interrupted = True``.
+with its reason and the others go on. Ctrl-C (or SIGTERM, SIGHUP where the caller turns them
+into :class:`~trajopt.hardware.signals.Terminated`, as ``trajopt sweep`` does) cancels the runs in
+flight (an optimisation saves its last iterate for ``--resume``), leaves every finished run as it
+was, writes the summary and returns with ``interrupted = True`` and the ``signal``.
 """
 from __future__ import annotations
 
 import os
+import signal as signals
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from ..hardware.signals import Terminated, signal_label, signal_of
 from ..progress import Progress
 from ..results.reservation import reserve
 from .spec import Run, SweepSpec
@@ -31,11 +35,13 @@ CANCEL_GRACE_S = 60.0
 @dataclass
 class SweepOutcome:
     """What a sweep did: the final status of every run (by name), which were skipped as
-    already done, whether it was interrupted, and its wall time."""
+    already done, whether it was interrupted (and by which signal: SIGINT for Ctrl-C), and its
+    wall time."""
 
     statuses: dict[str, dict[str, Any]]
     skipped: list[str] = field(default_factory=list)
     interrupted: bool = False
+    signal: int | None = None
     wall_time_s: float = 0.0
 
     def count(self, status: str) -> int:
@@ -76,7 +82,9 @@ def _jsonish(params: dict) -> dict:
 def start_ray(workers: int | None = None, address: str | None = None):
     """Connect to ``address`` ("auto", "ray://HOST:PORT", "HOST:PORT") or start a local Ray
     with ``workers`` CPUs (default: all); reuse a Ray already initialised in this process.
-    Returns (ray module, whether we started it)."""
+    ``ray.init`` sets a SIGTERM handler of its own (it exits the process); a handler the caller had
+    set (``trajopt sweep``'s: an orderly end, as Ctrl-C) is put back. Returns (ray module, whether
+    we started it)."""
     try:
         import ray
     except ImportError as exc:
@@ -84,6 +92,17 @@ def start_ray(workers: int | None = None, address: str | None = None):
     if ray.is_initialized():
         return ray, False
     kwargs: dict[str, Any] = {"log_to_driver": False, "configure_logging": True, "logging_level": "ERROR"}
+    main = threading.current_thread() is threading.main_thread()
+    previous = signals.getsignal(signals.SIGTERM) if main else None
+    try:
+        return _init_ray(ray, workers, address, kwargs), True
+    finally:
+        if callable(previous):              # SIG_DFL and SIG_IGN are not: Ray's handler stays then
+            signals.signal(signals.SIGTERM, previous)
+
+
+def _init_ray(ray, workers: int | None, address: str | None, kwargs: dict[str, Any]):
+    """``ray.init`` at ``address``, else a local Ray of ``workers`` CPUs (:func:`start_ray`)."""
     if address:
         try:
             ray.init(address=address, **kwargs)
@@ -92,7 +111,7 @@ def start_ray(workers: int | None = None, address: str | None = None):
                              "with 'ray start --head' (see docs/scale.md) or leave --address out") from exc
     else:
         ray.init(num_cpus=int(workers or os.cpu_count() or 1), include_dashboard=False, **kwargs)
-    return ray, True
+    return ray
 
 
 class _Progress:
@@ -123,14 +142,15 @@ class _Progress:
         self.p.close()
 
 
-def _crashed(run: Run, out: Path, exc: BaseException, started: float, status: str = "failed") -> dict:
+def _crashed(run: Run, out: Path, exc: BaseException, started: float, status: str = "failed",
+             signum: int = signals.SIGINT) -> dict:
     """Status of a run whose task died without writing its own (killed worker, lost node)."""
     st = read_status(out / run.name) or {"run": run.name, "kind": run.kind, "params": run.params,
                                           "cpus": run.cpus, "options": run.options, "started": started}
     if st.get("status") in ("done", "failed", "interrupted"):
         return st                                   # the task recorded it before dying
     first = (str(exc).strip().splitlines() or [""])[0]
-    reason = ("interrupted (Ctrl-C)" if status == "interrupted"
+    reason = (f"interrupted ({signal_label(signum)})" if status == "interrupted"
               else f"worker died ({type(exc).__name__}): {first}".strip())
     st.update(status=status, reason=reason, finished=time.time(), wall_time_s=time.time() - started)
     if (out / run.name).is_dir():
@@ -170,9 +190,10 @@ def _run_reserved(spec: SweepSpec, out: Path, workers, address, serial, on_statu
         if serial:
             _run_serial(todo, out, record)
         else:
-            outcome.interrupted = _run_ray(todo, out, workers, address, record, progress)
-    except KeyboardInterrupt:
-        outcome.interrupted = True
+            outcome.signal = _run_ray(todo, out, workers, address, record, progress)
+            outcome.interrupted = outcome.signal is not None
+    except (KeyboardInterrupt, Terminated) as exc:
+        outcome.interrupted, outcome.signal = True, signal_of(exc)
     finally:
         progress.close()
     for run in spec.runs:                 # what the files say is authoritative
@@ -192,31 +213,67 @@ def _run_serial(todo: list[Run], out: Path, record) -> None:
                 raise KeyboardInterrupt
 
 
-def _run_ray(todo: list[Run], out: Path, workers, address, record, progress) -> bool:
+class _FlaggedSignals:
+    """Context manager: SIGTERM and SIGHUP, where the caller handles them (a Python function that
+    is not Ray's own), only recorded in ``received`` while Ray waits; :func:`_run_ray` raises
+    :class:`Terminated` for them between two waits. Ray's C++ wait lets a KeyboardInterrupt or a
+    SystemExit raised by a handler through, and breaks on any other exception (SystemError)."""
+
+    SIGNALS = tuple(getattr(signals, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signals, name))
+
+    def __init__(self) -> None:
+        self.received: list[int] = []
+        self._previous: dict[int, Any] = {}
+
+    def _record(self, signum: int, frame: object) -> None:
+        self.received.append(int(signum))
+
+    def __enter__(self) -> "_FlaggedSignals":
+        if threading.current_thread() is threading.main_thread():
+            for signum in self.SIGNALS:
+                handler = signals.getsignal(signum)
+                if callable(handler) and not str(getattr(handler, "__module__", "")).startswith("ray"):
+                    self._previous[signum] = handler
+                    signals.signal(signum, self._record)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for signum, handler in self._previous.items():
+            signals.signal(signum, handler)
+
+
+def _run_ray(todo: list[Run], out: Path, workers, address, record, progress) -> int | None:
+    """The runs ``todo`` on Ray; returns the signal that stopped them (SIGINT for Ctrl-C), or None."""
     if not todo:
-        return False
+        return None
     ray, started = start_ray(workers, address)
     remote = ray.remote(execute)
     pending: dict[Any, tuple[Run, float]] = {}
+    flagged = _FlaggedSignals()
     try:
-        for phase in (0, 1):
-            for run in (r for r in todo if r.phase == phase):
-                ref = remote.options(num_cpus=run.cpus, max_retries=0, name=f"sweep:{run.name}").remote(run, out)
-                pending[ref] = (run, time.time())
-            while pending:
-                ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
-                for ref in ready:
-                    run, t_start = pending.pop(ref)
-                    try:
-                        st = ray.get(ref)
-                    except ray.exceptions.TaskCancelledError as exc:
-                        st = _crashed(run, out, exc, t_start, "interrupted")
-                    except ray.exceptions.RayError as exc:      # killed worker, lost node, OOM
-                        st = _crashed(run, out, exc, t_start)
-                    record(st)
-        return False
-    except KeyboardInterrupt:
-        progress.line(f"interrupted: stopping {len(pending)} runs in flight (they save what they can)")
+        with flagged:
+            for phase in (0, 1):
+                for run in (r for r in todo if r.phase == phase):
+                    ref = remote.options(num_cpus=run.cpus, max_retries=0, name=f"sweep:{run.name}").remote(run, out)
+                    pending[ref] = (run, time.time())
+                while pending:
+                    ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
+                    if flagged.received:
+                        raise Terminated(flagged.received[0])
+                    for ref in ready:
+                        run, t_start = pending.pop(ref)
+                        try:
+                            st = ray.get(ref)
+                        except ray.exceptions.TaskCancelledError as exc:
+                            st = _crashed(run, out, exc, t_start, "interrupted")
+                        except ray.exceptions.RayError as exc:      # killed worker, lost node, OOM
+                            st = _crashed(run, out, exc, t_start)
+                        record(st)
+        return None
+    except (KeyboardInterrupt, Terminated) as exc:
+        signum = signal_of(exc) or signals.SIGINT
+        progress.line(f"interrupted ({signal_label(signum)}): stopping {len(pending)} runs in flight (they save "
+                      "what they can)")
         for ref in pending:
             ray.cancel(ref)
         deadline = time.time() + CANCEL_GRACE_S
@@ -226,12 +283,12 @@ def _run_ray(todo: list[Run], out: Path, workers, address, record, progress) -> 
                 run, t_start = pending.pop(ref)
                 try:
                     st = ray.get(ref)
-                except ray.exceptions.RayError as exc:
-                    st = _crashed(run, out, exc, t_start, "interrupted")
+                except ray.exceptions.RayError as err:
+                    st = _crashed(run, out, err, t_start, "interrupted", signum)
                 record(st)
         for run, t_start in pending.values():
-            record(_crashed(run, out, KeyboardInterrupt(), t_start, "interrupted"))
-        return True
+            record(_crashed(run, out, exc, t_start, "interrupted", signum))
+        return signum
     finally:
         if started:
             ray.shutdown()
