@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from ..hardware.signals import Terminated, signal_label, signal_of
+from ..hardware.signals import COMMAND_SIGNALS, StopSignals, Terminated, signal_label, signal_of
 from ..progress import Progress
 from ..results.reservation import reserve
 from .spec import Run, SweepSpec
@@ -213,33 +213,15 @@ def _run_serial(todo: list[Run], out: Path, record) -> None:
                 raise KeyboardInterrupt
 
 
-class _FlaggedSignals:
-    """Context manager: SIGTERM and SIGHUP, where the caller handles them (a Python function that
-    is not Ray's own), only recorded in ``received`` while Ray waits; :func:`_run_ray` raises
-    :class:`Terminated` for them between two waits. Ray's C++ wait lets a KeyboardInterrupt or a
+def _callers_signals() -> tuple[int, ...]:
+    """Of SIGTERM and SIGHUP, those the caller handles (a Python function that is not Ray's own):
+    :func:`_run_ray` holds them while Ray waits (:class:`StopSignals`, recording) and raises
+    :class:`Terminated` between two waits. Ray's C++ wait lets a KeyboardInterrupt or a
     SystemExit raised by a handler through, and breaks on any other exception (SystemError)."""
-
-    SIGNALS = tuple(getattr(signals, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signals, name))
-
-    def __init__(self) -> None:
-        self.received: list[int] = []
-        self._previous: dict[int, Any] = {}
-
-    def _record(self, signum: int, frame: object) -> None:
-        self.received.append(int(signum))
-
-    def __enter__(self) -> "_FlaggedSignals":
-        if threading.current_thread() is threading.main_thread():
-            for signum in self.SIGNALS:
-                handler = signals.getsignal(signum)
-                if callable(handler) and not str(getattr(handler, "__module__", "")).startswith("ray"):
-                    self._previous[signum] = handler
-                    signals.signal(signum, self._record)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        for signum, handler in self._previous.items():
-            signals.signal(signum, handler)
+    if threading.current_thread() is not threading.main_thread():
+        return ()
+    return tuple(s for s in COMMAND_SIGNALS if callable(h := signals.getsignal(s))
+                 and not str(getattr(h, "__module__", "")).startswith("ray"))
 
 
 def _run_ray(todo: list[Run], out: Path, workers, address, record, progress) -> int | None:
@@ -249,17 +231,17 @@ def _run_ray(todo: list[Run], out: Path, workers, address, record, progress) -> 
     ray, started = start_ray(workers, address)
     remote = ray.remote(execute)
     pending: dict[Any, tuple[Run, float]] = {}
-    flagged = _FlaggedSignals()
+    held = StopSignals(holding=True, signals=_callers_signals())
     try:
-        with flagged:
+        with held:
             for phase in (0, 1):
                 for run in (r for r in todo if r.phase == phase):
                     ref = remote.options(num_cpus=run.cpus, max_retries=0, name=f"sweep:{run.name}").remote(run, out)
                     pending[ref] = (run, time.time())
                 while pending:
                     ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
-                    if flagged.received:
-                        raise Terminated(flagged.received[0])
+                    if held.held:
+                        raise Terminated(held.held[0])
                     for ref in ready:
                         run, t_start = pending.pop(ref)
                         try:
