@@ -103,3 +103,28 @@ def test_the_warmup_compiles_the_box_kernels_too():
     from soft_envs.sim.contact import box_geometry
     warmup.compile_box_kernels(load_robot("tripod"))
     assert box_geometry.face_planes._cache._cache_file._load_index()
+
+
+def test_the_variants_are_compiled_in_children_the_shared_kernels_first(monkeypatch):
+    """``python -m soft_envs.sim.warmup --all`` (what the test suite runs before its workers
+    start): the robot's own law with the Newton fallback's projected Hessian beside it, then the
+    other variants, each in its own child process, the box first; each child leaves its
+    variant's kernels in the cache."""
+    monkeypatch.setattr(warmup, "variants_cached", lambda names: False)    # taken for a cold cache
+    children = _spy_popen(monkeypatch)
+    out = io.StringIO()
+    warmup.compile_variants("tripod", ("own", "paper", "box"), jobs=2, out=out)
+    assert [c.args[-2:] for c in children] == [["tripod", "--ahead"], ["--variant", "own"],
+                                               ["--variant", "box"], ["--variant", "paper"]]
+    assert all(c.returncode == 0 for c in children)
+    assert out.getvalue().startswith("simulator kernels of own, paper, box compiled and cached (")
+    monkeypatch.undo()
+    assert warmup.variants_cached(("own", "paper", "box"))
+
+
+def test_a_failing_variant_is_an_error_naming_it_and_a_bad_name_is_refused(monkeypatch):
+    monkeypatch.setattr(warmup, "variants_cached", lambda names: False)
+    with pytest.raises(RuntimeError, match=r"compiling the kernels \(--variant paper\) failed: .*no_such_robot"):
+        warmup.compile_variants("no_such_robot", ("paper",))
+    with pytest.raises(ValueError, match="variant must be one of own, coulomb, .* got 'wood'"):
+        warmup.compile_variants("tripod", ("paper", "wood"))
