@@ -591,3 +591,55 @@ def test_a_sweep_off_a_terminal_beats_while_a_run_is_running(tmp_path, monkeypat
     text = stream.getvalue()
     assert "\r" not in text and "sweep: 0/1 runs, still working" in text
     assert text.splitlines()[-1].startswith("[1/1] done        t5 ")
+
+
+def test_a_second_sigterm_while_the_runs_in_flight_save_stops_the_wait(tmp_path, monkeypatch):
+    """SIGTERM stops a sweep (the runs in flight are cancelled and given CANCEL_GRACE_S to
+    save); a second SIGTERM in that grace period ends the wait at once: the runs still out are
+    recorded interrupted, and the signal is no exception escaping from Ray's wait (Ray's C++
+    wait turns one into a SystemError). Ray is a stand-in here that sends the signals from its
+    wait."""
+    import trajopt.sweep.runner as runner
+    from trajopt.hardware.signals import COMMAND_SIGNALS, StopSignals
+    spec = load_spec(write(tmp_path, tiny_block("r{_k}", "_k = [1, 2]")), tmp_path / "out")
+    waits = []
+
+    class Cancelled(Exception):
+        pass
+
+    class FakeRay:
+        class exceptions:
+            TaskCancelledError = RayError = Cancelled
+
+        def remote(self, fn):
+            class Task:
+                def options(self, **kw):
+                    return self
+
+                def remote(self, run, out):
+                    return object()
+            return Task()
+
+        def wait(self, refs, num_returns, timeout):
+            waits.append(len(refs))
+            if len(waits) <= 2:                        # the sweep's wait, then the grace period's
+                os.kill(os.getpid(), signal.SIGTERM)
+            return [], list(refs)
+
+        def cancel(self, ref):
+            pass
+
+    monkeypatch.setattr(runner, "start_ray", lambda workers, address: (FakeRay(), False))
+    recorded = []
+
+    class Quiet:
+        def line(self, text):
+            pass
+
+    t0 = time.time()
+    with StopSignals(signals=COMMAND_SIGNALS):          # the command's own handlers, as trajopt sweep's
+        signum = runner._run_ray(spec.runs, tmp_path / "out", 1, None, recorded.append, Quiet())
+    assert signum == signal.SIGTERM
+    assert waits == [2, 2] and time.time() - t0 < runner.CANCEL_GRACE_S / 2
+    assert [st["status"] for st in recorded] == ["interrupted", "interrupted"]
+    assert all(st["reason"] == "interrupted (SIGTERM)" for st in recorded)

@@ -259,15 +259,17 @@ def _run_ray(todo: list[Run], out: Path, workers, address, record, progress) -> 
         for ref in pending:
             ray.cancel(ref)
         deadline = time.time() + CANCEL_GRACE_S
-        while pending and time.time() < deadline:
-            ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=1.0)
-            for ref in ready:
-                run, t_start = pending.pop(ref)
-                try:
-                    st = ray.get(ref)
-                except ray.exceptions.RayError as err:
-                    st = _crashed(run, out, err, t_start, "interrupted", signum)
-                record(st)
+        again = StopSignals(holding=True, signals=_callers_signals())   # a second SIGTERM: stop waiting
+        with again:
+            while pending and time.time() < deadline and not again.held:
+                ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=1.0)
+                for ref in ready:
+                    run, t_start = pending.pop(ref)
+                    try:
+                        st = ray.get(ref)
+                    except ray.exceptions.RayError as err:
+                        st = _crashed(run, out, err, t_start, "interrupted", signum)
+                    record(st)
         for run, t_start in pending.values():
             record(_crashed(run, out, exc, t_start, "interrupted", signum))
         return signum
