@@ -72,6 +72,11 @@ def test_a_step_that_fails_both_times_says_so_with_both_reasons():
         assert err.value.step == inputs["k"]
         assert "did not converge in 3 iterations" in err.value.reason
         assert "solved again with longer line searches: Newton did not converge in 3" in err.value.reason
+        second = err.value.__cause__                    # the traceback has both solves' failures
+        first = second.__context__
+        assert isinstance(second, SimulationError) and isinstance(first, SimulationError)
+        assert first is not second and first.__traceback__ is not None and second.__traceback__ is not None
+        assert err.value.reason == f"{first.reason}; solved again with longer line searches: {second.reason}"
     finally:
         env.close()
 

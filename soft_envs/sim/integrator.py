@@ -161,6 +161,7 @@ class NewtonSolver:
             x, info = self._solve(self._start(ctx, x_prev2, x_prev3, fixed_src, k), ctx, x_prev2, k, need_exact,
                                   cache, rescue=True)
         except SimulationError as err:
+            err.__context__ = failure             # the traceback shows both solves' failures, the first first
             raise SimulationError(f"{failure.reason}; solved again with longer line searches: {err.reason}",
                                   failure.step) from err
         return x, dataclasses.replace(info, iterations=info.iterations + first.iterations,   # both solves' work
