@@ -23,23 +23,31 @@ def pytest_configure(config):
     sweep send SIGINT and expect it to arrive."""
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
-    if not hasattr(config, "workerinput"):             # pytest itself, not one of xdist's workers
+    if (not hasattr(config, "workerinput")            # pytest itself, not one of xdist's workers
+            and getattr(config.option, "numprocesses", None)     # workers will start (not -n 0)
+            and not (getattr(config.option, "collectonly", False) or getattr(config.option, "help", False))):
         compile_kernels_once()
 
 
 def compile_kernels_once() -> None:
-    """On a cold numba cache (a fresh clone, as in CI), the kernels of every variant the tests
-    use (both contact laws, on the plane and a height field, a box) are compiled once, in one
-    process per core, before xdist's workers start: otherwise each worker, each example's and
-    README command's subprocess and each Ray worker begun before the cache is written compiles
-    them again (a cold run's tests took ~12 % longer than a warm one's). On a warm cache this
-    is a look at six cache indexes."""
+    """On a cold numba cache (a fresh clone, as in CI, or after an edit of ``soft_envs.sim``),
+    the kernels of every variant the tests use (both contact laws, on the plane and a height
+    field, a box) are compiled once, in one process per core, before xdist's workers start:
+    otherwise each worker, each example's and README command's subprocess and each Ray worker
+    begun before the cache is written compiles them again (a cold run's tests took ~12 % longer
+    than a warm one's). On a warm cache this is a look at six cache indexes. A failure is
+    printed and the tests go on (they then report the error themselves)."""
     import os
     import sys
     from soft_envs.sim import warmup
-    if not warmup.variants_cached():
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if warmup.variants_cached():
+        return
+    print("compiling the simulator's kernels once before the tests (numba's cache is cold)...", flush=True)
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    try:
         warmup.compile_variants("tripod", jobs=max(1, min(cores, 2)), out=sys.stdout)
+    except Exception as exc:  # noqa: BLE001 - the tests show what is wrong, with a full traceback
+        print(f"compiling the kernels ahead failed ({exc}); each test compiles what it needs", flush=True)
 
 
 #: the longest test files (summed durations, ``pytest --durations=0``: 70-100 s each against a

@@ -593,12 +593,13 @@ def test_a_sweep_off_a_terminal_beats_while_a_run_is_running(tmp_path, monkeypat
     assert text.splitlines()[-1].startswith("[1/1] done        t5 ")
 
 
-def test_a_second_sigterm_while_the_runs_in_flight_save_stops_the_wait(tmp_path, monkeypatch):
+@pytest.mark.parametrize("second", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_second_signal_while_the_runs_in_flight_save_stops_the_wait(tmp_path, monkeypatch, second):
     """SIGTERM stops a sweep (the runs in flight are cancelled and given CANCEL_GRACE_S to
-    save); a second SIGTERM in that grace period ends the wait at once: the runs still out are
-    recorded interrupted, and the signal is no exception escaping from Ray's wait (Ray's C++
-    wait turns one into a SystemError). Ray is a stand-in here that sends the signals from its
-    wait."""
+    save); a second SIGTERM or a Ctrl-C in that grace period ends the wait at once: the runs
+    still out are recorded interrupted, and the signal is no exception escaping from Ray's wait
+    (Ray's C++ wait turns one into a SystemError) or leaving them unrecorded. Ray is a stand-in
+    here that sends the signals from its wait."""
     import trajopt.sweep.runner as runner
     from trajopt.hardware.signals import COMMAND_SIGNALS, StopSignals
     spec = load_spec(write(tmp_path, tiny_block("r{_k}", "_k = [1, 2]")), tmp_path / "out")
@@ -623,7 +624,7 @@ def test_a_second_sigterm_while_the_runs_in_flight_save_stops_the_wait(tmp_path,
         def wait(self, refs, num_returns, timeout):
             waits.append(len(refs))
             if len(waits) <= 2:                        # the sweep's wait, then the grace period's
-                os.kill(os.getpid(), signal.SIGTERM)
+                os.kill(os.getpid(), signal.SIGTERM if len(waits) == 1 else second)
             return [], list(refs)
 
         def cancel(self, ref):

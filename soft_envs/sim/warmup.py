@@ -52,6 +52,9 @@ VARIANTS = {"own": _SENTINELS,
             "coulomb-field": (("soft_envs.sim.contact.coulomb_field", "_assemble"),),
             "paper-field": (("soft_envs.sim.contact.paper_field", "_assemble"),),
             "box": (("soft_envs.sim.contact.box_sensitivity", "prev_product"),)}
+#: the order of the variants after "own" (the box, the largest, first; a field variant before
+#: the other laws, so that the field's surface kernels are compiled once, not by two at a time)
+_STAGE_TWO = ("box", "coulomb-field", "coulomb", "paper", "paper-field")
 #: longest wait for the child [s] (it takes ~15 s of CPU time); past it the caller goes on
 _WAIT = 300.0
 #: "0": compile in the caller's process only, as numba does by default; "1": always start the
@@ -164,8 +167,9 @@ def compile_variants(robot_spec: str | os.PathLike = "tripod", names=tuple(VARIA
     name or a robot.toml path) into numba's cache, in up to ``jobs`` child processes
     (``python -m soft_envs.sim.warmup ROBOT --variant NAME``): ``"own"`` first (with the Newton
     fallback's projected Hessian in a child beside it, as :func:`compile_ahead` does), since
-    every variant shares its kernels; then the others, the box (the largest) first. Variants
-    already cached are skipped. Returns the seconds it took; raises RuntimeError naming the
+    every variant shares its kernels; then the others, the box (the largest) first, a child
+    started as soon as one ends. Variants already cached are skipped; no child is left running
+    when this raises. Returns the seconds it took; raises RuntimeError naming the
     variant whose child failed (its last line of error)."""
     for n in names:
         if n not in VARIANTS:
@@ -173,32 +177,37 @@ def compile_variants(robot_spec: str | os.PathLike = "tripod", names=tuple(VARIA
     names = [n for n in names if not variants_cached((n,))]
     t0 = time.perf_counter()
     env = dict(os.environ, PYTHONPATH=_pythonpath())
-    for stage in range(2):
-        if stage == 0:
-            queue = [["--ahead"], ["--variant", "own"]] if "own" in names else []
-        else:                                       # the robot's own law is one of them: cached now
-            queue = [["--variant", n] for n in sorted(names, key=lambda n: n != "box")
-                     if n != "own" and not variants_cached((n,))]
-        running: list = []
-        while queue or running:
-            while queue and len(running) < max(1, int(jobs)):
-                args = queue.pop(0)
-                log = tempfile.TemporaryFile()
-                running.append((args, log, subprocess.Popen(
-                    [sys.executable, "-m", "soft_envs.sim.warmup", str(robot_spec), *args],
-                    stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=log, env=env)))
-            args, log, child = running.pop(0)
+    running: list = []
+    try:
+        for stage in range(2):
+            if stage == 0:
+                queue = [["--ahead"], ["--variant", "own"]] if "own" in names else []
+            else:                                   # the robot's own law is one of them: cached now
+                queue = [["--variant", n] for n in _STAGE_TWO if n in names and not variants_cached((n,))]
+            while queue or running:
+                while queue and len(running) < max(1, int(jobs)):
+                    args = queue.pop(0)
+                    log = tempfile.TemporaryFile()
+                    running.append((args, log, subprocess.Popen(
+                        [sys.executable, "-m", "soft_envs.sim.warmup", str(robot_spec), *args],
+                        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=log, env=env)))
+                ended = [r for r in running if r[2].poll() is not None]
+                if not ended:
+                    time.sleep(0.1)
+                    continue
+                for args, log, child in ended:          # a slot is free as soon as any child ends
+                    running.remove((args, log, child))
+                    log.seek(0)
+                    last = log.read().decode(errors="replace").strip().splitlines()[-1:]
+                    log.close()
+                    if child.returncode != 0:
+                        raise RuntimeError(f"compiling the kernels ({' '.join(args)}) failed: "
+                                           f"{last[0] if last else f'exit {child.returncode}'}")
+    finally:                                        # a failure, Ctrl-C: no child is left compiling
+        for _, log, child in running:
+            child.kill()
             child.wait()
-            log.seek(0)
-            last = log.read().decode(errors="replace").strip().splitlines()[-1:]
             log.close()
-            if child.returncode != 0:
-                for _, other_log, other in running:
-                    other.kill()
-                    other.wait()
-                    other_log.close()
-                raise RuntimeError(f"compiling the kernels ({' '.join(args)}) failed: "
-                                   f"{last[0] if last else f'exit {child.returncode}'}")
     took = time.perf_counter() - t0
     if names and out is not None:
         print(f"simulator kernels of {', '.join(names)} compiled and cached ({took:.1f} s)", file=out, flush=True)

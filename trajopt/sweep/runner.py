@@ -254,13 +254,15 @@ def _run_ray(todo: list[Run], out: Path, workers, address, record, progress) -> 
         return None
     except (KeyboardInterrupt, Terminated) as exc:
         signum = signal_of(exc) or signals.SIGINT
-        progress.line(f"interrupted ({signal_label(signum)}): stopping {len(pending)} runs in flight (they save "
-                      "what they can)")
-        for ref in pending:
-            ray.cancel(ref)
-        deadline = time.time() + CANCEL_GRACE_S
-        again = StopSignals(holding=True, signals=_callers_signals())   # a second SIGTERM: stop waiting
+        # a second Ctrl-C or SIGTERM from here on ends the grace period's wait at once; the runs
+        # still out are recorded interrupted all the same
+        again = StopSignals(holding=True, signals=(signals.SIGINT, *_callers_signals()))
         with again:
+            progress.line(f"interrupted ({signal_label(signum)}): stopping {len(pending)} runs in flight (they "
+                          "save what they can)")
+            for ref in pending:
+                ray.cancel(ref)
+            deadline = time.time() + CANCEL_GRACE_S
             while pending and time.time() < deadline and not again.held:
                 ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=1.0)
                 for ref in ready:
@@ -270,8 +272,8 @@ def _run_ray(todo: list[Run], out: Path, workers, address, record, progress) -> 
                     except ray.exceptions.RayError as err:
                         st = _crashed(run, out, err, t_start, "interrupted", signum)
                     record(st)
-        for run, t_start in pending.values():
-            record(_crashed(run, out, exc, t_start, "interrupted", signum))
+            for run, t_start in pending.values():
+                record(_crashed(run, out, exc, t_start, "interrupted", signum))
         return signum
     finally:
         if started:
