@@ -637,10 +637,9 @@ def test_a_second_signal_while_the_runs_in_flight_save_stops_the_wait(tmp_path, 
         def line(self, text):
             pass
 
-    t0 = time.time()
     with StopSignals(signals=COMMAND_SIGNALS):          # the command's own handlers, as trajopt sweep's
         signum = runner._run_ray(spec.runs, tmp_path / "out", 1, None, recorded.append, Quiet())
     assert signum == signal.SIGTERM
-    assert waits == [2, 2] and time.time() - t0 < runner.CANCEL_GRACE_S / 2
+    assert waits == [2, 2]                              # one wait of the grace period, not its 60 s of them
     assert [st["status"] for st in recorded] == ["interrupted", "interrupted"]
     assert all(st["reason"] == "interrupted (SIGTERM)" for st in recorded)
